@@ -1,0 +1,88 @@
+"""Health checks between steps, and diagnoses that name the body, joint, time and quantity.
+
+A run never continues into NaNs: ``check_state`` raises ``SimulationFailure`` with a message
+such as "t = 1.234 s: body 'link3': speed 2.1e+04 m/s exceeds sim.blowup_speed = 1e+04 m/s".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viz3d.constraints import constraint_residual
+from viz3d.kinematics import pose_from
+from viz3d.system import State, System
+
+
+class SimulationFailure(RuntimeError):
+    """A run that cannot go on; ``str(exc)`` is the diagnosis."""
+
+
+def check_state(system: System, state: State, blowup_speed: float) -> None:
+    """Raise ``SimulationFailure`` on non-finite values, runaway speeds or singular coordinates."""
+    if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v))):
+        raise SimulationFailure(_nonfinite(system, state))
+    W_v, B_omega = system.split_v(state.v)
+    speed = np.linalg.norm(W_v, axis=1)
+    b = int(np.argmax(speed))
+    if speed[b] > blowup_speed:
+        raise SimulationFailure(f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: speed {speed[b]:.3g} m/s exceeds "
+                                f"sim.blowup_speed = {blowup_speed:.3g} m/s (diverged; try a smaller sim.dt){_worst_joint(system, state)}")
+    _, theta = system.split_q(state.q)
+    singular = np.flatnonzero(system.rotation.singular_bodies(theta))
+    if singular.size:
+        b = int(singular[0])
+        raise SimulationFailure(
+            f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: nutation theta = {theta[b, 1]:.3e} rad reached the "
+            f"gimbal lock of {system.rotation.name} (singular Euler-angle rate map); use sim.rotation = 'euler_switching'")
+
+
+def check_violation(system: System, state: State, violation: float, limit: float) -> None:
+    """Raise ``SimulationFailure`` when ``violation`` = max |C| [m] exceeds ``limit``."""
+    if violation > limit:
+        raise SimulationFailure(f"t = {state.t:.6g} s: constraint violation {violation:.3g} m exceeds sim.blowup_violation = "
+                                f"{limit:.3g} m{_worst_joint(system, state)}; try a smaller sim.dt or a stabilizing formulation")
+
+
+def _nonfinite(system: System, state: State) -> str:
+    qb = state.q.reshape(system.n_bodies, -1)
+    vb = state.v.reshape(system.n_bodies, 6)
+    bad = np.flatnonzero(~(np.all(np.isfinite(qb), axis=1) & np.all(np.isfinite(vb), axis=1)))
+    names = ", ".join(repr(system.bodies.names[b]) for b in bad[:5])
+    what = "position/orientation" if not np.all(np.isfinite(qb[bad[0]])) else "velocity"
+    return f"t = {state.t:.6g} s: non-finite {what} of body {names} (diverged; try a smaller sim.dt)"
+
+
+def _worst_joint(system: System, state: State) -> str:
+    if system.n_c == 0:
+        return ""
+    W_r, theta = system.split_q(state.q)
+    with np.errstate(all="ignore"):
+        C = constraint_residual(system.joints, pose_from(W_r, system.rotation.matrix(theta, state.chart)))
+    if not np.all(np.isfinite(C)):
+        return ""
+    per_joint = _per_joint(system, np.abs(C))
+    j = int(np.argmax(per_joint))
+    return f"; largest violation at joint {system.joint_names[j]!r} (|C| = {per_joint[j]:.3g} m)"
+
+
+def _per_joint(system: System, row_values: np.ndarray) -> np.ndarray:
+    out = []
+    for js, sl in zip(system.joints.joints, system.joints.row_slices()):
+        out.append(row_values[sl].reshape(js.n_joints, js.n_eq).max(axis=1))
+    return np.concatenate(out)
+
+
+def redundant_joints(system: System, J: np.ndarray, rel_tol: float = 1e-9) -> list[str]:
+    """Names of the joints involved in a rank deficiency of ``C_v`` (rows (n_c, 2, 6))."""
+    n_c, nb = system.n_c, system.n_bodies
+    dense = np.zeros((n_c, 6 * (nb + 1)))
+    cols = system.joints.row_body[:, :, None] * 6 + np.arange(6)
+    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
+    U, s, _ = np.linalg.svd(dense[:, : 6 * nb])
+    null = U[:, s <= rel_tol * max(s.max(), 1e-300)] if s.size else U
+    if null.shape[1] == 0 and n_c > s.size:
+        null = U[:, s.size:]
+    if null.shape[1] == 0:
+        return []
+    weight = _per_joint(system, np.abs(null).max(axis=1))
+    return [system.joint_names[j] for j in np.flatnonzero(weight > 1e-6)]

@@ -1,0 +1,83 @@
+"""Body poses and twists from the state vectors, with ground appended as body index ``nb``.
+
+Appending ground (identity pose, zero twist, zero inverse mass) lets joints and force elements
+address "ground" like any body, so no stage needs a mask. See docs/notation.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viz3d.rotations import cross
+from viz3d._typing import FloatArray, IntArray
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Positions and orientations of all bodies plus ground (last row).
+
+    Attributes
+    ----------
+    W_r : ndarray, shape (nb + 1, 3)
+        Centre-of-mass positions in world [m]; ground at the origin.
+    R_WB : ndarray, shape (nb + 1, 3, 3)
+        World-from-body rotations; ground is the identity.
+    """
+
+    W_r: FloatArray
+    R_WB: FloatArray
+
+    def point(self, body: IntArray, B_s: FloatArray) -> FloatArray:
+        """World positions of body-fixed points, shape (k, 3), from ``body`` (k,), ``B_s`` (k, 3) [m]."""
+        return self.W_r[body] + self.lever(body, B_s)
+
+    def lever(self, body: IntArray, B_s: FloatArray) -> FloatArray:
+        """World vectors from the centre of mass to body-fixed points, shape (k, 3) [m]."""
+        return np.einsum("kij,kj->ki", self.R_WB[body], B_s)
+
+
+@dataclass(frozen=True)
+class Twist:
+    """Velocities of all bodies plus ground (last row, zero).
+
+    Attributes
+    ----------
+    W_v : ndarray, shape (nb + 1, 3)
+        Centre-of-mass velocities in world [m/s].
+    B_omega : ndarray, shape (nb + 1, 3)
+        Angular velocities in body axes [rad/s].
+    W_omega : ndarray, shape (nb + 1, 3)
+        Angular velocities in world axes [rad/s].
+    """
+
+    W_v: FloatArray
+    B_omega: FloatArray
+    W_omega: FloatArray
+
+    def point_velocity(self, body: IntArray, W_rho: FloatArray) -> FloatArray:
+        """World velocities of points at world levers ``W_rho`` (k, 3) from their bodies' centres."""
+        return self.W_v[body] + cross(self.W_omega[body], W_rho)
+
+
+def with_ground(x: FloatArray, ground: FloatArray) -> FloatArray:
+    """Append ``ground`` (one row) to ``x`` along the first axis."""
+    return np.concatenate([x, ground[None]], axis=0)
+
+
+_ZERO3 = np.zeros(3)
+_EYE3 = np.eye(3)
+
+
+def pose_from(W_r: FloatArray, R_WB: FloatArray) -> Pose:
+    """Pose with ground appended, from (nb, 3) positions and (nb, 3, 3) rotations."""
+    return Pose(with_ground(W_r, _ZERO3), with_ground(R_WB, _EYE3))
+
+
+def twist_from(W_v: FloatArray, B_omega: FloatArray, pose: Pose) -> Twist:
+    """Twist with ground appended, from (nb, 3) velocities and body angular velocities."""
+    W_v = with_ground(W_v, _ZERO3)
+    B_omega = with_ground(B_omega, _ZERO3)
+    W_omega = np.einsum("bij,bj->bi", pose.R_WB, B_omega)
+    return Twist(W_v, B_omega, W_omega)

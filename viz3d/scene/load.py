@@ -1,0 +1,265 @@
+"""Scene files -> validated, fully resolved ``Scene`` values.
+
+Order: read TOML -> apply ``--set`` overrides to the raw tables -> expand generators (``[chain]``)
+-> validate against ``spec.SCENE_FILE`` -> cross-check names. A scene never executes code.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from viz3d.rotations import euler_from_matrix
+from viz3d.scene import spec
+from viz3d.scene.schema import SceneError, validate
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene.
+
+    Attributes
+    ----------
+    path : Path
+        The scene file.
+    data : dict
+        Resolved tables (defaults filled in, generators expanded) after overrides.
+    overrides : tuple of str
+        The ``key.path=value`` overrides applied, in order.
+    """
+
+    path: Path
+    data: dict
+    overrides: tuple[str, ...] = ()
+
+    @property
+    def name(self) -> str:
+        return self.data["scene"].get("name", self.path.stem)
+
+    @property
+    def base_dir(self) -> Path:
+        return self.path.parent
+
+    def source(self) -> str:
+        """How errors name this scene: the file, plus the overrides if any."""
+        if not self.overrides:
+            return str(self.path)
+        return f"{self.path} (with --set {' --set '.join(self.overrides)})"
+
+
+def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | None = None) -> Scene:
+    """Read, override, expand and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+    overrides : iterable of "key.path=value" strings, or mapping key.path -> value
+        List elements are addressed by index or by their ``name`` (``bodies.rod.mass=2``).
+        String values are parsed as TOML values (``1e-3``, ``[0, 0, 1]``, ``true``), falling back
+        to a plain string (``sim.integrator=rk4``).
+
+    Raises
+    ------
+    SceneError
+        Naming the file, the key path and what was expected.
+    """
+    path = Path(path)
+    pairs = _override_pairs(overrides)
+    texts = tuple(f"{k}={v}" if not isinstance(v, str) else f"{k}={v}" for k, v in pairs)
+    source = str(path) if not texts else f"{path} (with --set {' --set '.join(texts)})"
+    raw = _read_toml(path)
+    for key, value in pairs:
+        _set_path(raw, key, value, source)
+    raw = expand_generators(raw, source)
+    data = validate(raw, spec.SCENE_FILE, source)
+    _cross_check(data, source)
+    return Scene(path, data, texts)
+
+
+def _read_toml(path: Path) -> dict:
+    if not path.is_file():
+        raise SceneError(str(path), "", "an existing scene file (not found)")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(str(path), "", f"valid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(str(path), "", f"UTF-8 text ({exc})") from None
+
+
+def parse_value(text: str) -> Any:
+    """A TOML value from ``text``; a bare word stays a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _override_pairs(overrides) -> list[tuple[str, Any]]:
+    if overrides is None:
+        return []
+    if isinstance(overrides, Mapping):
+        return list(overrides.items())
+    pairs = []
+    for item in overrides:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise SceneError("--set", item, "key.path=value")
+        pairs.append((key.strip(), parse_value(value.strip())))
+    return pairs
+
+
+def _set_path(raw: dict, key: str, value: Any, source: str) -> None:
+    parts = key.split(".")
+    node: Any = raw
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        where = ".".join(parts[: i + 1])
+        if isinstance(node, list):
+            idx = _list_index(node, part)
+            if idx is None:
+                raise SceneError(source, where, f"an index 0..{len(node) - 1} or the name of an element")
+            if last:
+                node[idx] = value
+            node = node[idx]
+        elif isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
+        else:
+            raise SceneError(source, where, "a table or array to index into", node)
+
+
+def _list_index(node: list, part: str) -> int | None:
+    if part.isdigit():
+        return int(part) if int(part) < len(node) else None
+    for i, item in enumerate(node):
+        if isinstance(item, dict) and item.get("name") == part:
+            return i
+    return None
+
+
+# ---------------------------------------------------------------- generators
+
+
+def expand_generators(raw: dict, source: str) -> dict:
+    """Append the bodies and joints of generator tables (``[chain]``) to the raw scene."""
+    if "chain" not in raw:
+        return raw
+    chain = validate(raw["chain"], spec.CHAIN, source, "chain")
+    raw = copy.deepcopy(raw)
+    bodies, joints = chain_elements(chain)
+    raw["bodies"] = list(raw.get("bodies", [])) + bodies
+    raw["joints"] = list(raw.get("joints", [])) + joints
+    return raw
+
+
+def chain_elements(chain: dict) -> tuple[list[dict], list[dict]]:
+    """Raw body and joint tables of an N-link capsule chain (see ``spec.CHAIN``)."""
+    n, L, r = chain["n"], chain["link_length"], chain["radius"]
+    d = np.asarray(chain["direction"], float)
+    d /= np.linalg.norm(d)
+    anchor, omega = np.asarray(chain["anchor"], float), np.asarray(chain["omega"], float)
+    euler = euler_from_matrix(_frame_with_z(d)).tolist()
+    mass = {"mass": chain["mass"]} if "mass" in chain else {"density": chain["density"]}
+    bodies, joints = [], []
+    for i in range(n):
+        c = anchor + (i + 0.5) * L * d
+        bodies.append({
+            "name": f"{chain['prefix']}{i}", "shape": {"type": "capsule", "radius": r, "height": L}, **mass,
+            "position": c.tolist(), "euler": euler, "velocity": np.cross(omega, c - anchor).tolist(),
+            "omega": omega.tolist(), "color": chain["color"],
+        })
+        joints.append({
+            "name": f"{chain['prefix']}_j{i}", "type": "ball", "body1": f"{chain['prefix']}{i}",
+            "body2": "ground" if i == 0 else f"{chain['prefix']}{i - 1}", "point": (anchor + i * L * d).tolist(),
+        })
+    return bodies, joints
+
+
+def _frame_with_z(z: np.ndarray) -> np.ndarray:
+    """A rotation matrix whose third column is the unit vector ``z``."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+# ---------------------------------------------------------------- cross checks
+
+
+def _cross_check(data: dict, source: str) -> None:
+    bodies = data["bodies"]
+    if not bodies:
+        raise SceneError(source, "bodies", "at least one [[bodies]] table")
+    _unique(bodies, "bodies", source)
+    names = {b["name"] for b in bodies} | {"ground"}
+    for i, b in enumerate(bodies):
+        _check_body(b, f"bodies[{i}]", source)
+    for i, j in enumerate(data["joints"]):
+        j.setdefault("name", f"j{i}")
+        _check_refs(j, ("body1", "body2"), names, f"joints[{i}]", source)
+        _check_points(j, f"joints[{i}]", source)
+    _unique(data["joints"], "joints", source)
+    for i, f in enumerate(data["forces"]):
+        f.setdefault("name", f"{f['type']}{i}")
+        where = f"forces[{i}]"
+        _check_refs(f, ("body1", "body2", "body"), names, where, source)
+        if f["type"] == "spring_damper":
+            for side in "12":
+                if (f"point{side}" in f) == (f"local{side}" in f):
+                    raise SceneError(source, f"{where}.point{side}", f"exactly one of point{side} or local{side}")
+        if f["type"] == "force" and "point" in f and "local" in f:
+            raise SceneError(source, f"{where}.point", "at most one of point or local")
+        if f.get("body") == "ground":
+            raise SceneError(source, f"{where}.body", "a body (not ground)")
+    _unique(data["forces"], "forces", source)
+
+
+def _unique(items: list[dict], table: str, source: str) -> None:
+    seen = set()
+    for i, item in enumerate(items):
+        if item["name"] in seen:
+            raise SceneError(source, f"{table}[{i}].name", "a name not used before in this table", item["name"])
+        seen.add(item["name"])
+
+
+def _check_refs(item: dict, keys: tuple[str, ...], names: set[str], where: str, source: str) -> None:
+    for key in keys:
+        if key in item and item[key] not in names:
+            raise SceneError(source, f"{where}.{key}", f"a body name ({', '.join(sorted(names))})", item[key])
+    if "body1" in item and item["body1"] == item.get("body2"):
+        raise SceneError(source, f"{where}.body2", "a body other than body1", item["body2"])
+    if item.get("body1") == "ground":
+        raise SceneError(source, f"{where}.body1", "a body (ground may only be body2)", "ground")
+
+
+def _check_points(joint: dict, where: str, source: str) -> None:
+    has_point, has_locals = "point" in joint, ("local1" in joint, "local2" in joint)
+    if has_point and any(has_locals):
+        raise SceneError(source, f"{where}.point", "either point, or local1 and local2, not both")
+    if not has_point and not all(has_locals):
+        raise SceneError(source, f"{where}.point", "a joint point: point (world), or both local1 and local2")
+
+
+def _check_body(b: dict, where: str, source: str) -> None:
+    if "euler" in b and "euler_deg" in b:
+        raise SceneError(source, f"{where}.euler_deg", "at most one of euler or euler_deg")
+    has = {k: k in b for k in ("mass", "inertia", "density", "shape")}
+    if has["density"]:
+        if not has["shape"]:
+            raise SceneError(source, f"{where}.shape", "a shape to compute mass properties from density")
+        if has["mass"] or has["inertia"]:
+            raise SceneError(source, f"{where}.density", "density alone, or mass (and inertia), not both")
+    elif not has["mass"]:
+        raise SceneError(source, f"{where}.mass", "mass (with inertia or a shape), or density with a shape")
+    elif not has["inertia"] and not has["shape"]:
+        raise SceneError(source, f"{where}.inertia", "an inertia tensor, or a shape to compute it from")
+    if has["inertia"] and not has["mass"]:
+        raise SceneError(source, f"{where}.mass", "a mass to go with the inertia tensor")

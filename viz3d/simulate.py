@@ -1,0 +1,247 @@
+"""Running a system in time: ``Simulation`` (one fixed step at a time) and ``simulate`` (a whole
+headless run into a ``Trajectory``).
+
+A run that fails stops at once with a diagnosis in ``Trajectory.status``; the frames computed so
+far are kept. Ctrl-C likewise ends the run with status "interrupted ..." and keeps the frames.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viz3d.constraints import SingularConstraintError, constraint_residual
+from viz3d.diagnosis import SimulationFailure, check_state, check_violation, redundant_joints
+from viz3d.dynamics import VectorField, accelerations, body_state, energies
+from viz3d.integrators import Integrator, make_integrator
+from viz3d.kinematics import pose_from
+from viz3d.rotations import euler_from_matrix
+from viz3d.scene.build import build, make_formulation
+from viz3d.scene.load import Scene, load_scene
+from viz3d.stabilization import ProjectionError
+from viz3d.system import State, System
+from viz3d.trajectory import Trajectory
+
+#: Output interval when the scene gives none [s].
+DEFAULT_OUTPUT_DT = 0.01
+#: Show a progress bar when a run is projected to take longer than this [s] of wall time.
+PROGRESS_AFTER = 2.0
+
+
+class Simulation:
+    """Advance a ``System`` from a ``State`` by fixed steps; used by ``simulate`` and the viewer.
+
+    Parameters
+    ----------
+    system, state : System, State
+    integrator : Integrator
+    formulation : Index1, Baumgarte or Projection
+    dt : float
+        Step [s].
+    blowup_speed : float
+        Speed [m/s] above which the run is declared diverged.
+
+    Attributes
+    ----------
+    state : State
+        Current state.
+    chart_switches : ndarray of int, shape (nb,)
+    n_steps, n_rhs : int
+        Steps taken and vector-field evaluations so far.
+    """
+
+    def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
+                 blowup_speed: float = 1e4):
+        self.system, self.state = system, state
+        self.integrator, self.formulation, self.dt = integrator, formulation, dt
+        self.blowup_speed = blowup_speed
+        self.chart_switches = np.zeros(system.n_bodies, dtype=int)
+        self.t0, self.n_steps, self.n_rhs = state.t, 0, 0
+
+    def step(self) -> State:
+        """Take one step; raise ``SimulationFailure`` with a diagnosis if the run cannot go on."""
+        s, system = self.state, self.system
+        rhs = VectorField(system, self.formulation, s.chart)
+        try:
+            with np.errstate(all="ignore"):
+                y = self.integrator.step(rhs, s.t, s.y, self.dt).y
+            new = State(self.t0 + (self.n_steps + 1) * self.dt, y[: system.n_q], y[system.n_q:], s.chart)
+            new = self.formulation.post_step(system, new)
+        except SingularConstraintError:
+            raise SimulationFailure(self._singular_message(s)) from None
+        except ProjectionError as exc:
+            raise SimulationFailure(f"t = {s.t + self.dt:.6g} s: {exc}") from None
+        finally:
+            self.n_rhs += rhs.n_evals
+        check_state(system, new, self.blowup_speed)
+        self.state = self._rechart(new)
+        self.n_steps += 1
+        return self.state
+
+    def _rechart(self, state: State) -> State:
+        W_r, theta = self.system.split_q(state.q)
+        theta, chart, switched = self.system.rotation.rechart(theta, state.chart)
+        if not np.any(switched):
+            return state
+        self.chart_switches += switched
+        return state.replace(q=self.system.join_q(W_r, theta), chart=chart)
+
+    def _singular_message(self, s: State) -> str:
+        pose, twist = body_state(self.system, s.q, s.v, s.chart)
+        from viz3d.constraints import constraint_rows
+
+        names = redundant_joints(self.system, constraint_rows(self.system.joints, pose, twist).J)
+        who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "constraint matrix lost rank"
+        return f"t = {s.t:.6g} s: singular constraint Jacobian: {who}"
+
+
+class FrameRecorder:
+    """Collects output frames of a run into arrays (see ``Trajectory`` for fields)."""
+
+    def __init__(self, system: System, formulation):
+        self.system, self.formulation = system, formulation
+        self.rows: dict[str, list] = {k: [] for k in (
+            "t", "position", "rotation", "velocity", "omega", "energy_kinetic", "energy_potential",
+            "constraint_violation", "reaction_force")}
+
+    def record(self, state: State) -> float:
+        """Store one frame; return its constraint violation max |C| [m]."""
+        system = self.system
+        pose, twist = body_state(system, state.q, state.v, state.chart)
+        T, V = energies(system, state)
+        acc = accelerations(system, self.formulation, state.t, state.q, state.v, state.chart)
+        violation = float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0
+        reactions = [js.reaction_force(acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6),
+                                       acc.lam[sl].reshape(js.n_joints, js.n_eq))
+                     for js, sl in zip(system.joints.joints, system.joints.row_slices())]
+        values = (state.t, pose.W_r[:-1], pose.R_WB[:-1], twist.W_v[:-1], twist.W_omega[:-1], T, V, violation,
+                  np.concatenate(reactions) if reactions else np.zeros((0, 3)))
+        for key, value in zip(self.rows, values):
+            self.rows[key].append(value)
+        return violation
+
+    def trajectory(self, status: str, scene_json: str, chart_switches, **cost) -> Trajectory:
+        a = {k: np.asarray(v, dtype=float) for k, v in self.rows.items()}
+        b = self.system.bodies
+        nb, nj = b.n_bodies, len(self.system.joint_names)
+        if a["t"].size == 0:
+            a.update(position=np.zeros((0, nb, 3)), rotation=np.zeros((0, nb, 3, 3)), velocity=np.zeros((0, nb, 3)),
+                     omega=np.zeros((0, nb, 3)), reaction_force=np.zeros((0, nj, 3)))
+        return Trajectory(
+            t=a["t"], body_names=np.array(b.names), mass=b.mass.copy(), inertia_body=b.inertia.copy(),
+            position=a["position"], rotation=a["rotation"], euler=euler_from_matrix(a["rotation"]),
+            velocity=a["velocity"], omega=a["omega"], energy_kinetic=a["energy_kinetic"],
+            energy_potential=a["energy_potential"], energy_total=a["energy_kinetic"] + a["energy_potential"],
+            constraint_violation=a["constraint_violation"], joint_names=np.array(self.system.joint_names, dtype=str),
+            reaction_force=a["reaction_force"].reshape(a["t"].size, nj, 3), chart_switches=np.asarray(chart_switches, int),
+            status=status, scene_json=scene_json, **cost)
+
+
+def with_sim(scene: Scene, **changes) -> Scene:
+    """A copy of ``scene`` with ``sim`` keys changed (``None`` values ignored), recorded as overrides."""
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if not changes:
+        return scene
+    data = json.loads(json.dumps(scene.data))
+    data["sim"].update(changes)
+    return dataclasses.replace(scene, data=data, overrides=scene.overrides + tuple(f"sim.{k}={v}" for k, v in changes.items()))
+
+
+def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None = None, dt: float | None = None,
+             progress: bool = False) -> Trajectory:
+    """Run a scene headless and return its ``Trajectory``.
+
+    Parameters
+    ----------
+    scene : Scene, or a path to a scene file
+    overrides : "key.path=value" strings or mapping (only with a path)
+    t_end, dt : float, optional
+        Override ``sim.t_end`` and ``sim.dt`` [s].
+    progress : bool
+        Draw a progress bar on stderr when the run is projected to take over 2 s.
+    """
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene, overrides)
+    elif overrides:
+        raise ValueError("overrides apply when loading: use load_scene(path, overrides)")
+    scene = with_sim(scene, t_end=t_end, dt=dt)
+    system, state = build(scene)
+    sim_cfg = scene.data["sim"]
+    formulation = make_formulation(sim_cfg)
+    sim = Simulation(system, state, make_integrator(sim_cfg["integrator"]), formulation, sim_cfg["dt"],
+                     sim_cfg["blowup_speed"])
+    return run(sim, scene, formulation, progress)
+
+
+def run(sim: Simulation, scene: Scene, formulation, progress: bool = False) -> Trajectory:
+    """Drive ``sim`` to ``sim.t_end``, recording frames every ``output_dt``."""
+    cfg = scene.data["sim"]
+    n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
+    every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
+    recorder = FrameRecorder(sim.system, formulation)
+    bar = ProgressBar(n_steps) if progress else None
+    status, wall0 = "ok", time.perf_counter()
+    try:
+        check_violation(sim.system, sim.state, recorder.record(sim.state), cfg["blowup_violation"])
+        for n in range(1, n_steps + 1):
+            sim.step()
+            if n % every == 0 or n == n_steps:
+                check_violation(sim.system, sim.state, recorder.record(sim.state), cfg["blowup_violation"])
+            if bar is not None:
+                bar.update(n)
+    except SimulationFailure as exc:
+        status = str(exc)
+    except KeyboardInterrupt:
+        status = f"interrupted at t = {sim.state.t:.6g} s"
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - wall0
+    return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, wall_time=wall,
+                               n_steps=sim.n_steps, n_rhs=sim.n_rhs)
+
+
+def scene_json(scene: Scene, sim: Simulation) -> str:
+    """The resolved scene plus what produced the run (version, integrator, step, source)."""
+    from viz3d import __version__
+
+    cfg = scene.data["sim"]
+    meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": cfg["dt"],
+            "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
+            "overrides": list(scene.overrides)}
+    return json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)
+
+
+class ProgressBar:
+    """A one-line stderr progress bar that appears only for runs projected to exceed 2 s."""
+
+    def __init__(self, total: int, stream=sys.stderr):
+        self.total, self.stream = total, stream
+        self.start = time.perf_counter()
+        self.shown, self.last = False, 0.0
+
+    def update(self, n: int) -> None:
+        now = time.perf_counter()
+        if now - self.last < 0.2:
+            return
+        self.last = now
+        elapsed = now - self.start
+        eta = elapsed / n * (self.total - n)
+        if not self.shown and elapsed + eta < PROGRESS_AFTER:
+            return
+        self.shown = True
+        frac = n / self.total
+        bar = "#" * int(30 * frac)
+        self.stream.write(f"\r[{bar:<30}] {100 * frac:5.1f}%  {elapsed:6.1f} s elapsed, {eta:6.1f} s left")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
