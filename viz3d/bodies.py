@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from viz3d.rotations import cross
 from viz3d._typing import FloatArray
+from viz3d.rotations import cross
 
 
 class InertiaError(ValueError):

@@ -84,14 +84,22 @@ def summary(traj, out: Path) -> str:
         f"method      {meta['integrator']}, dt = {meta['dt']:g} s, {meta['formulation']}, {meta['rotation']}",
         f"bodies      {len(traj.body_names)}, joints {len(traj.joint_names)}",
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
-        f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, {1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",
-        f"energy      drift max |E - E0| = {traj.energy_drift:.3e} J ({traj.energy_drift_rel:.3e} of max kinetic)",
+        f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, "
+        f"{1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",
+        _energy_line(traj, meta),
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
         f"status      {traj.status}",
         f"wrote       {out}",
     ]
     return "\n".join(lines)
+
+
+def _energy_line(traj, meta) -> str:
+    if meta.get("conservative", True):
+        return f"energy      drift max |E - E0| = {traj.energy_drift:.3e} J ({traj.energy_drift_rel:.3e} of max kinetic)"
+    return (f"energy      change max |E - E0| = {traj.energy_drift:.3e} J (not conserved: the scene has dampers "
+            f"or applied loads)")
 
 
 def cmd_check(args) -> int:

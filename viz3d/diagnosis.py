@@ -17,23 +17,41 @@ class SimulationFailure(RuntimeError):
     """A run that cannot go on; ``str(exc)`` is the diagnosis."""
 
 
-def check_state(system: System, state: State, blowup_speed: float) -> None:
-    """Raise ``SimulationFailure`` on non-finite values, runaway speeds or singular coordinates."""
+#: A body whose orientation coordinates change faster than this per step [rad] is unresolved.
+MAX_COORDINATE_TURN = 1.0
+
+
+def check_state(system: System, state: State, blowup_speed: float, dt: float) -> None:
+    """Raise ``SimulationFailure`` on non-finite values, runaway speeds or singular coordinates.
+
+    Orientation coordinates are singular where their rate map is (``rotation.singular_bodies``)
+    and unresolved where ``|theta_dot| dt`` exceeds ``MAX_COORDINATE_TURN``: near the gimbal lock
+    of plain Euler angles the precession and spin rates grow like ``1 / sin(theta)``.
+    """
     if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v))):
         raise SimulationFailure(_nonfinite(system, state))
     W_v, B_omega = system.split_v(state.v)
     speed = np.linalg.norm(W_v, axis=1)
     b = int(np.argmax(speed))
     if speed[b] > blowup_speed:
-        raise SimulationFailure(f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: speed {speed[b]:.3g} m/s exceeds "
-                                f"sim.blowup_speed = {blowup_speed:.3g} m/s (diverged; try a smaller sim.dt){_worst_joint(system, state)}")
-    _, theta = system.split_q(state.q)
-    singular = np.flatnonzero(system.rotation.singular_bodies(theta))
-    if singular.size:
-        b = int(singular[0])
         raise SimulationFailure(
-            f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: nutation theta = {theta[b, 1]:.3e} rad reached the "
-            f"gimbal lock of {system.rotation.name} (singular Euler-angle rate map); use sim.rotation = 'euler_switching'")
+            f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: speed {speed[b]:.3g} m/s exceeds sim.blowup_speed = "
+            f"{blowup_speed:.3g} m/s (diverged; try a smaller sim.dt){_worst_joint(system, state)}")
+    _, theta = system.split_q(state.q)
+    turn = np.max(np.abs(system.rotation.rates(theta, B_omega)), axis=1) * dt
+    bad = np.flatnonzero(system.rotation.singular_bodies(theta) | (turn > MAX_COORDINATE_TURN))
+    if bad.size:
+        raise SimulationFailure(_singular(system, state, int(bad[0]), theta, turn))
+
+
+def _singular(system: System, state: State, b: int, theta, turn) -> str:
+    name = system.bodies.names[b]
+    if system.rotation.singular_bodies(theta)[b] or abs(np.sin(theta[b, 1])) < 0.1:
+        return (f"t = {state.t:.6g} s: body {name!r}: nutation theta = {theta[b, 1]:.3e} rad at the gimbal lock of "
+                f"{system.rotation.name}: singular Euler-angle rate map (coordinates turn {turn[b]:.3g} rad per step); "
+                f"use sim.rotation = 'euler_switching'")
+    return (f"t = {state.t:.6g} s: body {name!r}: orientation coordinates turn {turn[b]:.3g} rad per step "
+            f"(> {MAX_COORDINATE_TURN} rad): the step cannot resolve the rotation; try a smaller sim.dt")
 
 
 def check_violation(system: System, state: State, violation: float, limit: float) -> None:

@@ -14,9 +14,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from viz3d.rotations import cross
 from viz3d._typing import FloatArray, IntArray
 from viz3d.kinematics import Pose, Twist
+from viz3d.rotations import cross
 from viz3d.timefunctions import TimeFunctions
 
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
@@ -43,6 +43,11 @@ class ForceElement(ABC):
         """Potential energy [J]; zero for non-conservative elements."""
         return 0.0
 
+    @property
+    def conservative(self) -> bool:
+        """True when the element's forces are minus the gradient of ``potential_energy``."""
+        return False
+
 
 @dataclass(frozen=True)
 class Gravity(ForceElement):
@@ -65,6 +70,10 @@ class Gravity(ForceElement):
 
     def potential_energy(self, t, pose):
         return -float(self.mass @ (pose.W_r[:-1] @ self.g))
+
+    @property
+    def conservative(self) -> bool:
+        return True
 
 
 @dataclass(frozen=True)
@@ -118,6 +127,10 @@ class SpringDamper(ForceElement):
         F = scatter(n, flat_b, F_pts.reshape(-1, 3))
         tau = scatter(n, flat_b, cross(rho, F_pts).reshape(-1, 3))
         return F, tau
+
+    @property
+    def conservative(self) -> bool:
+        return not np.any(self.damping > 0)
 
     def potential_energy(self, t, pose):
         _, _, length, _ = self._geometry(pose)

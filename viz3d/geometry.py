@@ -113,7 +113,8 @@ def display_mesh(shape: dict, base_dir: Path, center: FloatArray):
     if kind == "sphere":
         return trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=shape["radius"])
     if kind == "capsule":
-        return trimesh.creation.capsule(height=shape["height"], radius=shape["radius"], count=[CYLINDER_SECTIONS, CYLINDER_SECTIONS])
+        return trimesh.creation.capsule(height=shape["height"], radius=shape["radius"],
+                                        count=[CYLINDER_SECTIONS, CYLINDER_SECTIONS])
     mesh = load_mesh(base_dir / shape["file"], shape["scale"])
     mesh.apply_translation(-np.asarray(center))
     return mesh

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viz3d.rotations import cross
 from viz3d._typing import FloatArray, IntArray
+from viz3d.rotations import cross
 
 
 @dataclass(frozen=True)

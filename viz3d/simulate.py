@@ -16,11 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.constraints import SingularConstraintError, constraint_residual
+from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import SimulationFailure, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, accelerations, body_state, energies
 from viz3d.integrators import Integrator, make_integrator
-from viz3d.kinematics import pose_from
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_formulation
 from viz3d.scene.load import Scene, load_scene
@@ -79,7 +78,7 @@ class Simulation:
             raise SimulationFailure(f"t = {s.t + self.dt:.6g} s: {exc}") from None
         finally:
             self.n_rhs += rhs.n_evals
-        check_state(system, new, self.blowup_speed)
+        check_state(system, new, self.blowup_speed, self.dt)
         self.state = self._rechart(new)
         self.n_steps += 1
         return self.state
@@ -94,8 +93,6 @@ class Simulation:
 
     def _singular_message(self, s: State) -> str:
         pose, twist = body_state(self.system, s.q, s.v, s.chart)
-        from viz3d.constraints import constraint_rows
-
         names = redundant_joints(self.system, constraint_rows(self.system.joints, pose, twist).J)
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "constraint matrix lost rank"
         return f"t = {s.t:.6g} s: singular constraint Jacobian: {who}"
@@ -214,21 +211,23 @@ def scene_json(scene: Scene, sim: Simulation) -> str:
     cfg = scene.data["sim"]
     meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": cfg["dt"],
             "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
-            "overrides": list(scene.overrides)}
+            "overrides": list(scene.overrides),
+            "conservative": all(e.conservative for e in sim.system.forces)}
     return json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)
 
 
 class ProgressBar:
     """A one-line stderr progress bar that appears only for runs projected to exceed 2 s."""
 
-    def __init__(self, total: int, stream=sys.stderr):
-        self.total, self.stream = total, stream
+    def __init__(self, total: int, stream=None):
+        self.total, self.stream = total, stream or sys.stderr
+        self.enabled = stream is not None or self.stream.isatty()  # no bar in logs and pipes
         self.start = time.perf_counter()
         self.shown, self.last = False, 0.0
 
     def update(self, n: int) -> None:
         now = time.perf_counter()
-        if now - self.last < 0.2:
+        if not self.enabled or now - self.last < 0.2:
             return
         self.last = now
         elapsed = now - self.start

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from viz3d.integrators.base import Integrator, StepResult
 from viz3d.integrators.tableaus import ButcherTableau
 

@@ -17,11 +17,12 @@ from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_residual
 from viz3d.coordinates import ROTATIONS
+from viz3d.diagnosis import redundant_joints
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, SpringDamper
 from viz3d.formulation import Baumgarte, Index1, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
 from viz3d.joints import BallJoint
-from viz3d.kinematics import pose_from, twist_from
+from viz3d.kinematics import pose_from
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
@@ -137,13 +138,22 @@ def _local_point(pose, body: int, entry: dict, point_key: str, local_key: str) -
 
 
 def build_joints(scene: Scene, bodies: Bodies, pose0) -> tuple:
-    entries = scene.data["joints"]
-    if not entries:
-        return ()
+    """One joint set per joint type present, in the order of ``JOINT_BUILDERS``."""
+    groups: dict[str, list[dict]] = {}
+    for j in scene.data["joints"]:
+        groups.setdefault(j["type"], []).append(j)
+    return tuple(make(groups[kind], bodies, pose0) for kind, make in JOINT_BUILDERS.items() if kind in groups)
+
+
+def _ball_joints(entries: list[dict], bodies: Bodies, pose0) -> BallJoint:
     body = np.array([[bodies.index(j["body1"]), bodies.index(j["body2"])] for j in entries], dtype=int)
     B_s = np.array([[_local_point(pose0, body[k, 0], j, "point", "local1"),
                      _local_point(pose0, body[k, 1], j, "point", "local2")] for k, j in enumerate(entries)])
-    return (BallJoint(tuple(j["name"] for j in entries), body, B_s),)
+    return BallJoint(tuple(j["name"] for j in entries), body, B_s)
+
+
+#: Joint type (scene ``type``) -> builder of its joint set from the resolved scene entries.
+JOINT_BUILDERS = {"ball": _ball_joints}
 
 
 def build_forces(scene: Scene, bodies: Bodies, pose0) -> tuple:
@@ -189,7 +199,11 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
     try:
         q, _ = project_positions(system, state.q, state.chart, tol=tol)
         v = project_velocities(system, q, state.v, state.chart)
-    except (ProjectionError, SingularConstraintError) as exc:
+    except SingularConstraintError:
+        names = redundant_joints(system, _jacobian_rows(system, state))
+        who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"
+        raise SceneError(source, "joints", f"independent joints ({who})") from None
+    except ProjectionError as exc:
         raise SceneError(source, "joints", f"joints that can all be satisfied at once ({exc})") from None
     dq = _max_position_change(system, state.q, q)
     dv = float(np.max(np.abs(v - state.v)))
@@ -200,6 +214,11 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
             f"(initial max |C| = {np.max(np.abs(C0)):.3g} m), velocities changed by up to {dv:.3g} m/s or rad/s"),
             stacklevel=2)
     return state.replace(q=q, v=v)
+
+
+def _jacobian_rows(system, state):
+    pose = _pose(system, state)
+    return np.concatenate([js.jacobian(pose).reshape(-1, 2, 6) for js in system.joints.joints])
 
 
 def _pose(system, state):

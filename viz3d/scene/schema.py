@@ -228,11 +228,14 @@ def describe(spec: Table | ArrayOf, indent: str = "") -> str:
     table = spec.table if isinstance(spec, ArrayOf) else spec
     lines = []
     for key, f in table.fields.items():
+        if isinstance(f.check, (Table, ArrayOf)):
+            title = f"[[{key}]]" if isinstance(f.check, ArrayOf) else f"[{key}]"
+            lines.append(f"{indent}{title}{' (optional)' if f.default is OPTIONAL else ''}: {f.doc}")
+            lines.append(describe(f.check, indent + "  "))
+            continue
         default = "" if f.default in (REQUIRED, OPTIONAL) else f" (default {f.default!r})"
         req = " (required)" if f.default is REQUIRED else ""
         lines.append(f"{indent}{key}{req}{default}: {f.doc}")
-        if isinstance(f.check, (Table, ArrayOf)):
-            lines.append(describe(f.check, indent + "  "))
     for tag, variant in table.variants.items():
         lines.append(f"{indent}[{table.tag} = {tag!r}] {variant.doc}")
         lines.append(describe(variant, indent + "  "))

@@ -53,9 +53,11 @@ SIM = Table({
 
 SHAPES = {
     "box": Table({"extents": Field(nonzero_vec3, doc="edge lengths along body x, y, z [m]")}, "box centred on the body origin"),
-    "cylinder": Table({"radius": Field(positive, doc="[m]"), "height": Field(positive, doc="along body z [m]")}, "cylinder along body z"),
+    "cylinder": Table({"radius": Field(positive, doc="[m]"), "height": Field(positive, doc="along body z [m]")},
+                      "cylinder along body z"),
     "sphere": Table({"radius": Field(positive, doc="[m]")}, "sphere"),
-    "capsule": Table({"radius": Field(positive, doc="[m]"), "height": Field(positive, doc="of the cylindrical part, along body z [m]")}, "capsule along body z"),
+    "capsule": Table({"radius": Field(positive, doc="[m]"),
+                      "height": Field(positive, doc="of the cylindrical part, along body z [m]")}, "capsule along body z"),
     "mesh": Table({
         "file": Field(string, doc="STL, OBJ, GLB or PLY path, relative to the scene file"),
         "scale": Field(positive, 1.0, "multiplies the vertex coordinates (e.g. 0.001 for mm)"),
@@ -117,7 +119,8 @@ FORCE_TYPES = {
         "rest_length": Field(nonnegative, OPTIONAL, "[m] (default: the initial length)"),
     }, "linear spring-damper between two points"),
     "force": Table({**_LOAD, "point": Field(vec3, OPTIONAL, "point of application, world, initial configuration [m]"),
-                    "local": Field(vec3, OPTIONAL, "point of application, body axes from the centre of mass [m] (default: centre of mass)")},
+                    "local": Field(vec3, OPTIONAL,
+                                   "point of application, body axes from the centre of mass [m] (default: centre of mass)")},
                    "applied force = value + amplitude * f(t)"),
     "torque": Table(dict(_LOAD), "applied couple = value + amplitude * f(t)"),
 }

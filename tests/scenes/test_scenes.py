@@ -1,0 +1,38 @@
+"""Every scene in scenes/ runs headless and passes its own [checks]."""
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import SCENES
+
+import viz3d
+
+SCENE_FILES = sorted(SCENES.glob("*.toml"))
+
+
+def test_all_required_scenes_ship():
+    names = {p.stem for p in SCENE_FILES}
+    assert {"spherical_pendulum", "double_pendulum", "chain", "heavy_top", "torque_free", "robot_arm",
+            "top_through_vertical"} <= names
+
+
+@pytest.mark.parametrize("path", SCENE_FILES, ids=lambda p: p.stem)
+def test_scene_runs_headless_and_passes_its_checks(path):
+    scene = viz3d.load_scene(path)
+    checks = scene.data["checks"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        traj = viz3d.simulate(scene, t_end=checks.get("t_end"))
+    if checks["no_warnings"]:
+        assert not caught, [str(w.message) for w in caught]
+    assert traj.status == checks["status"], traj.status
+    for key in ("position", "rotation", "velocity", "omega", "energy_total", "reaction_force"):
+        assert np.all(np.isfinite(getattr(traj, key))), f"NaN in {key}"
+    assert traj.t[-1] == pytest.approx(checks.get("t_end", scene.data["sim"]["t_end"]))
+    if "max_constraint_violation" in checks:
+        assert traj.max_constraint_violation <= checks["max_constraint_violation"]
+    if "max_energy_drift_rel" in checks:
+        assert traj.energy_drift_rel <= checks["max_energy_drift_rel"]
+    if "min_chart_switches" in checks:
+        assert traj.chart_switches.sum() >= checks["min_chart_switches"]

@@ -1,0 +1,22 @@
+"""Documentation that is generated from code stays in sync with it."""
+
+from conftest import ROOT
+
+from viz3d.scene import spec
+from viz3d.scene.schema import describe
+
+
+def test_scene_format_reference_is_current():
+    text = (ROOT / "docs" / "scene_format.md").read_text()
+    block = text.split("```text\n", 1)[1].rsplit("```", 1)[0]
+    assert block.strip() == describe(spec.SCENE_FILE).strip(), "regenerate with: viz3d list --format"
+
+
+def test_trajectory_doc_lists_every_saved_field():
+    from dataclasses import fields
+
+    from viz3d.trajectory import Trajectory
+
+    text = (ROOT / "docs" / "trajectory.md").read_text()
+    missing = [f.name for f in fields(Trajectory) if f"`{f.name}`" not in text]
+    assert not missing, missing

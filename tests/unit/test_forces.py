@@ -1,0 +1,93 @@
+"""Force elements: conservative parts are minus the gradient of their potential (power balance),
+dampers dissipate, applied loads act where and how the scene says."""
+
+import numpy as np
+import pytest
+from systems import moved_pose, pose_twist, random_state, random_system
+
+from viz3d.dynamics import generalized_forces
+from viz3d.forces import FORCES, AppliedForce, AppliedTorque, SpringDamper
+from viz3d.kinematics import pose_from, twist_from
+from viz3d.timefunctions import TimeFunctions
+
+EPS = 1e-6
+
+
+def _power(system, pose, twist, element):
+    """Power of one element's wrench on the bodies [W]."""
+    F, tau = element.wrench(0.0, pose, twist)
+    return float(np.sum(F * twist.W_v) + np.sum(tau * twist.W_omega))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_conservative_elements_power_equals_minus_potential_rate(seed):
+    system = random_system(nb=4, seed=seed)
+    pose, twist = pose_twist(system, random_state(system, seed))
+    dx = np.concatenate([twist.W_v[:-1], twist.B_omega[:-1]], axis=1)  # the motion's own twist
+    for element in system.forces:
+        V_rate = (element.potential_energy(0.0, moved_pose(pose, dx, EPS))
+                  - element.potential_energy(0.0, moved_pose(pose, dx, -EPS))) / (2 * EPS)
+        assert _power(system, pose, twist, element) == pytest.approx(-V_rate, rel=1e-7, abs=1e-9), type(element).__name__
+
+
+def test_damper_dissipates_c_times_length_rate_squared():
+    rng = np.random.default_rng(3)
+    pose = pose_from(rng.normal(size=(2, 3)), np.stack([np.eye(3)] * 2))
+    twist = twist_from(rng.normal(size=(2, 3)), rng.normal(size=(2, 3)), pose)
+    c = 7.0
+    damper = SpringDamper(("d",), np.array([[0, 1]]), rng.normal(scale=0.1, size=(1, 2, 3)), np.zeros(1),
+                          np.array([c]), np.zeros(1))
+    p, rho = damper.endpoints(pose)
+    u = (p[0, 1] - p[0, 0]) / np.linalg.norm(p[0, 1] - p[0, 0])
+    vel = twist.point_velocity(damper.body[0], rho[0])
+    l_dot = u @ (vel[1] - vel[0])
+    P = float(np.sum(damper.wrench(0, pose, twist)[0] * twist.W_v) + np.sum(damper.wrench(0, pose, twist)[1] * twist.W_omega))
+    assert P == pytest.approx(-c * l_dot**2, rel=1e-12)
+
+
+def _loads(cls, frame_body, value):
+    tf = TimeFunctions.from_entries([{"kind": "constant", "offset": value, "amplitude": [0, 0, 0], "frequency": 0.0,
+                                      "phase": 0.0, "start": 0.0, "duration": 0.0}])
+    return cls(("l",), np.array([0]), np.array([[0.0, 0.2, 0.0]]), np.array([frame_body]), tf)
+
+
+def test_applied_force_torque_about_centre_of_mass_and_frames():
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
+    pose = pose_from(np.array([[1.0, 2.0, 3.0]]), R[None])
+    twist = twist_from(np.zeros((1, 3)), np.zeros((1, 3)), pose)
+    F, tau = _loads(AppliedForce, False, [0.0, 0.0, 5.0]).wrench(0.0, pose, twist)
+    lever = R @ [0.0, 0.2, 0.0]
+    np.testing.assert_allclose(F[0], [0, 0, 5.0])
+    np.testing.assert_allclose(tau[0], np.cross(lever, [0, 0, 5.0]))
+    F_b, _ = _loads(AppliedForce, True, [1.0, 0.0, 0.0]).wrench(0.0, pose, twist)
+    np.testing.assert_allclose(F_b[0], R @ [1.0, 0.0, 0.0], atol=1e-15)
+    F_t, tau_t = _loads(AppliedTorque, False, [0.0, 0.0, 2.0]).wrench(0.0, pose, twist)
+    np.testing.assert_allclose(F_t[0], 0.0)
+    np.testing.assert_allclose(tau_t[0], [0, 0, 2.0])
+
+
+def test_generalized_forces_are_body_torques_minus_gyroscopic():
+    system = random_system(nb=3, seed=5, springs=False)
+    pose, twist = pose_twist(system, random_state(system, 5))
+    Q = generalized_forces(system, 0.0, pose, twist)
+    w = twist.B_omega[:-1]
+    gyro = np.cross(w, np.einsum("bij,bj->bi", system.bodies.inertia, w))
+    np.testing.assert_allclose(Q[:-1, 3:], -gyro, atol=1e-12)  # gravity has no torque about G
+    np.testing.assert_allclose(Q[:-1, :3], system.bodies.mass[:, None] * [0, 0, -9.81])
+
+
+def test_time_functions():
+    entries = [
+        {"kind": k, "offset": [1.0, 0, 0], "amplitude": [2.0, 0, 0], "frequency": 0.5, "phase": 0.1, "start": 1.0,
+         "duration": 2.0}
+        for k in ("constant", "sine", "step", "ramp", "pulse")
+    ]
+    tf = TimeFunctions.from_entries(entries)
+    for t, expected in [(0.5, [1, 1 + 2 * np.sin(np.pi * 0.5 + 0.1), 1, 1, 1]),
+                        (2.0, [1, 1 + 2 * np.sin(np.pi * 2.0 + 0.1), 3, 2, 3]),
+                        (3.5, [1, 1 + 2 * np.sin(np.pi * 3.5 + 0.1), 3, 3, 1])]:
+        np.testing.assert_allclose(tf(t)[:, 0], expected, err_msg=f"t = {t}")
+
+
+def test_registry_names_match_classes():
+    assert all(cls.type_name == name for name, cls in FORCES.items())
