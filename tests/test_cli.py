@@ -89,3 +89,14 @@ def test_progress_bar_appears_only_for_runs_projected_over_two_seconds(monkeypat
     bar.update(10)                                   # projected 3 s: drawn
     bar.close()
     assert "10.0%" in long_.getvalue() and "left" in long_.getvalue()
+
+
+def test_unwritable_output_does_not_lose_the_run(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    code = main(["run", str(SCENES / "spherical_pendulum.toml"), "--t-end", "0.02", "--out", str(blocker / "x.npz")])
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "cannot write" in err and "saved to" in err
+    saved = err.split("saved to ")[1].split(" instead")[0]
+    assert viz3d.Trajectory.load(saved).t[-1] == pytest.approx(0.02)

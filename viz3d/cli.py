@@ -68,10 +68,21 @@ def cmd_run(args) -> int:
         traj = simulate(scene, t_end=args.t_end, dt=args.dt, progress=not args.no_progress)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
-    out = args.out or Path("out") / f"{scene.name}.npz"
-    traj.save(out)
+    out = save_or_fallback(traj, args.out or Path("out") / f"{scene.name}.npz", scene.name)
     print(summary(traj, out))
     return 0 if traj.ok else 1
+
+
+def save_or_fallback(traj, out: Path, name: str) -> Path:
+    """Save ``traj`` to ``out``; if that fails, to a temporary file (never lose a computed run)."""
+    try:
+        return traj.save(out)
+    except OSError as exc:
+        import tempfile
+
+        fallback = Path(tempfile.mkstemp(prefix=f"{name}-", suffix=".npz")[1])
+        print(f"error: cannot write {out} ({exc}); the trajectory was saved to {fallback} instead", file=sys.stderr)
+        return traj.save(fallback)
 
 
 def summary(traj, out: Path) -> str:

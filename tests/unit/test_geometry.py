@@ -78,6 +78,13 @@ def test_bad_meshes_are_refused_naming_file_and_key(tmp_path, write_scene, name,
     assert "scene.toml" in msg and "bodies[0].shape.file" in msg and word in msg
 
 
+@pytest.mark.parametrize("fmt", ["stl", "obj", "glb", "ply"])
+def test_every_mesh_format_loads_as_one_watertight_volume(tmp_path, write_scene, fmt):
+    f = _box_with(tmp_path, f"box.{fmt}", lambda m: m)
+    system, _ = viz3d.build(viz3d.load_scene(write_scene(BODY_WITH_MESH.format(file=f.name))))
+    assert system.bodies.mass[0] == pytest.approx(1000 * 0.2 * 0.1 * 0.05, rel=1e-6)  # float32 formats: 3e-7
+
+
 def test_missing_mesh_file(write_scene):
     with pytest.raises(viz3d.SceneError, match=r"bodies\[0\]\.shape\.file.*not found"):
         viz3d.build(viz3d.load_scene(write_scene(BODY_WITH_MESH.format(file="nope.stl"))))
