@@ -5,11 +5,12 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, SCENES
 
 import viz3d
 from viz3d.cli import main
 from viz3d.trajectory import ARRAY_FIELDS
+
+from conftest import ROOT, SCENES
 
 CONTRACT = {  # field -> shape with n frames, b bodies, j joints
     "t": ("n",), "body_names": ("b",), "mass": ("b",), "inertia_body": ("b", 3, 3), "position": ("n", "b", 3),

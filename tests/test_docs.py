@@ -1,9 +1,9 @@
 """Documentation that is generated from code stays in sync with it."""
 
-from conftest import ROOT
-
 from viz3d.scene import spec
 from viz3d.scene.schema import describe
+
+from conftest import ROOT
 
 
 def test_scene_format_reference_is_current():

@@ -8,6 +8,9 @@ PKG = Path(__file__).resolve().parents[1] / "viz3d"
 FORBIDDEN = {
     "integrators": {"viz3d.bodies", "viz3d.joints", "viz3d.forces", "viz3d.system", "viz3d.dynamics", "viz3d.scene"},
     "rotations.py": {"viz3d.bodies", "viz3d.joints", "viz3d.system"},
+    # viewer and recorder consume frames: no integrators, formulations, assembly or dynamics
+    "viz": {"viz3d.integrators", "viz3d.formulation", "viz3d.dynamics", "viz3d.scene.build", "viz3d.simulate",
+            "viz3d.constraints", "viz3d.stabilization"},
     "*": {"viz3d.cli"},
 }
 
@@ -26,8 +29,8 @@ def test_layering():
     for path in PKG.rglob("*.py"):
         rel = path.relative_to(PKG)
         rules = set(FORBIDDEN["*"]) if rel.name != "cli.py" and rel.name != "__main__.py" else set()
-        if rel.parts[0] == "integrators":
-            rules |= FORBIDDEN["integrators"]
+        if rel.parts[0] in ("integrators", "viz"):
+            rules |= FORBIDDEN[rel.parts[0]]
         rules |= FORBIDDEN.get(rel.name, set())
         for mod in _imports(path):
             if any(mod == r or mod.startswith(r + ".") for r in rules):

@@ -2,7 +2,9 @@
 
 Usage::
 
-    viz3d run SCENE [--t-end T] [--dt DT] [--set key.path=value ...] [--out FILE.npz]
+    viz3d run SCENE [--t-end T] [--dt DT] [--set key.path=value ...] [--out FILE.npz] [--record FILE.rrd] [--view]
+    viz3d view SCENE [--host H] [--port P] [--speed S] [--paused] [--record FILE.rrd] [--set ...]
+    viz3d replay FILE.rrd
     viz3d check SCENE [SCENE ...]
     viz3d list [--format]
 
@@ -47,7 +49,20 @@ def _parser() -> argparse.ArgumentParser:
                      help="override a scene value, e.g. --set chain.n=20 --set sim.integrator=heun")
     run.add_argument("--out", type=Path, help="trajectory file (.npz); default out/<scene>.npz")
     run.add_argument("--no-progress", action="store_true", help="never draw the progress bar")
+    run.add_argument("--record", type=Path, metavar="FILE.rrd", help="also write a rerun recording of the run")
+    run.add_argument("--view", action="store_true", help="run in the live viewer instead of headless (as `viz3d view`)")
+    _viewer_args(run)
     run.set_defaults(func=cmd_run)
+    view = sub.add_parser("view", help="animate a scene live in the browser (viser)")
+    view.add_argument("scene", type=Path)
+    view.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
+    view.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a rerun recording of the viewed run")
+    _viewer_args(view)
+    view.set_defaults(func=cmd_view)
+    replay = sub.add_parser("replay", help="open a .rrd recording in the rerun viewer")
+    replay.add_argument("recording", type=Path)
+    replay.add_argument("--web", action="store_true", help="serve the rerun web viewer instead of a native window")
+    replay.set_defaults(func=cmd_replay)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
@@ -58,14 +73,27 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _viewer_args(p) -> None:
+    p.add_argument("--host", default="127.0.0.1", help="interface to serve on (default: loopback only)")
+    p.add_argument("--port", type=int, default=8080, help="port (0 picks a free one; the real URL is printed)")
+    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
+    p.add_argument("--paused", action="store_true", help="start paused")
+    p.add_argument("--duration", type=float, help="quit after this many wall-clock seconds (scripted use)")
+
+
 def cmd_run(args) -> int:
     from viz3d.scene.load import load_scene
-    from viz3d.simulate import simulate
+    from viz3d.simulate import simulate, with_sim
 
     scene = load_scene(args.scene, args.overrides)
+    if args.view:
+        return _view(with_sim(scene, t_end=args.t_end, dt=args.dt), args)
+    sinks = [_recorder(args.record)] if args.record else []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        traj = simulate(scene, t_end=args.t_end, dt=args.dt, progress=not args.no_progress)
+        traj = simulate(scene, t_end=args.t_end, dt=args.dt, progress=not args.no_progress, sinks=sinks)
+    if args.record:
+        print(f"recorded    {args.record}  (replay: viz3d replay {args.record})")
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     out = save_or_fallback(traj, args.out or Path("out") / f"{scene.name}.npz", scene.name)
@@ -83,6 +111,69 @@ def save_or_fallback(traj, out: Path, name: str) -> Path:
         fallback = Path(tempfile.mkstemp(prefix=f"{name}-", suffix=".npz")[1])
         print(f"error: cannot write {out} ({exc}); the trajectory was saved to {fallback} instead", file=sys.stderr)
         return traj.save(fallback)
+
+
+def _recorder(path: Path):
+    from viz3d.viz.recorder_rerun import RerunRecorder
+
+    return RerunRecorder(path)
+
+
+def cmd_view(args) -> int:
+    from viz3d.scene.load import load_scene
+
+    return _view(load_scene(args.scene, args.overrides), args)
+
+
+def _view(scene, args) -> int:
+    import time
+
+    from viz3d.realtime import SimRunner
+    from viz3d.viz.viewer_viser import Viewer
+
+    sinks = [_recorder(args.record)] if args.record else []
+    runner = SimRunner(scene, speed=args.speed, playing=not args.paused, sinks=sinks)
+    viewer = Viewer(runner, host=args.host, port=args.port)
+    url = viewer.start()
+    print(f"viz3d viewer: open {url} in a browser  (scene {scene.name}; Ctrl-C to stop)", flush=True)
+    try:
+        if args.duration is not None:
+            time.sleep(args.duration)
+        else:
+            viewer.wait()
+    finally:
+        viewer.stop()
+        if args.record:
+            print(f"recorded {args.record}  (replay: viz3d replay {args.record})")
+    return 0
+
+
+def cmd_replay(args) -> int:
+    """Open a recording with the rerun viewer of the pinned rerun-sdk (or print the command)."""
+    import os
+    import shutil
+    import subprocess
+
+    if not args.recording.is_file():
+        print(f"error: {args.recording}: no such recording", file=sys.stderr)
+        return 2
+    rerun = shutil.which("rerun", path=os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]))
+    cmd = [rerun or "rerun", str(args.recording)]
+    if args.web:
+        cmd += ["--web-viewer", "--bind", "127.0.0.1"]
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or sys.platform in ("darwin", "win32")
+    if rerun is None or not (has_display or args.web):
+        why = "no rerun binary found" if rerun is None else "no display here"
+        print(f"{why}; open the recording with the rerun viewer of rerun-sdk {_rerun_version()}:\n  {' '.join(cmd)}\n"
+              f"or in a browser:\n  {' '.join(cmd[:2])} --web-viewer --bind 127.0.0.1")
+        return 0
+    return subprocess.call(cmd)
+
+
+def _rerun_version() -> str:
+    from importlib.metadata import version
+
+    return version("rerun-sdk")
 
 
 def summary(traj, out: Path) -> str:

@@ -13,12 +13,14 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import SimulationFailure, check_state, check_violation, redundant_joints
-from viz3d.dynamics import VectorField, accelerations, body_state, energies
+from viz3d.dynamics import VectorField, body_state
+from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator, make_integrator
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_formulation
@@ -26,6 +28,7 @@ from viz3d.scene.load import Scene, load_scene
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
+from viz3d.viz.sink import Sink
 
 #: Output interval when the scene gives none [s].
 DEFAULT_OUTPUT_DT = 0.01
@@ -99,45 +102,32 @@ class Simulation:
 
 
 class FrameRecorder:
-    """Collects output frames of a run into arrays (see ``Trajectory`` for fields)."""
+    """Collects output frames of a run into a ``Trajectory``."""
 
-    def __init__(self, system: System, formulation):
-        self.system, self.formulation = system, formulation
-        self.rows: dict[str, list] = {k: [] for k in (
-            "t", "position", "rotation", "velocity", "omega", "energy_kinetic", "energy_potential",
-            "constraint_violation", "reaction_force")}
+    def __init__(self, system: System):
+        self.system = system
+        self.frames: list[Frame] = []
 
-    def record(self, state: State) -> float:
-        """Store one frame; return its constraint violation max |C| [m]."""
-        system = self.system
-        pose, twist = body_state(system, state.q, state.v, state.chart)
-        T, V = energies(system, state)
-        acc = accelerations(system, self.formulation, state.t, state.q, state.v, state.chart)
-        violation = float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0
-        reactions = [js.reaction_force(acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6),
-                                       acc.lam[sl].reshape(js.n_joints, js.n_eq))
-                     for js, sl in zip(system.joints.joints, system.joints.row_slices())]
-        values = (state.t, pose.W_r[:-1], pose.R_WB[:-1], twist.W_v[:-1], twist.W_omega[:-1], T, V, violation,
-                  np.concatenate(reactions) if reactions else np.zeros((0, 3)))
-        for key, value in zip(self.rows, values):
-            self.rows[key].append(value)
-        return violation
+    def record(self, frame: Frame) -> None:
+        self.frames.append(frame)
 
     def trajectory(self, status: str, scene_json: str, chart_switches, **cost) -> Trajectory:
-        a = {k: np.asarray(v, dtype=float) for k, v in self.rows.items()}
-        b = self.system.bodies
+        b, fr = self.system.bodies, self.frames
         nb, nj = b.n_bodies, len(self.system.joint_names)
-        if a["t"].size == 0:
-            a.update(position=np.zeros((0, nb, 3)), rotation=np.zeros((0, nb, 3, 3)), velocity=np.zeros((0, nb, 3)),
-                     omega=np.zeros((0, nb, 3)), reaction_force=np.zeros((0, nj, 3)))
+
+        def stack(key, shape):
+            return np.array([getattr(f, key) for f in fr], dtype=float).reshape((len(fr),) + shape)
+
+        kinetic, potential = stack("energy_kinetic", ()), stack("energy_potential", ())
+        rotation = stack("R_WB", (nb, 3, 3))
         return Trajectory(
-            t=a["t"], body_names=np.array(b.names), mass=b.mass.copy(), inertia_body=b.inertia.copy(),
-            position=a["position"], rotation=a["rotation"], euler=euler_from_matrix(a["rotation"]),
-            velocity=a["velocity"], omega=a["omega"], energy_kinetic=a["energy_kinetic"],
-            energy_potential=a["energy_potential"], energy_total=a["energy_kinetic"] + a["energy_potential"],
-            constraint_violation=a["constraint_violation"], joint_names=np.array(self.system.joint_names, dtype=str),
-            reaction_force=a["reaction_force"].reshape(a["t"].size, nj, 3), chart_switches=np.asarray(chart_switches, int),
-            status=status, scene_json=scene_json, **cost)
+            t=stack("t", ()), body_names=np.array(b.names), mass=b.mass.copy(), inertia_body=b.inertia.copy(),
+            position=stack("W_r", (nb, 3)), rotation=rotation, euler=euler_from_matrix(rotation),
+            velocity=stack("W_v", (nb, 3)), omega=stack("W_omega", (nb, 3)), energy_kinetic=kinetic,
+            energy_potential=potential, energy_total=kinetic + potential,
+            constraint_violation=stack("constraint_violation", ()),
+            joint_names=np.array(self.system.joint_names, dtype=str), reaction_force=stack("reaction_force", (nj, 3)),
+            chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json, **cost)
 
 
 def with_sim(scene: Scene, **changes) -> Scene:
@@ -151,7 +141,7 @@ def with_sim(scene: Scene, **changes) -> Scene:
 
 
 def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None = None, dt: float | None = None,
-             progress: bool = False) -> Trajectory:
+             progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Run a scene headless and return its ``Trajectory``.
 
     Parameters
@@ -162,6 +152,8 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
         Override ``sim.t_end`` and ``sim.dt`` [s].
     progress : bool
         Draw a progress bar on stderr when the run is projected to take over 2 s.
+    sinks : sequence of Sink
+        Consumers of the run's frames (e.g. ``RerunRecorder``); opened and closed here.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene, overrides)
@@ -173,23 +165,28 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     formulation = make_formulation(sim_cfg)
     sim = Simulation(system, state, make_integrator(sim_cfg["integrator"]), formulation, sim_cfg["dt"],
                      sim_cfg["blowup_speed"])
-    return run(sim, scene, formulation, progress)
+    return run(sim, scene, formulation, progress, sinks)
 
 
-def run(sim: Simulation, scene: Scene, formulation, progress: bool = False) -> Trajectory:
-    """Drive ``sim`` to ``sim.t_end``, recording frames every ``output_dt``."""
+def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
+    """Drive ``sim`` to ``sim.t_end``: frames every ``output_dt`` into the trajectory, and to
+    the ``sinks`` (after every step for full-rate sinks)."""
     cfg = scene.data["sim"]
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
-    recorder = FrameRecorder(sim.system, formulation)
+    recorder = FrameRecorder(sim.system)
+    full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
+    emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"])
     try:
-        check_violation(sim.system, sim.state, recorder.record(sim.state), cfg["blowup_violation"])
+        emitter.open(scene)
+        emitter.emit(output=True)
         for n in range(1, n_steps + 1):
             sim.step()
-            if n % every == 0 or n == n_steps:
-                check_violation(sim.system, sim.state, recorder.record(sim.state), cfg["blowup_violation"])
+            output = n % every == 0 or n == n_steps
+            if output or full_rate:
+                emitter.emit(output)
             if bar is not None:
                 bar.update(n)
     except SimulationFailure as exc:
@@ -199,9 +196,44 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False) -> T
     finally:
         if bar is not None:
             bar.close()
+        emitter.close(status)
     wall = time.perf_counter() - wall0
     return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, wall_time=wall,
                                n_steps=sim.n_steps, n_rhs=sim.n_rhs)
+
+
+class _Emitter:
+    """Computes frames and hands them to the trajectory recorder and the sinks."""
+
+    def __init__(self, sim, formulation, recorder, sinks, blowup_violation):
+        self.sim, self.formulation, self.recorder, self.sinks = sim, formulation, recorder, list(sinks)
+        self.blowup_violation = blowup_violation
+        self.opened: list[Sink] = []
+
+    def open(self, scene: Scene) -> None:
+        if self.sinks:
+            from viz3d.scene.visuals import scene_visuals
+
+            visuals = scene_visuals(scene, self.sim.system)
+            for s in self.sinks:
+                s.open(visuals)
+                self.opened.append(s)
+
+    def emit(self, output: bool) -> None:
+        frame = frame_from_state(self.sim.system, self.formulation, self.sim.state)
+        if output:
+            self.recorder.record(frame)
+        for s in self.sinks:
+            if output or s.full_rate:
+                s.log(frame)
+        check_violation(self.sim.system, self.sim.state, frame.constraint_violation, self.blowup_violation)
+
+    def close(self, status: str) -> None:
+        for s in self.opened:
+            try:
+                s.event(self.sim.state.t, f"status: {status}", "info" if status == "ok" else "error")
+            finally:
+                s.close()
 
 
 def scene_json(scene: Scene, sim: Simulation) -> str:

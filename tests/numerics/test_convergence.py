@@ -3,7 +3,6 @@ drift with and without stabilization, exact chart switches."""
 
 import numpy as np
 import pytest
-from conftest import SCENES
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
@@ -13,6 +12,8 @@ from viz3d.dynamics import VectorField
 from viz3d.formulation import Index1
 from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.simulate import Simulation
+
+from conftest import SCENES
 
 ORDER_TOL = 0.3
 T_ORDER = 0.25  # s of the spatial double pendulum (its charts need no switch before 0.4 s)

@@ -4,10 +4,11 @@ statics."""
 
 import numpy as np
 import pytest
-from conftest import SCENES
-from references import fixed_point_body, torque_free_omega
 
 import viz3d
+
+from conftest import SCENES
+from references import fixed_point_body, torque_free_omega
 
 #: Bounds on the RK4 errors of the runs below (measured on 2026-11-21 in brackets; the bounds
 #: leave 2x for platform differences - a wrong term in the dynamics gives errors of order 1e-2).

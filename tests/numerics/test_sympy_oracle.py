@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
-from systems import random_inertia
 
 from viz3d.bodies import Bodies
 from viz3d.constraints import build_layout
@@ -18,6 +17,8 @@ from viz3d.formulation import Index1
 from viz3d.joints import BallJoint
 from viz3d.rotations import matrix_from_euler
 from viz3d.system import System
+
+from systems import random_inertia
 
 G = 9.81
 RTOL = 1e-9

@@ -4,9 +4,10 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import SCENES
 
 import viz3d
+
+from conftest import SCENES
 
 SCENE_FILES = sorted(SCENES.glob("*.toml"))
 

@@ -3,7 +3,6 @@ system; redundant joints are detected and named."""
 
 import numpy as np
 import pytest
-from systems import ball_joints, pose_twist, random_state, random_system
 
 from viz3d.bodies import Bodies
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_rows
@@ -12,6 +11,8 @@ from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import generalized_forces
 from viz3d.formulation import Index1
 from viz3d.system import System
+
+from systems import ball_joints, pose_twist, random_state, random_system
 
 
 def dense_augmented(system, rows):

@@ -3,12 +3,13 @@ dampers dissipate, applied loads act where and how the scene says."""
 
 import numpy as np
 import pytest
-from systems import moved_pose, pose_twist, random_state, random_system
 
 from viz3d.dynamics import generalized_forces
 from viz3d.forces import FORCES, AppliedForce, AppliedTorque, SpringDamper
 from viz3d.kinematics import pose_from, twist_from
 from viz3d.timefunctions import TimeFunctions
+
+from systems import moved_pose, pose_twist, random_state, random_system
 
 EPS = 1e-6
 

@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
-from systems import moved_pose, pose_along, pose_twist, random_state, random_system
 
 from viz3d.constraints import apply_jacobian, constraint_residual, constraint_rows
 from viz3d.joints import JOINTS
 from viz3d.kinematics import twist_from
+
+from systems import moved_pose, pose_along, pose_twist, random_state, random_system
 
 EPS = 1e-6
 JAC_TOL = 1e-8

@@ -4,9 +4,10 @@ and generators resolve as documented."""
 import json
 
 import pytest
-from conftest import SCENES
 
 import viz3d
+
+from conftest import SCENES
 
 PENDULUM = """
 [sim]

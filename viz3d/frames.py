@@ -1,0 +1,135 @@
+"""What viewers, recorders and trajectory files consume: ``SceneVisuals`` (sent once) and
+``Frame`` (one instant). Nothing that consumes frames needs the System, integrators or
+formulations; conversions to a back-end's conventions (quaternion order) happen in the back-end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viz3d._typing import FloatArray
+from viz3d.dynamics import accelerations, body_state, energies
+from viz3d.forces import SpringDamper
+from viz3d.system import State, System
+
+
+@dataclass(frozen=True)
+class BodyVisual:
+    """Display geometry of one body, in body coordinates (origin at the centre of mass).
+
+    Attributes
+    ----------
+    name : str
+    vertices : ndarray, shape (V, 3), float32 [m]
+    faces : ndarray, shape (F, 3), int32
+    color : ndarray, shape (3,), uint8
+    group : str
+        Bodies with the same ``group`` share the same vertices and faces (drawn as one batch).
+    radius : float
+        Bounding radius about the centre of mass [m].
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    color: np.ndarray
+    group: str
+    radius: float
+
+
+@dataclass(frozen=True)
+class SceneVisuals:
+    """Everything static a viewer or recorder draws.
+
+    Attributes
+    ----------
+    name : str
+        Scene name.
+    bodies : tuple of BodyVisual, length nb
+    joint_names, spring_names : tuple of str
+    length_scale : float
+        Typical body size [m] (frame axes and arrows are drawn relative to it).
+    thickness : float
+        Typical smallest body dimension [m] (joint markers and lines are drawn relative to it).
+    force_scale : float
+        Force drawn as an arrow of length ``length_scale`` [N] (the total weight, or 1 N).
+    bounds : ndarray, shape (2, 3)
+        Lower and upper corners of the initial scene [m].
+    """
+
+    name: str
+    bodies: tuple[BodyVisual, ...]
+    joint_names: tuple[str, ...]
+    spring_names: tuple[str, ...]
+    length_scale: float
+    thickness: float
+    force_scale: float
+    bounds: FloatArray
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The state of a scene at one instant, as consumers need it.
+
+    Attributes
+    ----------
+    t : float [s]
+    W_r : ndarray, shape (nb, 3)
+        Centres of mass, world [m].
+    R_WB : ndarray, shape (nb, 3, 3)
+        World-from-body rotations.
+    W_v, W_omega : ndarray, shape (nb, 3)
+        Velocities [m/s] and angular velocities [rad/s], world.
+    joint_points : ndarray, shape (nj, 3)
+        Joint points (on body 1), world [m].
+    reaction_force : ndarray, shape (nj, 3)
+        World force on body 1 of each joint [N].
+    springs : ndarray, shape (ns, 2, 3)
+        Spring end points, world [m].
+    energy_kinetic, energy_potential : float [J]
+    constraint_violation : float
+        max |C| [m].
+    scalars : dict of str -> float
+        Further named quantities (for plots), in SI units.
+    """
+
+    t: float
+    W_r: FloatArray
+    R_WB: FloatArray
+    W_v: FloatArray
+    W_omega: FloatArray
+    joint_points: FloatArray
+    reaction_force: FloatArray
+    springs: FloatArray
+    energy_kinetic: float
+    energy_potential: float
+    constraint_violation: float
+    scalars: dict = field(default_factory=dict)
+
+    @property
+    def energy_total(self) -> float:
+        return self.energy_kinetic + self.energy_potential
+
+
+def frame_from_state(system: System, formulation, state: State) -> Frame:
+    """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side)."""
+    pose, twist = body_state(system, state.q, state.v, state.chart)
+    T, V = energies(system, state)
+    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart)
+    reactions, points = [], []
+    for js, sl in zip(system.joints.joints, system.joints.row_slices()):
+        J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
+        reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
+        points.append(pose.point(js.body[:, 0], js.B_s[:, 0]))
+    springs = [e.endpoints(pose)[0] for e in system.forces if isinstance(e, SpringDamper)]
+    return Frame(
+        t=state.t, W_r=pose.W_r[:-1], R_WB=pose.R_WB[:-1], W_v=twist.W_v[:-1], W_omega=twist.W_omega[:-1],
+        joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
+        springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
+        constraint_violation=float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0)
+
+
+def _stack(parts: list, empty_shape: tuple) -> FloatArray:
+    return np.concatenate(parts) if parts else np.zeros(empty_shape)
