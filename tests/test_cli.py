@@ -101,3 +101,10 @@ def test_unwritable_output_does_not_lose_the_run(tmp_path, capsys):
     assert "cannot write" in err and "saved to" in err
     saved = err.split("saved to ")[1].split(" instead")[0]
     assert viz3d.Trajectory.load(saved).t[-1] == pytest.approx(0.02)
+
+
+def test_view_command_serves_on_loopback_and_prints_the_url(capsys):
+    assert main(["view", str(SCENES / "heavy_top.toml"), "--port", "0", "--duration", "1.5"]) == 0
+    out = capsys.readouterr().out
+    assert "viz3d viewer: open http://127.0.0.1:" in out and "heavy_top" in out
+    assert main(["run", str(SCENES / "heavy_top.toml"), "--view", "--port", "0", "--duration", "0.5", "--paused"]) == 0

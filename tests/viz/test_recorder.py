@@ -87,3 +87,28 @@ def test_cli_run_record_and_replay_prints_the_command(tmp_path, capsys, monkeypa
     out = capsys.readouterr().out
     assert "rerun" in out and str(path) in out and "0.41.0" in out
     assert main(["replay", str(tmp_path / "missing.rrd")]) == 2
+
+
+def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from conftest import ROOT
+
+    path = tmp_path / "sigint.rrd"
+    proc = subprocess.Popen([sys.executable, "-m", "viz3d", "run", str(SCENES / "chain.toml"), "--t-end", "100",
+                             "--record", str(path), "--out", str(tmp_path / "c.npz"), "--no-progress"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1 and "interrupted at t =" in out, (out, err)
+    t, _ = read_scalars(path, "/plots/energy/total")
+    assert len(t) > 100
+    traj = viz3d.Trajectory.load(tmp_path / "c.npz")
+    assert traj.t[-1] == pytest.approx(t[-1], abs=0.011)
