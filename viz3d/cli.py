@@ -179,6 +179,8 @@ def _rerun_version() -> str:
 def summary(traj, out: Path) -> str:
     """The run summary printed by ``viz3d run``."""
     meta = traj.scene["run"]
+    if meta.get("kind") == "impact":
+        return impact_summary(traj, out)
     sim_time = float(traj.t[-1] - traj.t[0]) if traj.t.size else 0.0
     rtf = sim_time / traj.wall_time if traj.wall_time > 0 else float("inf")
     lines = [
@@ -191,6 +193,33 @@ def summary(traj, out: Path) -> str:
         _energy_line(traj, meta),
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
+        f"status      {traj.status}",
+        f"wrote       {out}",
+    ]
+    return "\n".join(lines)
+
+
+def impact_summary(traj, out: Path) -> str:
+    """Summary of an impact run: model, events, restitution, peak force, energy ledger."""
+    import numpy as np
+
+    meta, x = traj.scene["run"], traj.extras
+    e_req = float(x["restitution_requested"])
+    req = f" (requested {e_req:g})" if np.isfinite(e_req) else ""
+    e0 = traj.energy_total[0] if traj.energy_total.size else 0.0
+    balance = float(np.max(np.abs(x["energy_balance_error"]))) if traj.t.size else 0.0
+    sim_time = float(traj.t[-1]) if traj.t.size else 0.0
+    lines = [
+        f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
+        f"method      {meta['integrator']}, rtol = {meta['rtol']:g}; bar: {x['model_choice']}",
+        f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
+        f"wall time   {traj.wall_time:.3f} s",
+        f"contacts    {int(x['contact_count'])}; peak force {float(np.max(x['contact_force'], initial=0.0)):.4g} N, "
+        f"peak indentation {float(np.max(x['penetration'], initial=0.0)):.4g} m",
+        f"impactor    {float(x['impactor_velocity'][0]):.4g} -> {float(x['impactor_velocity'][-1]):.4g} m/s along the normal",
+        f"restitution {float(x['restitution']):.4f} achieved{req}",
+        f"energy      dissipated {float(x['energy_dissipated'][-1]):.4g} J of {e0:.4g} J; balance error {balance:.3g} J "
+        f"({balance / e0 if e0 else 0.0:.2g} of the initial energy)",
         f"status      {traj.status}",
         f"wrote       {out}",
     ]
@@ -213,13 +242,26 @@ def cmd_check(args) -> int:
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                system, _ = build(load_scene(path, args.overrides))
+                scene = load_scene(path, args.overrides)
+                what = _check_impact(scene) if scene.kind == "impact" else _check_rigid(build(scene)[0])
             extra = "".join(f"\n  warning: {w.message}" for w in caught)
-            print(f"ok     {path}: {system.n_bodies} bodies, {len(system.joint_names)} joints{extra}")
+            print(f"ok     {path}: {what}{extra}")
         except SceneError as exc:
             bad += 1
             print(f"error  {exc}", file=sys.stderr)
     return 2 if bad else 0
+
+
+def _check_rigid(system) -> str:
+    return f"{system.n_bodies} bodies, {len(system.joint_names)} joints"
+
+
+def _check_impact(scene) -> str:
+    from viz3d.impact.build import build_impact
+
+    setup = build_impact(scene)
+    target = "rigid wall" if setup.bar is None else f"bar: {setup.model_choice}"
+    return f"impact, {scene.data['contact']['law']} contact, {target}"
 
 
 def cmd_list(args) -> int:

@@ -40,6 +40,25 @@ class BodyVisual:
 
 
 @dataclass(frozen=True)
+class DeformableVisual:
+    """A mesh whose vertices every frame gives in world coordinates (a deforming bar).
+
+    Attributes
+    ----------
+    name : str
+    faces : ndarray, shape (F, 3), int32
+    vertices : ndarray, shape (V, 3), float32
+        Initial world positions [m].
+    color : ndarray, shape (3,), uint8
+    """
+
+    name: str
+    faces: np.ndarray
+    vertices: np.ndarray
+    color: np.ndarray
+
+
+@dataclass(frozen=True)
 class SceneVisuals:
     """Everything static a viewer or recorder draws.
 
@@ -57,6 +76,13 @@ class SceneVisuals:
         Force drawn as an arrow of length ``length_scale`` [N] (the total weight, or 1 N).
     bounds : ndarray, shape (2, 3)
         Lower and upper corners of the initial scene [m].
+    deformables : tuple of DeformableVisual
+    plots : tuple of (str, str)
+        (title, entity prefix under /plots) of the time-series panels recorders lay out.
+    display_dt : float
+        Simulated time between drawn frames in recordings [s].
+    kind : str
+        "rigid" or "impact".
     """
 
     name: str
@@ -67,6 +93,11 @@ class SceneVisuals:
     thickness: float
     force_scale: float
     bounds: FloatArray
+    deformables: tuple[DeformableVisual, ...] = ()
+    plots: tuple[tuple[str, str], ...] = (("Energy [J]", "energy"), ("Constraint violation [m]", "constraint_violation"),
+                                          ("Joint reaction force [N]", "reaction_force"))
+    display_dt: float = 1.0 / 30.0
+    kind: str = "rigid"
 
 
 @dataclass(frozen=True)
@@ -92,7 +123,9 @@ class Frame:
     constraint_violation : float
         max |C| [m].
     scalars : dict of str -> float
-        Further named quantities (for plots), in SI units.
+        Further named quantities (for plots), in SI units; keys are plot paths ("contact/force").
+    deformed : dict of str -> ndarray (V, 3)
+        World vertices of each deformable mesh [m].
     """
 
     t: float
@@ -107,6 +140,7 @@ class Frame:
     energy_potential: float
     constraint_violation: float
     scalars: dict = field(default_factory=dict)
+    deformed: dict = field(default_factory=dict)
 
     @property
     def energy_total(self) -> float:

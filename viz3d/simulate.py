@@ -159,6 +159,10 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
         scene = load_scene(scene, overrides)
     elif overrides:
         raise ValueError("overrides apply when loading: use load_scene(path, overrides)")
+    if scene.kind == "impact":
+        from viz3d.impact.run import simulate_impact
+
+        return simulate_impact(scene, t_end=t_end, sinks=sinks, progress=progress)
     scene = with_sim(scene, t_end=t_end, dt=dt)
     system, state = build(scene)
     sim_cfg = scene.data["sim"]

@@ -27,7 +27,7 @@ scene_json             ()              resolved scene + viz3d version, integrato
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +44,8 @@ class Trajectory:
     """A run's frames and metadata (see the module docstring for shapes and units).
 
     ``wall_time`` [s], ``n_steps`` and ``n_rhs`` describe the run's cost; they are saved too.
+    ``extras`` holds further named arrays a kind of scene adds (impact runs: ``contact_force``,
+    ``gauge_strain``, ``energy_*``, ...; docs/trajectory.md); each is saved under its own name.
     """
 
     t: np.ndarray
@@ -67,6 +69,7 @@ class Trajectory:
     wall_time: float = 0.0
     n_steps: int = 0
     n_rhs: int = 0
+    extras: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -102,15 +105,20 @@ class Trajectory:
         """Write the ``.npz`` file (compressed); returns its path."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        data = {f.name: getattr(self, f.name) for f in fields(self)}
-        np.savez_compressed(path, **data)
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extras"}
+        clash = set(self.extras) & set(data)
+        if clash:
+            raise ValueError(f"extras may not reuse field names: {sorted(clash)}")
+        np.savez_compressed(path, **data, **self.extras)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> "Trajectory":
         """Read a file written by ``save``."""
+        names = {f.name for f in fields(cls)}
         with np.load(path, allow_pickle=False) as z:
-            kw = {f.name: z[f.name] for f in fields(cls) if f.name in z}
+            kw = {k: z[k] for k in z.files if k in names}
+            kw["extras"] = {k: z[k] for k in z.files if k not in names}
         kw["status"], kw["scene_json"] = str(kw["status"]), str(kw["scene_json"])
         for key, typ in (("wall_time", float), ("n_steps", int), ("n_rhs", int)):
             if key in kw:

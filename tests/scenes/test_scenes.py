@@ -10,6 +10,8 @@ import viz3d
 from conftest import SCENES
 
 SCENE_FILES = sorted(SCENES.glob("*.toml"))
+RIGID = [p for p in SCENE_FILES if viz3d.load_scene(p).kind == "rigid"]
+IMPACT = [p for p in SCENE_FILES if viz3d.load_scene(p).kind == "impact"]
 
 
 def test_all_required_scenes_ship():
@@ -18,7 +20,7 @@ def test_all_required_scenes_ship():
             "top_through_vertical"} <= names
 
 
-@pytest.mark.parametrize("path", SCENE_FILES, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", RIGID, ids=lambda p: p.stem)
 def test_scene_runs_headless_and_passes_its_checks(path):
     scene = viz3d.load_scene(path)
     checks = scene.data["checks"]
@@ -37,3 +39,26 @@ def test_scene_runs_headless_and_passes_its_checks(path):
         assert traj.energy_drift_rel <= checks["max_energy_drift_rel"]
     if "min_chart_switches" in checks:
         assert traj.chart_switches.sum() >= checks["min_chart_switches"]
+
+
+@pytest.mark.parametrize("path", IMPACT, ids=lambda p: p.stem)
+def test_impact_scene_runs_headless_and_passes_its_checks(path):
+    scene = viz3d.load_scene(path)
+    checks = scene.data["checks"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        traj = viz3d.simulate(scene, t_end=checks.get("t_end"))
+    if checks["no_warnings"]:
+        assert not caught, [str(w.message) for w in caught]
+    assert traj.status == checks["status"], traj.status
+    x = traj.extras
+    for key in ("contact_force", "penetration", "gauge_strain", "energy_dissipated", "energy_balance_error"):
+        assert np.all(np.isfinite(x[key])), f"NaN in {key}"
+    assert np.all(x["contact_force"] >= 0)
+    assert traj.t[-1] == pytest.approx(checks.get("t_end", scene.data["sim"]["t_end"]))
+    if "max_energy_balance_error" in checks:
+        assert np.abs(x["energy_balance_error"]).max() <= checks["max_energy_balance_error"] * traj.energy_total[0]
+    if "restitution" in checks:
+        assert float(x["restitution"]) == pytest.approx(checks["restitution"], abs=checks["restitution_tol"])
+    if "min_contacts" in checks:
+        assert int(x["contact_count"]) >= checks["min_contacts"]

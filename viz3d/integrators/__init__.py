@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from viz3d.integrators.base import Integrator, Rhs, StepResult
 from viz3d.integrators.explicit_rk import ExplicitRK
-from viz3d.integrators.tableaus import EULER, HEUN, RK4, ButcherTableau
+from viz3d.integrators.tableaus import DOPRI5, EULER, HEUN, RK4, ButcherTableau
 
 INTEGRATORS = {
     "euler": lambda: ExplicitRK(EULER),
@@ -21,4 +21,4 @@ def make_integrator(name: str) -> Integrator:
         raise KeyError(f"unknown integrator {name!r}; valid: {', '.join(INTEGRATORS)}") from None
 
 
-__all__ = ["INTEGRATORS", "Integrator", "Rhs", "StepResult", "ButcherTableau", "ExplicitRK", "make_integrator"]
+__all__ = ["INTEGRATORS", "DOPRI5", "Integrator", "Rhs", "StepResult", "ButcherTableau", "ExplicitRK", "make_integrator"]

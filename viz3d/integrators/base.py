@@ -27,10 +27,15 @@ class StepResult:
         State at ``t + h``.
     error : ndarray or None
         Embedded local error estimate, ``None`` when the method has none.
+    f0, f1 : ndarray or None
+        ``rhs`` at the start and at the end of the step when the method evaluated them (FSAL
+        methods give ``f1`` for free); used for the next step and for dense output.
     """
 
     y: FloatArray
     error: FloatArray | None = None
+    f0: FloatArray | None = None
+    f1: FloatArray | None = None
 
 
 class Integrator(ABC):
@@ -44,5 +49,6 @@ class Integrator(ABC):
     order: ClassVar[int]
 
     @abstractmethod
-    def step(self, rhs: Callable[[float, FloatArray], FloatArray], t: float, y: FloatArray, h: float) -> StepResult:
-        """Advance ``y`` from ``t`` to ``t + h``."""
+    def step(self, rhs: Callable[[float, FloatArray], FloatArray], t: float, y: FloatArray, h: float,
+             f0: FloatArray | None = None) -> StepResult:
+        """Advance ``y`` from ``t`` to ``t + h``; ``f0 = rhs(t, y)`` may be passed if known."""

@@ -42,6 +42,11 @@ class Scene:
         return self.data["scene"].get("name", self.path.stem)
 
     @property
+    def kind(self) -> str:
+        """"impact" for scenes with an ``[impactor]`` table, else "rigid"."""
+        return "impact" if "impactor" in self.data else "rigid"
+
+    @property
     def base_dir(self) -> Path:
         return self.path.parent
 
@@ -75,6 +80,10 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
     raw = _read_toml(path)
     for key, value in pairs:
         _set_path(raw, key, value, source)
+    if "impactor" in raw:
+        from viz3d.impact.spec import IMPACT_FILE
+
+        return Scene(path, validate(raw, IMPACT_FILE, source), texts)
     raw = expand_generators(raw, source)
     data = validate(raw, spec.SCENE_FILE, source)
     _cross_check(data, source)

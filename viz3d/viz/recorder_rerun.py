@@ -3,7 +3,8 @@
 Layout of the recording (timeline ``sim_time``, a duration in seconds; no ``log_time``):
 
 * ``/world`` (static): view coordinates, z up; ``/world/bodies/<name>/mesh`` (static meshes);
-* ``/world/bodies/<name>``: pose (``Transform3D``), at display rate;
+* ``/world/bodies/<name>``: pose (``Transform3D``), at display rate; ``/world/<deformable>``
+  (``Mesh3D`` with the current vertices, e.g. the deformed bar), at display rate;
 * ``/world/joints`` (points), ``/world/springs`` (line strips), ``/world/reactions`` (arrows),
   at display rate;
 * ``/plots/energy/{kinetic,potential,total}``, ``/plots/constraint_violation``,
@@ -25,8 +26,6 @@ import numpy as np
 from viz3d.frames import Frame, SceneVisuals
 from viz3d.rotations import quat_from_matrix
 
-#: Rate of the pose/geometry logs [Hz]; plots are logged at every frame received.
-DISPLAY_RATE = 30.0
 #: Buffered full-rate samples are written to the file every this many frames.
 FLUSH_EVERY = 20_000
 APPLICATION_ID = "viz3d"
@@ -44,15 +43,16 @@ class RerunRecorder:
     ----------
     path : str or Path
         ``.rrd`` file to create (parent directories are created).
-    display_rate : float
-        Pose logs per simulated second [Hz].
+    display_dt : float, optional
+        Simulated time between pose/geometry logs [s]; default the scene's ``display_dt``
+        (1/30 s for rigid scenes, ``[display] frame_dt`` for impacts). Plots get every frame.
     """
 
     full_rate = True
 
-    def __init__(self, path: str | Path, display_rate: float = DISPLAY_RATE, recording_id: str | None = None):
+    def __init__(self, path: str | Path, display_dt: float | None = None, recording_id: str | None = None):
         self.path = Path(path)
-        self.display_rate = display_rate
+        self.display_dt = display_dt  # None: the scene's (visuals.display_dt)
         self.recording_id = recording_id
         self.rec = None
         self._next_pose_t = -np.inf
@@ -65,6 +65,7 @@ class RerunRecorder:
         import rerun as rr
 
         self.visuals = visuals
+        self.display_dt = self.display_dt or visuals.display_dt
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id or visuals.name)
         self.rec.save(self.path, default_blueprint=self._blueprint())
@@ -77,7 +78,7 @@ class RerunRecorder:
         self._buffer.append(frame)
         if frame.t >= self._next_pose_t - 1e-12:
             self._log_pose(frame)
-            self._next_pose_t = frame.t + 1.0 / self.display_rate
+            self._next_pose_t = frame.t + self.display_dt
         if len(self._buffer) >= FLUSH_EVERY:
             self._flush_scalars()
 
@@ -105,15 +106,12 @@ class RerunRecorder:
     def _blueprint(self):
         import rerun.blueprint as rrb
 
+        plots = [rrb.TimeSeriesView(name=title, origin=f"/plots/{origin}") for title, origin in self.visuals.plots]
         return rrb.Blueprint(
             rrb.Horizontal(
                 rrb.Spatial3DView(name="Scene", origin="/world"),
-                rrb.Vertical(
-                    rrb.TimeSeriesView(name="Energy [J]", origin="/plots/energy"),
-                    rrb.TimeSeriesView(name="Constraint violation [m]", origin="/plots/constraint_violation"),
-                    rrb.TimeSeriesView(name="Joint reaction force [N]", origin="/plots/reaction_force"),
-                    rrb.TextLogView(name="Events", origin="/events"),
-                    row_shares=[3, 2, 3, 1]),
+                rrb.Vertical(*plots, rrb.TextLogView(name="Events", origin="/events"),
+                             row_shares=[3] * len(plots) + [1]),
                 column_shares=[3, 2]),
             collapse_panels=True)
 
@@ -126,9 +124,10 @@ class RerunRecorder:
             rec.log(f"/world/bodies/{b.name}/mesh", rr.Mesh3D(
                 vertex_positions=b.vertices, triangle_indices=b.faces,
                 albedo_factor=[*b.color.tolist(), 255]), static=True)
-        for name, color in (("kinetic", [220, 60, 60]), ("potential", [60, 90, 220]), ("total", [30, 30, 30])):
-            rec.log(f"/plots/energy/{name}", rr.SeriesLines(colors=color, names=name), static=True)
-        rec.log("/plots/constraint_violation", rr.SeriesLines(colors=[150, 60, 180], names="max |C|"), static=True)
+        if visuals.kind == "rigid":
+            for name, color in (("kinetic", [220, 60, 60]), ("potential", [60, 90, 220]), ("total", [30, 30, 30])):
+                rec.log(f"/plots/energy/{name}", rr.SeriesLines(colors=color, names=name), static=True)
+            rec.log("/plots/constraint_violation", rr.SeriesLines(colors=[150, 60, 180], names="max |C|"), static=True)
         for j in visuals.joint_names:
             rec.log(f"/plots/reaction_force/{j}", rr.SeriesLines(
                 colors=[[220, 60, 60], [60, 160, 60], [60, 90, 220]], names=[f"{j} x", f"{j} y", f"{j} z"]), static=True)
@@ -141,6 +140,9 @@ class RerunRecorder:
         quats = xyzw_from_wxyz(quat_from_matrix(frame.R_WB))
         for b, r, q in zip(vis.bodies, frame.W_r, quats):
             rec.log(f"/world/bodies/{b.name}", rr.Transform3D(translation=r, quaternion=rr.Quaternion(xyzw=q)))
+        for d in vis.deformables:
+            rec.log(f"/world/{d.name}", rr.Mesh3D(vertex_positions=frame.deformed[d.name], triangle_indices=d.faces,
+                                                  albedo_factor=[*d.color.tolist(), 255]))
         radius = 0.7 * vis.thickness
         if len(frame.joint_points):
             rec.log("/world/joints", rr.Points3D(frame.joint_points, radii=radius, colors=[40, 40, 40]))
@@ -156,12 +158,14 @@ class RerunRecorder:
             return
         frames, self._buffer = self._buffer, []
         t = rr.TimeColumn("sim_time", duration=np.array([f.t for f in frames]))
-        columns = {
-            "/plots/energy/kinetic": [f.energy_kinetic for f in frames],
-            "/plots/energy/potential": [f.energy_potential for f in frames],
-            "/plots/energy/total": [f.energy_total for f in frames],
-            "/plots/constraint_violation": [f.constraint_violation for f in frames],
-        }
+        columns = {}
+        if self.visuals.kind == "rigid":
+            columns = {
+                "/plots/energy/kinetic": [f.energy_kinetic for f in frames],
+                "/plots/energy/potential": [f.energy_potential for f in frames],
+                "/plots/energy/total": [f.energy_total for f in frames],
+                "/plots/constraint_violation": [f.constraint_violation for f in frames],
+            }
         for key in frames[0].scalars:
             columns[f"/plots/{key}"] = [f.scalars[key] for f in frames]
         for path, values in columns.items():

@@ -1,0 +1,406 @@
+"""Impact engine: two linear bodies that touch at one point each, integrated event by event.
+
+Each body is linear in its own generalized coordinates ``z`` (a rigid impactor has one, a
+flexible bar its reference coordinates plus modal or nodal ones)::
+
+    M z_dd + C z_d + K z = f + s F r                                    (per body)
+
+where ``r`` maps ``z`` to the displacement of the body's contact point along the contact normal
+``n`` (which points from body 1 into body 2), ``f`` is a constant load (e.g. gravity), ``F >= 0``
+is the contact force and ``s = -1`` for body 1, ``+1`` for body 2. The local indentation is
+``alpha = r1.z1 - r2.z2 - gap`` (positive when the surfaces overlap). Contact models:
+
+* a continuous normal law ``F(alpha, alpha_dot, memory)`` (viz3d.contact.laws), resolved in time:
+  onset, maximum indentation (elastoplastic memory) and separation are located as events;
+* ``rigid``: kinematic contact. At onset the normal velocities are equalised by a plastic impulse,
+  then ``alpha = 0`` is kept by a multiplier ``F`` while ``F > 0``; separation when ``F`` reaches 0;
+* ``restitution``: instantaneous Newton impulses with coefficient ``e`` at every touch (the
+  thesis's generalized impulse-momentum balance, ch. 6).
+
+The state integrated by the adaptive method is ``y = [z1, z2, z1_d, z2_d, W]`` with ``W`` the
+work done on the contact, ``int F alpha_dot dt``; the energy ledger is then
+``dissipated = W - elastic_energy(alpha) + impulse losses`` and the balance error is what the
+numerics created or destroyed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viz3d._typing import FloatArray
+from viz3d.integrators import ExplicitRK
+from viz3d.integrators.adaptive import Controller, Event, integrate
+from viz3d.integrators.tableaus import DOPRI5
+
+#: Bodies whose relative normal velocity after an impulse is below this [m/s] are considered
+#: at rest on each other (ends a run of restitution balances).
+REST_SPEED = 1e-9
+#: A kinematic contact needing less tension than this [N] (round-off) is kept at onset.
+RIGID_TENSION_TOL = 1e-9
+#: At most this many events per run (guards against Zeno sequences of impacts).
+MAX_EVENTS = 100_000
+
+
+@dataclass(frozen=True)
+class LinearBody:
+    """One body of an impact, linear in its coordinates.
+
+    Attributes
+    ----------
+    name : str
+    M, C, K : ndarray, shape (n, n)
+        Mass [kg-consistent], damping and stiffness matrices.
+    r : ndarray, shape (n,)
+        Contact-point displacement along the contact normal per unit ``z`` [m].
+    f : ndarray, shape (n,)
+        Constant generalized load (e.g. gravity) [N-consistent].
+    z0, zd0 : ndarray, shape (n,)
+        Initial coordinates and velocities.
+    rigid : ndarray of bool, shape (n,)
+        Coordinates that are rigid-body (reference) motion, for the ledger's kinetic split.
+    """
+
+    name: str
+    M: FloatArray
+    C: FloatArray
+    K: FloatArray
+    r: FloatArray
+    f: FloatArray
+    z0: FloatArray
+    zd0: FloatArray
+    rigid: np.ndarray
+    M_inv: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "M_inv", np.linalg.inv(self.M) if self.n else np.zeros((0, 0)))
+
+    @property
+    def n(self) -> int:
+        return len(self.r)
+
+    @property
+    def mobility(self) -> float:
+        """``r^T M^-1 r`` [1/kg]: contact-point velocity change per unit impulse."""
+        return float(self.r @ self.M_inv @ self.r) if self.n else 0.0
+
+    def kinetic(self, zd: FloatArray) -> tuple[float, float]:
+        """Kinetic energy of the rigid and of the elastic coordinates [J] (their coupling term
+        is counted with the elastic part)."""
+        total = 0.5 * float(zd @ self.M @ zd)
+        zr = np.where(self.rigid, zd, 0.0)
+        rigid = 0.5 * float(zr @ self.M @ zr)
+        return rigid, total - rigid
+
+    def strain(self, z: FloatArray) -> float:
+        return 0.5 * float(z @ self.K @ z)
+
+    def load_potential(self, z: FloatArray) -> float:
+        return -float(self.f @ z)
+
+
+def fixed_body(name: str = "ground") -> LinearBody:
+    """A body that cannot move (a rigid stop)."""
+    e = np.zeros(0)
+    return LinearBody(name, np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), e, e, e, e, np.zeros(0, bool))
+
+
+def rigid_mass(name: str, mass: float, velocity: float, gap: float = 0.0, force: float = 0.0) -> LinearBody:
+    """A rigid body moving along the contact normal: one coordinate, ``z`` along ``n``.
+
+    ``velocity`` [m/s] is along ``n`` (positive = towards body 2 when it is body 1).
+    """
+    one = np.ones(1)
+    return LinearBody(name, mass * np.eye(1), np.zeros((1, 1)), np.zeros((1, 1)), one, force * one,
+                      np.zeros(1), velocity * one, np.ones(1, bool))
+
+
+@dataclass(frozen=True)
+class Contact:
+    """How the two bodies interact.
+
+    Attributes
+    ----------
+    model : str
+        "law", "rigid" or "restitution".
+    law : NormalLaw or None
+        For ``model == "law"``.
+    restitution : float
+        For ``model == "restitution"``.
+    gap : float
+        Initial distance between the surfaces along ``n`` [m].
+    """
+
+    model: str
+    law: object = None
+    restitution: float = 1.0
+    gap: float = 0.0
+
+
+@dataclass
+class Sample:
+    """Everything recorded at one output time (SI units)."""
+
+    t: float
+    z1: FloatArray
+    z2: FloatArray
+    z1d: FloatArray
+    z2d: FloatArray
+    alpha: float
+    alpha_dot: float
+    force: float
+    in_contact: bool
+    ledger: dict
+
+
+@dataclass
+class ImpactRun:
+    """Result of ``run_impact``: samples, events and cost."""
+
+    samples: list[Sample]
+    events: list[tuple[float, str]]
+    n_accepted: int
+    n_rejected: int
+    n_rhs: int
+    status: str = "ok"
+
+
+class ImpactProblem:
+    """Two bodies and a contact; builds the vector field of each contact phase."""
+
+    def __init__(self, body1: LinearBody, body2: LinearBody, contact: Contact):
+        self.b1, self.b2, self.contact = body1, body2, contact
+        self.n1, self.n2 = body1.n, body2.n
+        self.n = self.n1 + self.n2
+        #: Mechanical energy at t = 0 [J] (the reference of the balance error).
+        self.initial_energy = self.ledger(self.initial_state(), None, 0.0, 0.0)["total"]
+
+    # ------------------------------------------------------------------ state layout
+
+    def split(self, y: FloatArray):
+        n1, n = self.n1, self.n
+        return y[:n1], y[n1:n], y[n:n + n1], y[n + n1:2 * n], y[2 * n]
+
+    def join(self, z1, z2, z1d, z2d, W) -> FloatArray:
+        return np.concatenate([z1, z2, z1d, z2d, [W]])
+
+    def initial_state(self) -> FloatArray:
+        return self.join(self.b1.z0, self.b2.z0, self.b1.zd0, self.b2.zd0, 0.0)
+
+    def indentation(self, y: FloatArray) -> tuple[float, float]:
+        """``(alpha, alpha_dot)`` [m, m/s]."""
+        z1, z2, z1d, z2d, _ = self.split(y)
+        alpha = float(self.b1.r @ z1 - self.b2.r @ z2) - self.contact.gap
+        return alpha, float(self.b1.r @ z1d - self.b2.r @ z2d)
+
+    # ------------------------------------------------------------------ dynamics
+
+    def free_accelerations(self, y):
+        z1, z2, z1d, z2d, _ = self.split(y)
+        a1 = self.b1.M_inv @ (self.b1.f - self.b1.C @ z1d - self.b1.K @ z1) if self.n1 else np.zeros(0)
+        a2 = self.b2.M_inv @ (self.b2.f - self.b2.C @ z2d - self.b2.K @ z2) if self.n2 else np.zeros(0)
+        return a1, a2
+
+    def rhs_law(self, memory):
+        """Vector field with the continuous law active at the given memory."""
+        law = self.contact.law
+
+        def rhs(t, y):
+            z1, z2, z1d, z2d, _ = self.split(y)
+            alpha, alpha_dot = self.indentation(y)
+            F = float(law.force(alpha, alpha_dot, memory)) if alpha > 0 else 0.0
+            a1, a2 = self.free_accelerations(y)
+            if self.n1:
+                a1 = a1 - F * (self.b1.M_inv @ self.b1.r)
+            if self.n2:
+                a2 = a2 + F * (self.b2.M_inv @ self.b2.r)
+            return np.concatenate([z1d, z2d, a1, a2, [F * alpha_dot]])
+
+        return rhs
+
+    def rhs_free(self, t, y):
+        z1, z2, z1d, z2d, _ = self.split(y)
+        a1, a2 = self.free_accelerations(y)
+        return np.concatenate([z1d, z2d, a1, a2, [0.0]])
+
+    def rigid_force(self, y) -> float:
+        """Multiplier keeping ``alpha_dd = 0``: ``F = (r1 a1_free - r2 a2_free) / (m1' + m2')``."""
+        a1, a2 = self.free_accelerations(y)
+        num = (self.b1.r @ a1 if self.n1 else 0.0) - (self.b2.r @ a2 if self.n2 else 0.0)
+        return float(num / (self.b1.mobility + self.b2.mobility))
+
+    def rhs_rigid(self, t, y):
+        z1, z2, z1d, z2d, _ = self.split(y)
+        F = self.rigid_force(y)
+        a1, a2 = self.free_accelerations(y)
+        if self.n1:
+            a1 = a1 - F * (self.b1.M_inv @ self.b1.r)
+        if self.n2:
+            a2 = a2 + F * (self.b2.M_inv @ self.b2.r)
+        return np.concatenate([z1d, z2d, a1, a2, [0.0]])
+
+    def impulse(self, y: FloatArray, e: float) -> tuple[FloatArray, float, float]:
+        """Newton impulse ``P = (1 + e) alpha_dot / (m1' + m2')``; returns (y, P [N s], energy lost [J])."""
+        z1, z2, z1d, z2d, W = self.split(y)
+        _, alpha_dot = self.indentation(y)
+        P = (1.0 + e) * alpha_dot / (self.b1.mobility + self.b2.mobility)
+        T0 = self.kinetic(y)
+        z1d = z1d - P * (self.b1.M_inv @ self.b1.r) if self.n1 else z1d
+        z2d = z2d + P * (self.b2.M_inv @ self.b2.r) if self.n2 else z2d
+        y_new = self.join(z1, z2, z1d, z2d, W)
+        return y_new, P, T0 - self.kinetic(y_new)
+
+    def kinetic(self, y) -> float:
+        z1, z2, z1d, z2d, _ = self.split(y)
+        return sum(sum(b.kinetic(zd)) for b, zd in ((self.b1, z1d), (self.b2, z2d)) if b.n)
+
+    def ledger(self, y, memory, impulse_loss: float, force: float) -> dict:
+        """Energy ledger [J] at state ``y`` (keys are the recorded names)."""
+        z1, z2, z1d, z2d, W = self.split(y)
+        alpha, _ = self.indentation(y)
+        k1 = self.b1.kinetic(z1d) if self.n1 else (0.0, 0.0)
+        k2 = self.b2.kinetic(z2d) if self.n2 else (0.0, 0.0)
+        elastic = 0.0
+        if self.contact.model == "law" and memory is not None and alpha > 0:
+            elastic = float(self.contact.law.elastic_energy(alpha, memory))
+        dissipated = W - elastic + impulse_loss
+        strain = (self.b1.strain(z1) if self.n1 else 0.0) + (self.b2.strain(z2) if self.n2 else 0.0)
+        loads = (self.b1.load_potential(z1) if self.n1 else 0.0) + (self.b2.load_potential(z2) if self.n2 else 0.0)
+        total = sum(k1) + sum(k2) + strain + loads + elastic
+        return {"impactor_kinetic": sum(k1), "bar_kinetic": sum(k2), "bar_strain": strain,
+                "contact_elastic": elastic, "load_potential": loads, "dissipated": dissipated,
+                "total": total, "total_plus_dissipated": total + dissipated}
+
+
+def run_impact(problem: ImpactProblem, t_end: float, output_dt: float, controller: Controller,
+               on_sample=None) -> ImpactRun:
+    """Integrate ``problem`` to ``t_end``, sampling every ``output_dt`` and at every event.
+
+    ``on_sample(sample)`` is called for each sample as it is produced (sinks, progress).
+    """
+    method = ExplicitRK(DOPRI5)
+    state = _PhaseState(problem)
+    y, t, h = problem.initial_state(), 0.0, None
+    samples, events = [], []
+    next_out = [0.0]
+    stats = [0, 0, 0]
+
+    def emit(tt, yy):
+        s = state.sample(tt, yy)
+        samples.append(s)
+        if on_sample:
+            on_sample(s)
+
+    def on_step(t0, y0, f0, t1, y1, f1):
+        from viz3d.integrators.adaptive import hermite
+
+        while next_out[0] <= t1 + 1e-15 * max(1.0, t1) and next_out[0] <= t_end:
+            if next_out[0] >= t0:
+                emit(next_out[0], hermite(t0, y0, f0, t1, y1, f1, next_out[0]) if next_out[0] < t1 else y1)
+            next_out[0] += output_dt
+
+    emit(0.0, y)
+    next_out[0] = output_dt
+    y = state.start(t, y, events)
+    status = "ok"
+    while t < t_end:
+        if len(events) > MAX_EVENTS:
+            status = f"stopped at t = {t:.6g} s: more than {MAX_EVENTS} contact events (Zeno sequence?)"
+            break
+        out = integrate(state.rhs(), t, y, t_end, method, controller, events=state.events(), h=h, on_step=on_step)
+        stats[0] += out.n_accepted
+        stats[1] += out.n_rejected
+        stats[2] += out.n_rhs
+        t, y, h = out.t, out.y, out.h
+        if out.event is None:
+            break
+        y = state.handle(out.event, t, y, events)
+        emit(t, y)
+    if samples[-1].t < t - 1e-12 * max(1.0, t):
+        emit(t, y)  # the final state, when t_end is not on the output grid
+    return ImpactRun(samples, events, stats[0], stats[1], stats[2], status)
+
+
+class _PhaseState:
+    """Which contact phase is active, the law memory and the impulse losses so far."""
+
+    def __init__(self, problem: ImpactProblem):
+        self.p = problem
+        self.in_contact = False
+        self.memory = None
+        self.impulse_loss = 0.0
+
+    def start(self, t, y, events) -> FloatArray:
+        """Bodies that start touching and approaching (or overlapping) start in contact."""
+        alpha, alpha_dot = self.p.indentation(y)
+        if alpha > 0 or (alpha == 0 and alpha_dot > 0):
+            return self.handle("onset", t, y, events)
+        return y
+
+    def rhs(self):
+        model = self.p.contact.model
+        if model == "law":
+            return self.p.rhs_law(self.memory) if self.in_contact else self.p.rhs_free
+        if model == "rigid" and self.in_contact:
+            return self.p.rhs_rigid
+        return self.p.rhs_free
+
+    def events(self) -> tuple[Event, ...]:
+        p, model = self.p, self.p.contact.model
+        if not self.in_contact:
+            return (Event("onset", lambda t, y: p.indentation(y)[0], +1),)
+        if model == "rigid":
+            return (Event("separation", lambda t, y: p.rigid_force(y), -1),)
+        law, mem = p.contact.law, self.memory
+        floor = float(law.residual_indentation(mem.alpha_max)) if law.dissipative else 0.0
+        evs = [Event("separation", lambda t, y: p.indentation(y)[0] - floor, -1)]
+        if hasattr(law, "loading_force"):  # elastoplastic: the turning point sets alpha_max
+            evs.append(Event("max_indentation", lambda t, y: p.indentation(y)[1], -1))
+        return tuple(evs)
+
+    def handle(self, name: str, t: float, y: FloatArray, events: list) -> FloatArray:
+        p, model = self.p, self.p.contact.model
+        alpha, alpha_dot = p.indentation(y)
+        if name == "onset":
+            events.append((t, f"contact start (approach speed {alpha_dot:.4g} m/s)"))
+            if model == "restitution":
+                y, P, loss = p.impulse(y, p.contact.restitution)
+                self.impulse_loss += loss
+                events.append((t, f"impulse {P:.4g} N s, e = {p.contact.restitution:g}: contact end"))
+                return y
+            if model == "rigid":
+                y, P, loss = p.impulse(y, 0.0)
+                self.impulse_loss += loss
+                # Complementarity: stay in contact unless holding alpha = 0 needs tension. F = 0 exactly
+                # (an undeformed target) counts as compressive: the force grows from zero.
+                self.in_contact = p.rigid_force(y) >= -RIGID_TENSION_TOL
+                if not self.in_contact:
+                    events.append((t, "contact end (plastic impulse only: holding contact would need tension)"))
+                return y
+            self.in_contact = True
+            self.memory = p.contact.law.onset(max(alpha_dot, 0.0), self.memory)
+            return y
+        if name == "max_indentation":
+            self.memory = p.contact.law.update(self.memory, alpha, alpha_dot)
+            events.append((t, f"maximum indentation {alpha:.4g} m"))
+            return y
+        if name == "separation":
+            if model == "law":
+                self.memory = p.contact.law.update(self.memory, max(alpha, 0.0), alpha_dot)
+            self.in_contact = False
+            events.append((t, f"contact end (separation speed {-alpha_dot:.4g} m/s)"))
+            return y
+        raise ValueError(name)
+
+    def sample(self, t, y) -> Sample:
+        p = self.p
+        z1, z2, z1d, z2d, _ = p.split(y)
+        alpha, alpha_dot = p.indentation(y)
+        F = 0.0
+        if self.in_contact and p.contact.model == "law" and alpha > 0:
+            F = float(p.contact.law.force(alpha, alpha_dot, self.memory))
+        elif self.in_contact and p.contact.model == "rigid":
+            F = p.rigid_force(y)
+        return Sample(t, z1.copy(), z2.copy(), z1d.copy(), z2d.copy(), alpha, alpha_dot, F, self.in_contact,
+                      p.ledger(y, self.memory, self.impulse_loss, F))
