@@ -205,8 +205,10 @@ def impact_summary(traj, out: Path) -> str:
 
     meta, x = traj.scene["run"], traj.extras
     e_req = float(x["restitution_requested"])
-    req = f" (requested {e_req:g})" if np.isfinite(e_req) else ""
-    e0 = traj.energy_total[0] if traj.energy_total.size else 0.0
+    req = f"; requested {e_req:g}" if np.isfinite(e_req) else ""
+    per = x["contact_restitution"]
+    per_txt = ", ".join(f"{e:.4f}" for e in per[:6]) + (", ..." if len(per) > 6 else "")
+    scale = float(max(np.max(np.abs(traj.energy_total), initial=0.0), np.max(traj.energy_kinetic, initial=0.0)))
     balance = float(np.max(np.abs(x["energy_balance_error"]))) if traj.t.size else 0.0
     sim_time = float(traj.t[-1]) if traj.t.size else 0.0
     lines = [
@@ -217,9 +219,9 @@ def impact_summary(traj, out: Path) -> str:
         f"contacts    {int(x['contact_count'])}; peak force {float(np.max(x['contact_force'], initial=0.0)):.4g} N, "
         f"peak indentation {float(np.max(x['penetration'], initial=0.0)):.4g} m",
         f"impactor    {float(x['impactor_velocity'][0]):.4g} -> {float(x['impactor_velocity'][-1]):.4g} m/s along the normal",
-        f"restitution {float(x['restitution']):.4f} achieved{req}",
-        f"energy      dissipated {float(x['energy_dissipated'][-1]):.4g} J of {e0:.4g} J; balance error {balance:.3g} J "
-        f"({balance / e0 if e0 else 0.0:.2g} of the initial energy)",
+        f"restitution {float(x['restitution']):.4f} of the bodies' rigid motion; per contact {per_txt}{req}",
+        f"energy      dissipated {float(x['energy_dissipated'][-1]):.4g} J; balance error {balance:.3g} J "
+        f"({balance / scale if scale else 0.0:.2g} of the largest energy, {scale:.4g} J)",
         f"status      {traj.status}",
         f"wrote       {out}",
     ]

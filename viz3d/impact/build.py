@@ -121,7 +121,7 @@ def contact_from(d: dict, mass: float, velocity: float, src: str):
         return Contact("law", law=L.Linear(stiffness, c["damping"])), None
     exponent = c.get("exponent", 1.5)
     if cls is L.Hertz:
-        return Contact("law", law=L.Hertz(stiffness, exponent)), 1.0
+        return Contact("law", law=L.Hertz(stiffness, exponent)), None
     if "restitution" not in c:
         raise SceneError(src, "contact.restitution", f"the target restitution the {name} law is calibrated to")
     return Contact("law", law=cls(stiffness, exponent, c["restitution"])), c["restitution"]
@@ -215,6 +215,8 @@ def bar_model(bar: dict, x_c: float, t_c: float | None, src: str) -> tuple[BarMo
         if "modes" in bar:
             return analytic_modes(*args, bar["modes"], supports), f"{bar['modes']} analytic modes (given)"
         return _economical(args, supports, x_c, t_c, bar["tolerance"])
+    except SceneError:
+        raise
     except ValueError as exc:
         raise SceneError(src, "bar.supports", f"a bar model that exists ({exc})") from None
 
@@ -226,7 +228,9 @@ def _economical(args, supports, x_c: float, t_c: float | None, tol: float) -> tu
     sel = select_modes(reference, x_c, omega_max=omega_max, tol=tol)
     n = max(sel.n_modes, 1)
     band = f"band {omega_max:.3g} rad/s from t_c ~ {t_c:.3g} s, " if omega_max else ""
-    note = f"; Euler-Bernoulli beyond its validity (wavelength {sel.wavelength:.3g} m)" if not sel.eb_valid else ""
+    note = ""
+    if args[0] == "euler_bernoulli" and not sel.eb_valid:
+        note = f"; Euler-Bernoulli beyond its validity (wavelength {sel.wavelength:.3g} m: use timoshenko)"
     return (analytic_modes(*args, n, supports),
             f"{n} analytic modes chosen for tolerance {tol:g} ({band}truncation error {sel.truncation_error:.2g}){note}")
 

@@ -156,7 +156,12 @@ class Sample:
 
 @dataclass
 class ImpactRun:
-    """Result of ``run_impact``: samples, events and cost."""
+    """Result of ``run_impact``: samples, events, per-contact speeds and cost.
+
+    ``contacts`` holds one (t_start, approach speed, t_end, separation speed) per contact [s, m/s]
+    (normal relative speeds of the contact points; t_end and separation speed are nan for a
+    contact still going on at the end).
+    """
 
     samples: list[Sample]
     events: list[tuple[float, str]]
@@ -164,6 +169,7 @@ class ImpactRun:
     n_rejected: int
     n_rhs: int
     status: str = "ok"
+    contacts: list = field(default_factory=list)
 
 
 class ImpactProblem:
@@ -174,7 +180,7 @@ class ImpactProblem:
         self.n1, self.n2 = body1.n, body2.n
         self.n = self.n1 + self.n2
         #: Mechanical energy at t = 0 [J] (the reference of the balance error).
-        self.initial_energy = self.ledger(self.initial_state(), None, 0.0, 0.0)["total"]
+        self.initial_energy = self.ledger(self.initial_state(), None, 0.0, False)["total"]
 
     # ------------------------------------------------------------------ state layout
 
@@ -255,14 +261,14 @@ class ImpactProblem:
         z1, z2, z1d, z2d, _ = self.split(y)
         return sum(sum(b.kinetic(zd)) for b, zd in ((self.b1, z1d), (self.b2, z2d)) if b.n)
 
-    def ledger(self, y, memory, impulse_loss: float, force: float) -> dict:
+    def ledger(self, y, memory, impulse_loss: float, in_contact: bool) -> dict:
         """Energy ledger [J] at state ``y`` (keys are the recorded names)."""
         z1, z2, z1d, z2d, W = self.split(y)
         alpha, _ = self.indentation(y)
         k1 = self.b1.kinetic(z1d) if self.n1 else (0.0, 0.0)
         k2 = self.b2.kinetic(z2d) if self.n2 else (0.0, 0.0)
         elastic = 0.0
-        if self.contact.model == "law" and memory is not None and alpha > 0:
+        if in_contact and self.contact.model == "law" and alpha > 0:
             elastic = float(self.contact.law.elastic_energy(alpha, memory))
         dissipated = W - elastic + impulse_loss
         strain = (self.b1.strain(z1) if self.n1 else 0.0) + (self.b2.strain(z2) if self.n2 else 0.0)
@@ -308,18 +314,20 @@ def run_impact(problem: ImpactProblem, t_end: float, output_dt: float, controlle
         if len(events) > MAX_EVENTS:
             status = f"stopped at t = {t:.6g} s: more than {MAX_EVENTS} contact events (Zeno sequence?)"
             break
-        out = integrate(state.rhs(), t, y, t_end, method, controller, events=state.events(), h=h, on_step=on_step)
+        out = integrate(state.rhs(), t, y, t_end, method, controller, events=state.events(), h=h, on_step=on_step,
+                        disarmed=(state.fired,) if state.fired else ())
         stats[0] += out.n_accepted
         stats[1] += out.n_rejected
         stats[2] += out.n_rhs
         t, y, h = out.t, out.y, out.h
         if out.event is None:
             break
+        state.fired = out.event
         y = state.handle(out.event, t, y, events)
         emit(t, y)
     if samples[-1].t < t - 1e-12 * max(1.0, t):
         emit(t, y)  # the final state, when t_end is not on the output grid
-    return ImpactRun(samples, events, stats[0], stats[1], stats[2], status)
+    return ImpactRun(samples, events, stats[0], stats[1], stats[2], status, state.contacts)
 
 
 class _PhaseState:
@@ -330,9 +338,11 @@ class _PhaseState:
         self.in_contact = False
         self.memory = None
         self.impulse_loss = 0.0
+        self.contacts: list[list[float]] = []
 
     def start(self, t, y, events) -> FloatArray:
         """Bodies that start touching and approaching (or overlapping) start in contact."""
+        self.fired = None
         alpha, alpha_dot = self.p.indentation(y)
         if alpha > 0 or (alpha == 0 and alpha_dot > 0):
             return self.handle("onset", t, y, events)
@@ -346,14 +356,22 @@ class _PhaseState:
             return self.p.rhs_rigid
         return self.p.rhs_free
 
+    def crater(self) -> float:
+        """Indentation at which the surfaces touch: the residual (plastic) indentation left by the
+        contacts so far, 0 for elastic and rate laws [m]."""
+        if self.memory is None or self.p.contact.model != "law" or not self.p.contact.law.dissipative:
+            return 0.0
+        return float(self.p.contact.law.residual_indentation(self.memory.alpha_max))
+
     def events(self) -> tuple[Event, ...]:
         p, model = self.p, self.p.contact.model
         if not self.in_contact:
-            return (Event("onset", lambda t, y: p.indentation(y)[0], +1),)
+            floor = self.crater()
+            return (Event("onset", lambda t, y: p.indentation(y)[0] - floor, +1),)
         if model == "rigid":
             return (Event("separation", lambda t, y: p.rigid_force(y), -1),)
-        law, mem = p.contact.law, self.memory
-        floor = float(law.residual_indentation(mem.alpha_max)) if law.dissipative else 0.0
+        law = p.contact.law
+        floor = self.crater()
         evs = [Event("separation", lambda t, y: p.indentation(y)[0] - floor, -1)]
         if hasattr(law, "loading_force"):  # elastoplastic: the turning point sets alpha_max
             evs.append(Event("max_indentation", lambda t, y: p.indentation(y)[1], -1))
@@ -364,9 +382,11 @@ class _PhaseState:
         alpha, alpha_dot = p.indentation(y)
         if name == "onset":
             events.append((t, f"contact start (approach speed {alpha_dot:.4g} m/s)"))
+            self.contacts.append([t, alpha_dot, np.nan, np.nan])
             if model == "restitution":
                 y, P, loss = p.impulse(y, p.contact.restitution)
                 self.impulse_loss += loss
+                self.contacts[-1][2:] = [t, -p.indentation(y)[1]]
                 events.append((t, f"impulse {P:.4g} N s, e = {p.contact.restitution:g}: contact end"))
                 return y
             if model == "rigid":
@@ -376,6 +396,7 @@ class _PhaseState:
                 # (an undeformed target) counts as compressive: the force grows from zero.
                 self.in_contact = p.rigid_force(y) >= -RIGID_TENSION_TOL
                 if not self.in_contact:
+                    self.contacts[-1][2:] = [t, -p.indentation(y)[1]]
                     events.append((t, "contact end (plastic impulse only: holding contact would need tension)"))
                 return y
             self.in_contact = True
@@ -389,6 +410,7 @@ class _PhaseState:
             if model == "law":
                 self.memory = p.contact.law.update(self.memory, max(alpha, 0.0), alpha_dot)
             self.in_contact = False
+            self.contacts[-1][2:] = [t, -alpha_dot]
             events.append((t, f"contact end (separation speed {-alpha_dot:.4g} m/s)"))
             return y
         raise ValueError(name)
@@ -403,4 +425,4 @@ class _PhaseState:
         elif self.in_contact and p.contact.model == "rigid":
             F = p.rigid_force(y)
         return Sample(t, z1.copy(), z2.copy(), z1d.copy(), z2d.copy(), alpha, alpha_dot, F, self.in_contact,
-                      p.ledger(y, self.memory, self.impulse_loss, F))
+                      p.ledger(y, self.memory, self.impulse_loss, self.in_contact))

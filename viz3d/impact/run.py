@@ -6,7 +6,9 @@ adds, in ``extras``: ``contact_force`` (n,) [N], ``penetration`` (n,) [m], ``gau
 ``energy_bar_kinetic``, ``energy_bar_strain``, ``energy_contact_elastic``, ``energy_load_potential``,
 ``energy_dissipated``, ``energy_balance_error`` (n,) [J], ``impactor_velocity`` (n,) [m/s] along
 the contact normal, ``events_t`` / ``events_text``, ``restitution`` and ``restitution_requested``
-(nan when none was requested), ``contact_count``, ``model_choice``.
+(nan when none was requested), ``contact_count``, ``contacts`` (k, 4): t_start, approach speed,
+t_end, separation speed of each contact, ``contact_restitution`` (k,): separation / approach
+speed of the contact points per contact, ``model_choice``.
 """
 
 from __future__ import annotations
@@ -75,7 +77,7 @@ class _FrameFeed:
                 s.log(frame)
 
     def partial(self) -> ImpactRun:
-        return ImpactRun(self.samples, [], 0, 0, 0)
+        return ImpactRun(self.samples, [], 0, 0, 0)  # events of an interrupted run are lost
 
     def close(self, status, events):
         for s in self.opened:
@@ -144,7 +146,9 @@ def trajectory(scene: Scene, setup: ImpactSetup, geo, run: ImpactRun, status: st
         "events_text": np.array([x for _, x in run.events], dtype=str),
         "restitution": np.array(achieved_restitution(setup, samples) if n > 1 else np.nan),
         "restitution_requested": np.array(np.nan if setup.requested_restitution is None else setup.requested_restitution),
-        "contact_count": np.array(sum("contact start" in x for _, x in run.events)),
+        "contact_count": np.array(len(run.contacts)),
+        "contacts": np.array(run.contacts, float).reshape(-1, 4),
+        "contact_restitution": _per_contact(run.contacts),
         "model_choice": np.array(setup.model_choice),
     }
     meta = {"viz3d_version": _version(), "integrator": "dopri5 (adaptive, events)", "dt": scene.data["sim"]["output_dt"],
@@ -159,6 +163,12 @@ def trajectory(scene: Scene, setup: ImpactSetup, geo, run: ImpactRun, status: st
         reaction_force=np.zeros((n, 0, 3)), chart_switches=np.zeros(2, int), status=status,
         scene_json=json.dumps({"scene": scene.data, "run": meta}, sort_keys=True), wall_time=wall,
         n_steps=run.n_accepted, n_rhs=run.n_rhs, extras=extras)
+
+
+def _per_contact(contacts) -> np.ndarray:
+    """Separation over approach speed of the contact points, per contact (nan if unfinished)."""
+    c = np.array(contacts, float).reshape(-1, 4)
+    return c[:, 3] / c[:, 1] if len(c) else np.zeros(0)
 
 
 def _frame_shift(setup: ImpactSetup, z2) -> float:

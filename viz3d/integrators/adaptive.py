@@ -139,7 +139,7 @@ class _Counted:
 
 def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, controller: Controller,
               events: tuple[Event, ...] = (), h: float | None = None, f0: FloatArray | None = None,
-              on_step: Callable | None = None) -> Outcome:
+              on_step: Callable | None = None, disarmed: tuple[str, ...] = ()) -> Outcome:
     """Integrate ``y' = rhs(t, y)`` from ``t0`` until ``t_end`` or the first event.
 
     Parameters
@@ -151,6 +151,9 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
     on_step : callable (t0, y0, f0, t1, y1, f1) -> None, optional
         Called after every accepted step (including the final partial step to an event), e.g. to
         sample output through ``hermite``.
+    disarmed : tuple of str
+        Events that just fired at ``t0`` (their function is zero to round-off there): they are
+        ignored during the first accepted step, so a root at the start is not found again.
 
     Raises
     ------
@@ -162,7 +165,7 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
     f = rhs(t, y) if f0 is None else f0
     order = method.tableau.error_order or method.order - 1
     h = controller.first_step(rhs, t, y, f, order) if h is None else h
-    g = [ev.g(t, y) for ev in events]
+    g = [0.0 if ev.name in disarmed else ev.g(t, y) for ev in events]
     out = Outcome(t, y, f, None, h)
     while t < t_end:
         h = min(h, t_end - t, controller.max_step)
