@@ -126,6 +126,8 @@ class Frame:
         Further named quantities (for plots), in SI units; keys are plot paths ("contact/force").
     deformed : dict of str -> ndarray (V, 3)
         World vertices of each deformable mesh [m].
+    contact_points, contact_forces : ndarray, shape (k, 3)
+        Active contacts: world points [m] and the force on the struck body there [N].
     """
 
     t: float
@@ -141,6 +143,8 @@ class Frame:
     constraint_violation: float
     scalars: dict = field(default_factory=dict)
     deformed: dict = field(default_factory=dict)
+    contact_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    contact_forces: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def energy_total(self) -> float:

@@ -170,3 +170,34 @@ def test_viewer_recording_is_closed_and_readable(tmp_path):
     runner.stop()
     t, e = read_scalars(path, "/plots/energy/total")
     assert len(t) > 100 and np.all(np.diff(t) > 0)
+
+
+def test_impact_scene_runs_live_and_streams_the_deforming_bar():
+    scene = viz3d.load_scene(SCENES / "impact_clamped_bar.toml")
+    runner = SimRunner(scene)
+    assert runner.speed == pytest.approx(2e-5)             # the scene's [display] speed
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        messages = asyncio.run(_collect(viewer.server.get_port(), CONNECT_SECONDS))
+        snap = runner.snapshot
+    finally:
+        viewer.stop()
+    assert snap.kind == "impact" and 5e-6 < snap.frame.t < 1e-4  # about 2e-5 x 2 s of wall time
+    assert snap.history.shape[1] == 1 + 1 + 4                  # t, force, 4 energies
+    bars = [np.asarray(m["updates"]["vertices"]).reshape(-1, 3) for m in messages
+            if m["type"] == "SceneNodeUpdateMessage" and m["name"] == "/deformables/bar" and "vertices" in m["updates"]]
+    assert len(bars) >= 5 and np.abs(bars[-1] - bars[0]).max() > 1e-6  # the struck end moves (amplified)
+
+
+def test_switch_between_multibody_and_impact_scenes():
+    runner = _runner(playing=False)
+    try:
+        runner.command("scene", str(SCENES / "bouncing_sphere.toml"))
+        assert wait_for(lambda: runner.snapshot.kind == "impact" and runner.snapshot.plots[0][0] == "Contact force [N]")
+        runner.command("integrator", "heun")
+        assert wait_for(lambda: "cannot be changed for an impact scene" in runner.snapshot.status)
+        runner.command("scene", str(SCENES / "heavy_top.toml"))
+        assert wait_for(lambda: runner.snapshot.kind == "rigid" and runner.snapshot.generation == 3)
+    finally:
+        runner.stop()

@@ -179,5 +179,9 @@ def impact_frame(setup: ImpactSetup, geo: ImpactGeometry, sample: Sample, gap: f
         scalars.update({f"strain/{n}": float(e) for n, e in zip(setup.gauge_names, strain)})
     kinetic = led["impactor_kinetic"] + led["bar_kinetic"]
     zeros = np.zeros((len(W_r), 3))
+    points, forces = np.zeros((0, 3)), np.zeros((0, 3))
+    if sample.force > 0:  # the contact point on the impactor's surface, the force on the target
+        points = (centre + geo.radius * geo.n)[None]
+        forces = (sample.force * geo.n)[None]
     return Frame(sample.t, np.array(W_r), np.array(R), np.array(W_v), zeros, np.zeros((0, 3)), np.zeros((0, 3)),
-                 np.zeros((0, 2, 3)), kinetic, led["total"] - kinetic, 0.0, scalars, deformed)
+                 np.zeros((0, 2, 3)), kinetic, led["total"] - kinetic, 0.0, scalars, deformed, points, forces)

@@ -31,7 +31,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.integrators import ExplicitRK
-from viz3d.integrators.adaptive import Controller, Event, integrate
+from viz3d.integrators.adaptive import Controller, Event, hermite, integrate
 from viz3d.integrators.tableaus import DOPRI5
 
 #: Bodies whose relative normal velocity after an impulse is below this [m/s] are considered
@@ -285,49 +285,72 @@ def run_impact(problem: ImpactProblem, t_end: float, output_dt: float, controlle
 
     ``on_sample(sample)`` is called for each sample as it is produced (sinks, progress).
     """
-    method = ExplicitRK(DOPRI5)
-    state = _PhaseState(problem)
-    y, t, h = problem.initial_state(), 0.0, None
-    samples, events = [], []
-    next_out = [0.0]
-    stats = [0, 0, 0]
+    stepper = ImpactStepper(problem, output_dt, controller, on_sample)
+    stepper.advance(t_end)
+    return stepper.result()
 
-    def emit(tt, yy):
-        s = state.sample(tt, yy)
-        samples.append(s)
-        if on_sample:
-            on_sample(s)
 
-    def on_step(t0, y0, f0, t1, y1, f1):
-        from viz3d.integrators.adaptive import hermite
+class ImpactStepper:
+    """Resumable event-driven integration of an ``ImpactProblem`` (used headless and live).
 
-        while next_out[0] <= t1 + 1e-15 * max(1.0, t1) and next_out[0] <= t_end:
-            if next_out[0] >= t0:
-                emit(next_out[0], hermite(t0, y0, f0, t1, y1, f1, next_out[0]) if next_out[0] < t1 else y1)
-            next_out[0] += output_dt
+    ``advance(t_stop)`` integrates from the current time to ``t_stop``, emitting samples on the
+    ``output_dt`` grid and at every event; it can be called again to go further.
+    """
 
-    emit(0.0, y)
-    next_out[0] = output_dt
-    y = state.start(t, y, events)
-    status = "ok"
-    while t < t_end:
-        if len(events) > MAX_EVENTS:
-            status = f"stopped at t = {t:.6g} s: more than {MAX_EVENTS} contact events (Zeno sequence?)"
-            break
-        out = integrate(state.rhs(), t, y, t_end, method, controller, events=state.events(), h=h, on_step=on_step,
-                        disarmed=(state.fired,) if state.fired else ())
-        stats[0] += out.n_accepted
-        stats[1] += out.n_rejected
-        stats[2] += out.n_rhs
-        t, y, h = out.t, out.y, out.h
-        if out.event is None:
-            break
-        state.fired = out.event
-        y = state.handle(out.event, t, y, events)
-        emit(t, y)
-    if samples[-1].t < t - 1e-12 * max(1.0, t):
-        emit(t, y)  # the final state, when t_end is not on the output grid
-    return ImpactRun(samples, events, stats[0], stats[1], stats[2], status, state.contacts)
+    def __init__(self, problem: ImpactProblem, output_dt: float, controller: Controller, on_sample=None):
+        self.problem, self.output_dt, self.controller, self.on_sample = problem, output_dt, controller, on_sample
+        self.method = ExplicitRK(DOPRI5)
+        self.state = _PhaseState(problem)
+        self.t, self.y, self.h = 0.0, problem.initial_state(), None
+        self.samples: list[Sample] = []
+        self.events: list[tuple[float, str]] = []
+        self.stats = [0, 0, 0]
+        self.status = "ok"
+        self._emit(0.0, self.y)
+        self.next_out = output_dt
+        self.y = self.state.start(self.t, self.y, self.events)
+
+    @property
+    def last_sample(self) -> Sample:
+        return self.samples[-1]
+
+    def _emit(self, t, y) -> None:
+        sample = self.state.sample(t, y)
+        self.samples.append(sample)
+        if self.on_sample:
+            self.on_sample(sample)
+
+    def _on_step(self, t0, y0, f0, t1, y1, f1) -> None:
+        while self.next_out <= t1 + 1e-15 * max(1.0, t1) and self.next_out <= self.t_stop:
+            if self.next_out >= t0:
+                t = self.next_out
+                self._emit(t, hermite(t0, y0, f0, t1, y1, f1, t) if t < t1 else y1)
+            self.next_out += self.output_dt
+
+    def advance(self, t_stop: float) -> None:
+        """Integrate to ``t_stop`` (no-op if already there or stopped)."""
+        self.t_stop = t_stop
+        state = self.state
+        while self.t < t_stop and self.status == "ok":
+            if len(self.events) > MAX_EVENTS:
+                self.status = f"stopped at t = {self.t:.6g} s: more than {MAX_EVENTS} contact events (Zeno sequence?)"
+                break
+            out = integrate(state.rhs(), self.t, self.y, t_stop, self.method, self.controller, events=state.events(),
+                            h=self.h, on_step=self._on_step, disarmed=(state.fired,) if state.fired else ())
+            self.stats[0] += out.n_accepted
+            self.stats[1] += out.n_rejected
+            self.stats[2] += out.n_rhs
+            self.t, self.y, self.h = out.t, out.y, out.h
+            if out.event is None:
+                break
+            state.fired = out.event
+            self.y = state.handle(out.event, self.t, self.y, self.events)
+            self._emit(self.t, self.y)
+        if self.samples[-1].t < self.t - 1e-12 * max(1.0, self.t):
+            self._emit(self.t, self.y)  # the final state, when t_stop is not on the output grid
+
+    def result(self) -> ImpactRun:
+        return ImpactRun(self.samples, self.events, *self.stats, self.status, self.state.contacts)
 
 
 class _PhaseState:

@@ -143,6 +143,11 @@ class RerunRecorder:
         for d in vis.deformables:
             rec.log(f"/world/{d.name}", rr.Mesh3D(vertex_positions=frame.deformed[d.name], triangle_indices=d.faces,
                                                   albedo_factor=[*d.color.tolist(), 255]))
+        if len(frame.contact_points):
+            vectors = frame.contact_forces * self._force_scale(frame)
+            rec.log("/world/contacts", rr.Arrows3D(origins=frame.contact_points, vectors=vectors, colors=[220, 30, 30]))
+        else:
+            rec.log("/world/contacts", rr.Clear(recursive=False))
         radius = 0.7 * vis.thickness
         if len(frame.joint_points):
             rec.log("/world/joints", rr.Points3D(frame.joint_points, radii=radius, colors=[40, 40, 40]))
@@ -150,6 +155,12 @@ class RerunRecorder:
             rec.log("/world/reactions", rr.Arrows3D(origins=frame.joint_points, vectors=arrows, colors=[200, 40, 40]))
         if len(frame.springs):
             rec.log("/world/springs", rr.LineStrips3D(list(frame.springs), radii=0.1 * vis.thickness, colors=[90, 90, 90]))
+
+    def _force_scale(self, frame: Frame) -> float:
+        """Metres of arrow per newton: the largest contact force so far draws 3 length scales."""
+        peak = float(np.max(np.linalg.norm(frame.contact_forces, axis=1)))
+        self._peak_force = max(getattr(self, "_peak_force", 0.0), peak)
+        return 3.0 * self.visuals.length_scale / self._peak_force if self._peak_force > 0 else 0.0
 
     def _flush_scalars(self) -> None:
         import rerun as rr

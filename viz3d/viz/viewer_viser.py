@@ -51,6 +51,12 @@ class SceneNodes:
         self.forces = (scene.add_arrows("/forces", np.zeros((nj, 2, 3), np.float32), colors=(200, 30, 30),
                                         shaft_radius=0.2 * w, head_radius=0.5 * w, head_length=0.15 * s, visible=False)
                        if nj else None)
+        self.deformables = {d.name: scene.add_mesh_simple(f"/deformables/{d.name}", d.vertices, d.faces,
+                                                         color=tuple(int(c) for c in d.color))
+                            for d in visuals.deformables}
+        self.contacts = scene.add_arrows("/contacts", np.zeros((1, 2, 3), np.float32), colors=(220, 30, 30),
+                                         shaft_radius=0.3 * w, head_radius=0.7 * w, head_length=0.2 * s, visible=False)
+        self.peak_force = 0.0
         extent = float(max(0.3, np.max(hi - lo)))
         server.initial_camera.position = tuple(0.5 * (lo + hi) + np.array([0.9, -1.3, 0.7]) * extent)
         server.initial_camera.look_at = tuple(0.5 * (lo + hi))
@@ -100,6 +106,20 @@ class SceneNodes:
                 vec = frame.reaction_force * (2.0 * self.visuals.length_scale / self.visuals.force_scale)
                 self.forces.points = np.stack([frame.joint_points, frame.joint_points + vec], axis=1).astype(np.float32)
                 self.forces.visible = flags["forces"]
+            for name, handle in self.deformables.items():
+                handle.vertices = frame.deformed[name]
+            self._show_contacts(frame, flags["forces"])
+
+    def _show_contacts(self, frame: Frame, visible: bool) -> None:
+        """Contact forces as arrows ending at the contact point; the largest force so far draws
+        three length scales."""
+        if not len(frame.contact_points):
+            self.contacts.visible = False
+            return
+        self.peak_force = max(self.peak_force, float(np.max(np.linalg.norm(frame.contact_forces, axis=1))))
+        vec = frame.contact_forces * (3.0 * self.visuals.length_scale / self.peak_force)
+        self.contacts.points = np.stack([frame.contact_points - vec, frame.contact_points], axis=1).astype(np.float32)
+        self.contacts.visible = visible
 
 
 def _nice(x: float) -> float:
@@ -168,34 +188,27 @@ class Viewer:
             self.play = gui.add_button("Play / Pause", icon=None)
             step = gui.add_button("Step")
             reset = gui.add_button("Reset")
-            self.speed = gui.add_slider("Speed", min=0.05, max=4.0, step=0.05, initial_value=float(self.runner.speed))
+            self.speed = gui.add_slider("log10 speed", min=-6.0, max=0.6, step=0.1,
+                                        initial_value=round(float(np.log10(self.runner.speed)), 1),
+                                        hint="simulated seconds per wall-clock second, as a power of ten")
+            settings = {"integrator": "rk4", "dt": 1e-3, "formulation": "index1", **snap.settings}  # impact: none
             self.integrator = gui.add_dropdown("Integrator", self.runner.options["integrator"],
-                                               initial_value=snap.settings["integrator"])
-            self.dt = gui.add_number("dt [s]", initial_value=float(snap.settings["dt"]), min=1e-7, step=1e-5)
+                                               initial_value=settings["integrator"])
+            self.dt = gui.add_number("dt [s]", initial_value=float(settings["dt"]), min=1e-7, step=1e-5)
             self._stab = {STABILIZATION_LABELS.get(f, f): f for f in self.runner.options["formulation"]}
-            label = {v: k for k, v in self._stab.items()}[snap.settings["formulation"]]
+            label = {v: k for k, v in self._stab.items()}[settings["formulation"]]
             self.stabilization = gui.add_dropdown("Stabilization", tuple(self._stab), initial_value=label)
             scenes = tuple(sorted(p.stem for p in self.scenes_dir.glob("*.toml")))
             current = self.runner.scene.path.stem
             self.scene = gui.add_dropdown("Scene", scenes if current in scenes else (current, *scenes), initial_value=current)
         with gui.add_folder("Show"):
             boxes = {key: gui.add_checkbox(key.capitalize(), initial_value=val) for key, val in self.flags.items()}
-        import viser.uplot as up
-
-        self.energy_plot = gui.add_uplot(
-            data=(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
-            series=(up.Series(label="t [s]"), up.Series(label="kinetic", stroke="red", width=2),
-                    up.Series(label="potential", stroke="blue", width=2), up.Series(label="total", stroke="black", width=2)),
-            title="Energy [J]", scales={"x": {"time": False}}, aspect=1.6)
-        self.violation_plot = gui.add_uplot(
-            data=(np.zeros(1), np.zeros(1)),
-            series=(up.Series(label="t [s]"), up.Series(label="max |C| [m]", stroke="purple", width=2)),
-            title="Constraint violation [m]", scales={"x": {"time": False}}, aspect=1.6)
+        self.plots: list = []
 
         self.play.on_click(lambda _: cmd("toggle"))
         step.on_click(lambda _: cmd("step"))
         reset.on_click(lambda _: cmd("reset"))
-        self.speed.on_update(lambda _: cmd("speed", self.speed.value))
+        self.speed.on_update(lambda _: cmd("speed", 10.0 ** self.speed.value))
         self.integrator.on_update(lambda _: cmd("integrator", self.integrator.value))
         self.dt.on_update(lambda _: cmd("dt", self.dt.value))
         self.stabilization.on_update(lambda _: cmd("formulation", self._stab[self.stabilization.value]))
@@ -231,17 +244,43 @@ class Viewer:
         self.frames_shown += 1
 
     def _sync_controls(self, snap: Snapshot) -> None:
+        """Match the controls to a newly loaded scene: its plots, its speed, what can be changed."""
         if self.scene.value != self.runner.scene.path.stem and self.runner.scene.path.stem in self.scene.options:
             self.scene.value = self.runner.scene.path.stem
+        rigid = snap.kind == "rigid"
+        for handle in (self.integrator, self.dt, self.stabilization):
+            handle.disabled = not rigid
+        if rigid:
+            self.integrator.value, self.dt.value = snap.settings["integrator"], float(snap.settings["dt"])
+        self.speed.value = round(float(np.log10(snap.speed)), 1)
+        self._build_plots(snap.plots)
+
+    def _build_plots(self, spec) -> None:
+        import viser.uplot as up
+
+        for handle in self.plots:
+            handle.remove()
+        colors = ("red", "blue", "black", "green", "purple", "orange")
+        self.plots = []
+        for title, labels in spec:
+            series = (up.Series(label="t [s]"),) + tuple(
+                up.Series(label=lab, stroke=colors[i % len(colors)], width=2) for i, lab in enumerate(labels))
+            self.plots.append(self.server.gui.add_uplot(
+                data=tuple(np.zeros(1) for _ in series), series=series, title=title,
+                scales={"x": {"time": False}}, aspect=1.6))
 
     def _plots(self, snap: Snapshot) -> None:
         h = snap.history
         if len(h) == 0:
             return
-        h = h[h[:, 0] >= h[-1, 0] - PLOT_WINDOW]
-        self.energy_plot.data = (h[:, 0], h[:, 1], h[:, 2], h[:, 3])
-        self.violation_plot.data = (h[:, 0], h[:, 4])
+        window = PLOT_WINDOW if snap.kind == "rigid" else np.inf
+        h = h[h[:, 0] >= h[-1, 0] - window]
+        col = 1
+        for handle, (_, labels) in zip(self.plots, snap.plots):
+            handle.data = (h[:, 0], *(h[:, col + i] for i in range(len(labels))))
+            col += len(labels)
         state = "playing" if snap.playing else "paused"
         status = "" if snap.status == "ok" else f"  \n**{snap.status}**"
-        self.status.content = (f"**{snap.visuals.name}** &nbsp; t = {snap.frame.t:.3f} s &nbsp; ({state}, speed {snap.speed:g}x)"
+        t_txt = f"{snap.frame.t:.3f} s" if snap.kind == "rigid" else f"{1e6 * snap.frame.t:.1f} us"
+        self.status.content = (f"**{snap.visuals.name}** &nbsp; t = {t_txt} &nbsp; ({state}, speed {snap.speed:.3g}x)"
                                f"  \nreal-time factor achieved: **{snap.rtf:.2f}**{status}")
