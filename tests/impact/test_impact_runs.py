@@ -210,3 +210,15 @@ def test_model_economy_picks_more_modes_for_tighter_tolerances():
         assert err <= tol
     assert counts[0] < counts[1] < counts[2], counts
     assert abs(v[2] - v[1]) < abs(v[1] - v[0]) + 1e-4, v
+
+
+@pytest.mark.parametrize("n, v_thesis", [(10, -0.781), (30, -0.717)])
+def test_finite_elements_with_penalty_contact_reproduce_table_8_1(n, v_thesis):
+    """Digest V12 (thesis Table 8.1): clamped bar, n consistent-mass rod elements, linear contact
+    spring K_c = EA / l_e; the thesis integrated with Newmark, this runs adaptive Dormand-Prince
+    [-0.7838, -0.7184; contact ends 18.8 and 18.2 x 1e-5 s]."""
+    traj = viz3d.simulate(SCENES / "impact_clamped_bar.toml", {
+        "bar.model": "fe", "bar.elements": n, "bar.modes": n, "contact.law": "linear",
+        "contact.stiffness": E * A / (L / n)})
+    assert float(traj.extras["impactor_velocity"][-1]) == pytest.approx(v_thesis, abs=0.01)
+    assert 17.8e-5 * 0.95 < traj.extras["contacts"][:, 2].max() < 18.9e-5 * 1.05

@@ -14,6 +14,7 @@ import numpy as np
 from viz3d.contact import laws as L
 from viz3d.contact.parameters import effective_modulus, hertz_stiffness
 from viz3d.flexible import BarModel, Material, Section, analytic_modes, contact_band, fe_model, reduce, select_modes
+from viz3d.flexible.bar import rigid_mode_count
 from viz3d.impact.bodies import bar_body, point_row
 from viz3d.impact.engine import Contact, ImpactProblem, fixed_body, rigid_mass
 from viz3d.scene.load import Scene
@@ -206,9 +207,15 @@ def bar_model(bar: dict, x_c: float, t_c: float | None, src: str) -> tuple[BarMo
             if "elements" not in bar:
                 raise SceneError(src, "bar.elements", "an element count for model = fe")
             model = fe_model(*args, bar["elements"], supports)
+            floating = bar["reference"] != "fixed"
             if "modes" in bar:
-                model = reduce(model, bar["modes"], drop_rigid=bar["reference"] != "fixed")
+                model = reduce(model, bar["modes"], drop_rigid=floating)
                 return model, f"{bar['elements']} {bar['theory']} elements reduced to {bar['modes']} modes"
+            if floating and rigid_mode_count(model.kind, supports):
+                # the frame carries the rigid motion: keep every elastic mode, drop the rigid ones
+                n = model.n - rigid_mode_count(model.kind, supports)
+                return (reduce(model, n, drop_rigid=True),
+                        f"{bar['elements']} {bar['theory']} elements ({n} elastic modes: the frame carries the rigid motion)")
             return model, f"{bar['elements']} {bar['theory']} elements (nodal)"
         if ("modes" in bar) == ("tolerance" in bar):
             raise SceneError(src, "bar.modes", "either modes (a count) or tolerance (a truncation error), not both")
