@@ -30,7 +30,7 @@ V7_FORCE_L1_TOL = 0.05        # relative L1 over the first contact [0.029]
 HERTZ_TOL = 1e-3              # relative (V2: 0.1 %)
 V14_TIME_TOL = 0.05           # first contact end and recontact [0.4 %, 2.7 %]
 V14_LOOSE_TOL = 0.15          # apparent duration and tip deflection (V14: 15 %) [4 %, 13 %]
-GAUGE_TOL = 0.05              # relative L2 of the gauge pulse against -F(t - d/c)/EA [see test]
+GAUGE_TOL = 0.01              # relative L2 of the gauge pulse against -F(t - d/c)/EA [1.1e-3]
 MERGE_GAP = 0.01              # contacts closer than this (x T) are one contact (Gibbs ringing)
 
 
