@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import viz3d
+from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.contact.parameters import hysteresis_restitution
 from viz3d.flexible import Material, Section, fe_model
 from viz3d.impact.engine import Contact, ImpactProblem, LinearBody, rigid_mass, run_impact
@@ -222,3 +223,41 @@ def test_finite_elements_with_penalty_contact_reproduce_table_8_1(n, v_thesis):
         "contact.stiffness": E * A / (L / n)})
     assert float(traj.extras["impactor_velocity"][-1]) == pytest.approx(v_thesis, abs=0.01)
     assert 17.8e-5 * 0.95 < traj.extras["contacts"][:, 2].max() < 18.9e-5 * 1.05
+
+
+def test_newton_and_poisson_coincide_for_one_frictionless_contact():
+    """Both hypotheses on the 3-element bar of Table 6.1 with e = 0.6: identical impulses."""
+    bar = fe_model("rod", L, Material(E, RHO, 0.3), Section.rectangle(0.03, 0.03), 3, ("clamped", "free"))
+    target = LinearBody("bar", bar.M, np.zeros_like(bar.M), bar.K, -bar.displacement([L])[0], np.zeros(3),
+                        np.zeros(3), np.zeros(3), np.zeros(3, bool))
+    out = {}
+    for hyp in ("newton", "poisson"):
+        p = ImpactProblem(rigid_mass("imp", M_BAR, 1.0), target, Contact("restitution", restitution=0.6, hypothesis=hyp))
+        y, P, loss = p.impulse(p.initial_state(), 0.6, hyp)
+        out[hyp] = (P, loss, p.indentation(y)[1])
+    np.testing.assert_allclose(out["newton"], out["poisson"], rtol=1e-14)
+    assert out["newton"][2] == pytest.approx(-0.6, rel=1e-12)  # separation speed = e x approach speed
+
+
+LAWS = ["rigid", "restitution", *NORMAL_LAWS]
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_bouncing_sphere_with_every_contact_law(law):
+    extra = {"contact.yield_stress": 0.64e9} if law in ("yigit_christoforou", "linear_plastic", "power_plastic") else {}
+    if law == "linear":
+        extra = {"contact.stiffness": 1e7}
+    traj = viz3d.simulate(SCENES / "bouncing_sphere.toml", {"contact.law": law, "sim.t_end": 0.15, **extra})
+    x = traj.extras
+    assert traj.ok, traj.status
+    assert int(x["contact_count"]) >= 1
+    scale = max(np.abs(traj.energy_total).max(), traj.energy_kinetic.max())
+    assert np.abs(x["energy_balance_error"]).max() < 2e-6 * scale
+    e = x["contact_restitution"][0]
+    if law == "rigid":  # kinematic contact is perfectly plastic: the ball lands and rests on the plate
+        assert np.isnan(e) and abs(x["impactor_velocity"][-1]) < 1e-9
+        assert x["contact_force"][-1] == pytest.approx(0.3227, rel=1e-6)  # carrying its weight
+        return
+    assert 0.0 <= e <= 1.0 + 1e-6
+    if law in ("hunt_crossley", "lankarani_nikravesh", "flores", "restitution"):
+        assert float(x["restitution_requested"]) == 0.8

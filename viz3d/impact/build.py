@@ -81,8 +81,8 @@ def build_impact(scene: Scene) -> ImpactSetup:
     for i, g in enumerate(gauges):
         if bar is None or g["x"] > bar["length"]:
             raise SceneError(src, f"gauges[{i}].x", "a section of the bar")
-    problem = ImpactProblem(impactor, target, Contact(contact_model.model, contact_model.law,
-                                                      contact_model.restitution, d["impactor"]["gap"]))
+    problem = ImpactProblem(impactor, target, Contact(contact_model.model, contact_model.law, contact_model.restitution,
+                                                      d["impactor"]["gap"], contact_model.hypothesis))
     return ImpactSetup(problem, model, reference, x_c, side, tuple(g["name"] for g in gauges),
                        np.array([g["x"] for g in gauges], float), requested, choice)
 
@@ -111,7 +111,7 @@ def contact_from(d: dict, mass: float, velocity: float, src: str):
     if name == "restitution":
         if "restitution" not in c:
             raise SceneError(src, "contact.restitution", "a coefficient of restitution for law = restitution")
-        return Contact("restitution", restitution=c["restitution"]), c["restitution"]
+        return Contact("restitution", restitution=c["restitution"], hypothesis=c["hypothesis"]), c["restitution"]
     cls = L.NORMAL_LAWS[name]
     if issubclass(cls, L.ElastoplasticLaw):
         return Contact("law", law=_elastoplastic(cls, d, src)), None

@@ -128,6 +128,8 @@ class Contact:
         For ``model == "law"``.
     restitution : float
         For ``model == "restitution"``.
+    hypothesis : str
+        "newton" or "poisson" (``model == "restitution"``; see ``ImpactProblem.impulse``).
     gap : float
         Initial distance between the surfaces along ``n`` [m].
     """
@@ -136,6 +138,7 @@ class Contact:
     law: object = None
     restitution: float = 1.0
     gap: float = 0.0
+    hypothesis: str = "newton"
 
 
 @dataclass
@@ -246,11 +249,23 @@ class ImpactProblem:
             a2 = a2 + F * (self.b2.M_inv @ self.b2.r)
         return np.concatenate([z1d, z2d, a1, a2, [0.0]])
 
-    def impulse(self, y: FloatArray, e: float) -> tuple[FloatArray, float, float]:
-        """Newton impulse ``P = (1 + e) alpha_dot / (m1' + m2')``; returns (y, P [N s], energy lost [J])."""
+    def impulse(self, y: FloatArray, e: float, hypothesis: str = "newton") -> tuple[FloatArray, float, float]:
+        """Instantaneous impact; returns (y, P [N s], energy lost [J]).
+
+        ``newton``: the normal separation speed is ``e`` times the approach speed,
+        ``P = (1 + e) alpha_dot / (m1' + m2')``. ``poisson``: a compression impulse ``P_c`` that
+        stops the approach, then a restitution impulse ``e P_c``. With one frictionless contact
+        between linear bodies both give the same ``P`` (they differ with friction or several
+        simultaneous contacts); both are kept to say which hypothesis a run used.
+        """
         z1, z2, z1d, z2d, W = self.split(y)
         _, alpha_dot = self.indentation(y)
-        P = (1.0 + e) * alpha_dot / (self.b1.mobility + self.b2.mobility)
+        mobility = self.b1.mobility + self.b2.mobility
+        if hypothesis == "poisson":
+            P_c = alpha_dot / mobility
+            P = P_c + e * P_c
+        else:
+            P = (1.0 + e) * alpha_dot / mobility
         T0 = self.kinetic(y)
         z1d = z1d - P * (self.b1.M_inv @ self.b1.r) if self.n1 else z1d
         z2d = z2d + P * (self.b2.M_inv @ self.b2.r) if self.n2 else z2d
@@ -407,7 +422,7 @@ class _PhaseState:
             events.append((t, f"contact start (approach speed {alpha_dot:.4g} m/s)"))
             self.contacts.append([t, alpha_dot, np.nan, np.nan])
             if model == "restitution":
-                y, P, loss = p.impulse(y, p.contact.restitution)
+                y, P, loss = p.impulse(y, p.contact.restitution, p.contact.hypothesis)
                 self.impulse_loss += loss
                 self.contacts[-1][2:] = [t, -p.indentation(y)[1]]
                 events.append((t, f"impulse {P:.4g} N s, e = {p.contact.restitution:g}: contact end"))

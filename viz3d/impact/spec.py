@@ -122,6 +122,7 @@ CONTACT = Table({
     "damping": Field(nonnegative, 0.0, "linear law dashpot [N s/m]"),
     "yield_stress": Field(positive, OPTIONAL, "sigma_Y of the softer body [Pa] (elastoplastic laws)"),
     "side": Field(one_of("+", "-"), OPTIONAL, "impactor arrives from the +u/+w side or the - side (default +)"),
+    "hypothesis": Field(one_of("newton", "poisson"), "newton", "restitution law: velocity ratio or impulse ratio"),
 }, "the contact model")
 
 GAUGE = Table({
