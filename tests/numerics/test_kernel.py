@@ -1,0 +1,66 @@
+"""The compiled kernel computes what the NumPy reference computes, to round-off."""
+
+import numpy as np
+import pytest
+
+import viz3d
+from viz3d import kernel as K
+from viz3d.dynamics import VectorField
+from viz3d.integrators import make_integrator
+from viz3d.integrators.tableaus import RK4
+from viz3d.scene.build import make_formulation
+from viz3d.simulate import Simulation
+
+from conftest import SCENES
+
+RHS_RTOL = 1e-11      # relative to the largest component [measured <= 1.5e-12]
+STEP_TOL = 1e-10      # after 300 RK4 steps, positions [m] [measured ~1e-14]
+
+RIGID = [p for p in sorted(SCENES.glob("*.toml")) if viz3d.load_scene(p).kind == "rigid"]
+
+
+def _setup(path, formulation="index1", overrides=None):
+    scene = viz3d.load_scene(path, {"sim.formulation": formulation, **(overrides or {})})
+    system, state = viz3d.build(scene)
+    return scene, system, state, make_formulation(scene.data["sim"])
+
+
+@pytest.mark.parametrize("formulation", ["index1", "baumgarte"])
+@pytest.mark.parametrize("path", RIGID, ids=lambda p: p.stem)
+def test_kernel_rhs_equals_numpy_rhs(path, formulation):
+    _, system, state, form = _setup(path, formulation)
+    data = K.kernel_for(system, form)
+    assert data is not None
+    y = state.y + 1e-3 * np.random.default_rng(0).normal(size=state.y.shape)
+    ref = VectorField(system, form, state.chart)(0.37, y)
+    out = K.kernel_rhs(data, 0.37, y, state.chart)
+    assert np.abs(out - ref).max() <= RHS_RTOL * np.abs(ref).max()
+
+
+def test_kernel_steps_equal_numpy_steps_through_chart_switches():
+    _, system, state, form = _setup(SCENES / "top_through_vertical.toml")
+    sim = Simulation(system, state, make_integrator("rk4"), form, 5e-4)
+    for _ in range(300):
+        sim.step()
+    data = K.kernel_for(system, form)
+    y, chart, switches = state.y.copy(), state.chart.copy(), np.zeros(system.n_bodies, np.int64)
+    done, status = K.kernel_advance(data, RK4, 300, 0.0, 5e-4, y, chart, switches, 1e4)
+    assert (done, status) == (300, K.OK)
+    assert switches.sum() == sim.chart_switches.sum() >= 1
+    R_np = system.rotation.matrix(system.split_q(sim.state.q)[1], sim.state.chart)
+    R_k = system.rotation.matrix(system.split_q(y[: system.n_q])[1], chart)
+    assert np.abs(R_np - R_k).max() < STEP_TOL
+    assert np.abs(system.split_q(sim.state.q)[0] - system.split_q(y[: system.n_q])[0]).max() < STEP_TOL
+
+
+def test_kernel_reports_failures():
+    _, system, state, form = _setup(SCENES / "top_through_vertical.toml", overrides={"sim.rotation": "euler_zxz"})
+    data = K.kernel_for(system, form)
+    y, chart = state.y.copy(), state.chart.copy()
+    done, status = K.kernel_advance(data, RK4, 20000, 0.0, 5e-4, y, chart, np.zeros(1, np.int64), 1e4)
+    assert status in (K.ROTATION, K.NONFINITE, K.SPEED) and done < 20000
+
+
+def test_kernel_declines_what_it_does_not_cover():
+    _, system, _, form = _setup(SCENES / "double_pendulum.toml", "projection")
+    assert K.kernel_for(system, form) is None
