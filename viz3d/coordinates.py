@@ -6,6 +6,10 @@ matrix and the constraint Jacobians never depend on it; a parametrization only p
 * ``matrix(theta, chart)``: rotation ``R_WB`` from the stored coordinates,
 * ``rates(theta, B_omega)``: the kinematic equation ``theta_dot = f(theta, B_omega)``,
 * ``rechart(theta, chart)``: an optional re-parametrization between steps,
+* ``normalize(theta)``: an optional projection onto the coordinates' own constraint (the unit norm
+  of Euler parameters), applied between steps,
+* ``advance(theta, chart, B_dphi)``: the exact finite rotation ``R_WB exp(skew(B_dphi))`` in the
+  same chart (what Lie-group methods, ``gen_alpha`` and ``ali3p``, move positions by),
 * ``singular_bodies(theta)``: where the kinematic equation breaks down.
 
 ``chart`` is a per-body reference rotation ``R_WC`` (shape (nb, 3, 3)) carried in the state, so that
@@ -21,10 +25,14 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.rotations import (
+    cross,
     euler_from_matrix,
     euler_near_gimbal_lock,
     euler_rates_from_body_omega,
     matrix_from_euler,
+    matrix_from_quat,
+    matrix_from_rotation_vector,
+    quat_from_matrix,
 )
 
 #: Angles at the centre of a fresh chart: nutation pi/2, as far as possible from 0 and pi.
@@ -41,7 +49,9 @@ class RotationCoordinates(ABC):
     """Orientation coordinates of all bodies, vectorized over bodies.
 
     Subclasses set ``name`` and ``n_q`` and implement ``matrix``, ``rates`` and ``from_matrix``;
-    ``rechart`` and ``singular_bodies`` default to "never". Register in ``ROTATIONS``.
+    ``rechart``, ``normalize`` and ``singular_bodies`` default to "never"; ``advance`` (needed by
+    the Lie-group methods ``gen_alpha`` and ``ali3p``) raises unless implemented. Register in
+    ``ROTATIONS``.
     """
 
     name: ClassVar[str]
@@ -67,9 +77,18 @@ class RotationCoordinates(ABC):
         """Bool mask (nb,) of bodies whose kinematic equation is singular. Default: none."""
         return np.zeros(theta.shape[0], dtype=bool)
 
+    def normalize(self, theta: FloatArray) -> FloatArray:
+        """``theta`` projected onto the coordinates' own constraint, if any. Default: unchanged."""
+        return theta
+
     def correct(self, theta: FloatArray, B_dphi: FloatArray) -> FloatArray:
         """First-order update of ``theta`` for a small body-frame rotation ``B_dphi`` (nb, 3)."""
         return theta + self.rates(theta, B_dphi)
+
+    def advance(self, theta: FloatArray, chart: FloatArray, B_dphi: FloatArray) -> FloatArray:
+        """Coordinates, in the same ``chart``, of ``R_WB @ exp(skew(B_dphi))``: the body turned by
+        the finite rotation vector ``B_dphi`` (nb, 3) [rad] about its own axes."""
+        raise NotImplementedError(f"rotation coordinates {self.name!r} do not implement advance()")
 
 
 class EulerZXZ(RotationCoordinates):
@@ -93,6 +112,16 @@ class EulerZXZ(RotationCoordinates):
 
     def singular_bodies(self, theta):
         return euler_near_gimbal_lock(theta, SINGULAR_SIN)
+
+    def advance(self, theta, chart, B_dphi):
+        new = euler_from_matrix(matrix_from_euler(theta) @ matrix_from_rotation_vector(B_dphi))
+        # ZXZ angles have two branches, (psi, theta, phi) and (psi + pi, -theta, phi + pi):
+        # keep the one of the old angles, and psi, phi within pi of their old values.
+        neg = theta[..., 1] < 0.0
+        new[neg] = new[neg] * [1.0, -1.0, 1.0] + [np.pi, 0.0, np.pi]
+        turn = new - theta
+        turn[..., [0, 2]] = np.mod(turn[..., [0, 2]] + np.pi, 2.0 * np.pi) - np.pi
+        return theta + turn
 
 
 class EulerSwitching(EulerZXZ):
@@ -124,6 +153,55 @@ class EulerSwitching(EulerZXZ):
         return np.zeros(theta.shape[0], dtype=bool)
 
 
+class Quaternion(RotationCoordinates):
+    """Euler parameters ``p = (w, x, y, z)``, scalar first, ``R_WB = R(p)`` (chart: identity).
+
+    Kinematics ``p_dot = 1/2 p (x) (0, B_omega)`` (quaternion product), regular everywhere. The
+    flow keeps ``|p|`` constant but a discrete step does not exactly: ``matrix`` normalises, so
+    the orientation never depends on ``|p|``, and ``normalize`` (``p / |p|``) projects the
+    coordinates back onto ``|p| = 1`` between steps. ``advance`` and ``correct`` multiply by the
+    unit quaternion of the rotation vector, which keeps ``|p|``.
+    """
+
+    name = "quaternion"
+    n_q = 4
+
+    def matrix(self, theta, chart):
+        return chart @ matrix_from_quat(theta)
+
+    def rates(self, theta, B_omega):
+        return 0.5 * quat_product(theta, np.concatenate([np.zeros(B_omega.shape[:-1] + (1,)), B_omega], axis=-1))
+
+    def from_matrix(self, R):
+        return quat_from_matrix(R), np.broadcast_to(np.eye(3), R.shape).copy()
+
+    def normalize(self, theta):
+        return theta / np.linalg.norm(theta, axis=-1, keepdims=True)
+
+    def advance(self, theta, chart, B_dphi):
+        return quat_product(theta, quat_from_rotation_vector(B_dphi))
+
+    def correct(self, theta, B_dphi):
+        return self.advance(theta, None, B_dphi)
+
+
+def quat_product(p: FloatArray, q: FloatArray) -> FloatArray:
+    """Hamilton product ``p (x) q`` of scalar-first quaternions, shapes (..., 4)."""
+    pw, pv = p[..., :1], p[..., 1:]
+    qw, qv = q[..., :1], q[..., 1:]
+    w = pw * qw - np.sum(pv * qv, axis=-1, keepdims=True)
+    return np.concatenate([w, pw * qv + qw * pv + cross(pv, qv)], axis=-1)
+
+
+def quat_from_rotation_vector(phi: FloatArray) -> FloatArray:
+    """Unit quaternion ``(cos(a/2), sin(a/2) phi/a)`` of the rotation vector ``phi`` (..., 3), ``a = |phi|``."""
+    angle = np.linalg.norm(phi, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(a/2)/a -> 1/2 - a^2/48 as a -> 0 (series below 1e-4 rad: its error is below 1e-20)
+    scale = np.where(angle < 1e-4, 0.5 - angle**2 / 48.0, np.sin(half) / np.where(angle < 1e-4, 1.0, angle))
+    return np.concatenate([np.cos(half), scale * phi], axis=-1)
+
+
 ROTATIONS: dict[str, type[RotationCoordinates]] = {
-    cls.name: cls for cls in (EulerSwitching, EulerZXZ)
+    cls.name: cls for cls in (EulerSwitching, EulerZXZ, Quaternion)
 }

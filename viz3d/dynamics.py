@@ -79,8 +79,21 @@ def kinematic_rates(system: System, q: FloatArray, v: FloatArray) -> FloatArray:
     return system.join_q(W_v, system.rotation.rates(theta, B_omega))
 
 
+def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> FloatArray:
+    """Positions moved by the velocity-space increment ``w`` (n_v,), in the same charts.
+
+    Per body ``w = [dW_r (3) [m], B_dphi (3) [rad]]``: ``W_r + dW_r`` and ``R_WB @ exp(skew(B_dphi))``
+    (the Lie-group update of ``R^3 x SO(3)`` that ``gen_alpha`` and ``ali3p`` advance positions by).
+    """
+    W_r, theta = system.split_q(q)
+    dW_r, B_dphi = system.split_v(w)
+    return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi))
+
+
 class VectorField:
     """``y_dot = f(t, y)`` with ``y = [q, v]``, for a fixed chart; what integrators see.
+
+    Besides ``__call__`` it offers the ``retract`` hook of ``viz3d.integrators.base.Rhs``.
 
     Attributes
     ----------
@@ -100,6 +113,10 @@ class VectorField:
         q, v = y[: self.n_q], y[self.n_q:]
         acc = accelerations(self.system, self.formulation, t, q, v, self.chart)
         return np.concatenate([kinematic_rates(self.system, q, v), acc.v_dot])
+
+    def retract(self, q: FloatArray, w: FloatArray) -> FloatArray:
+        """``q`` moved by the velocity-space increment ``w`` (n_v,) [m, rad] (see ``retract``)."""
+        return retract(self.system, q, w, self.chart)
 
 
 def energies(system: System, state: State) -> tuple[float, float]:

@@ -2,32 +2,71 @@
 
 A formulation has two hooks: ``solve(system, Q, rows, twist) -> (a, lam)`` with ``a`` shape
 (nb + 1, 6), and ``post_step(system, state) -> state`` (identity unless it stabilizes between
-steps). Registry: ``FORMULATIONS``; see docs/extending.md.
+steps). A formulation that does its own time stepping (``ALI3P``) also sets the class attribute
+``integrator`` to the one integrator name it accepts and implements ``init_memory(system, state)``
+and ``step(system, state, h, memory) -> (state, memory, Status)``; ``viz3d.simulate`` then calls
+those instead of an integrator. Registry: ``FORMULATIONS``; see docs/extending.md.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+from scipy.linalg import lapack
 
-from viz3d.constraints import ConstraintRows, apply_jacobian, apply_jacobian_transpose, schur_solve
+from viz3d.ali3p import ALI3PMemory, ali3p_step, init_memory
+from viz3d.constraints import (
+    ConstraintLayout,
+    ConstraintRows,
+    SingularConstraintError,
+    apply_jacobian,
+    apply_jacobian_transpose,
+    schur_solve,
+)
+from viz3d.integrators.base import Status
 from viz3d.kinematics import Twist
 from viz3d.stabilization import project_positions, project_velocities
 from viz3d.system import State, System
 
 
-def solve_augmented(system: System, Q, rows: ConstraintRows, gamma):
-    """Solve ``[M C_v^T; C_v 0] [a; lam] = [Q; gamma]`` by the Schur complement.
+def solve_augmented(system: System, Q, rows: ConstraintRows, gamma, compliance: float = 0.0):
+    """Solve ``[M C_v^T; C_v -compliance I] [a; lam] = [Q; gamma]`` by the Schur complement.
 
-    Returns ``a`` (nb + 1, 6) [m/s^2, rad/s^2] and ``lam`` (n_c,).
+    ``compliance = 0`` is the rigid augmented system; ``compliance = 1 / alpha`` the penalty
+    formulation (``Penalty``). Returns ``a`` (nb + 1, 6) [m/s^2, rad/s^2] and ``lam`` (n_c,).
     """
     M_inv = system.bodies.M_inv
     a_free = np.einsum("bij,bj->bi", M_inv, Q)
-    lam = schur_solve(system.joints, M_inv, rows.J, apply_jacobian(system.joints, rows.J, a_free) - gamma)
+    rhs = apply_jacobian(system.joints, rows.J, a_free) - gamma
+    if compliance > 0.0:
+        lam = _schur_solve_shifted(system.joints, M_inv, rows.J, rhs, compliance)
+    else:
+        lam = schur_solve(system.joints, M_inv, rows.J, rhs)
     CtL = apply_jacobian_transpose(system.joints, rows.J, lam, Q.shape[0])
     return a_free - np.einsum("bij,bj->bi", M_inv, CtL), lam
+
+
+def _schur_solve_shifted(layout: ConstraintLayout, M_inv, J, b, shift: float):
+    """Solve ``(C_v M^-1 C_v^T + shift I) lam = b``: ``constraints.schur_solve`` with a diagonal
+    shift, on the same dense or banded storage (positive definite even for redundant joints)."""
+    if layout.n_rows == 0:
+        return np.zeros(0)
+    W = np.einsum("rsi,rsij->rsj", J, M_inv[layout.row_body])
+    vals = np.einsum("pi,pi->p", W[layout.pair_row, layout.pair_side], J[layout.pair_col, layout.pair_colside])
+    store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size)
+    n = layout.n_rows
+    store[layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)] += shift
+    if layout.banded:
+        _, x, info = lapack.dpbsv(store.reshape(layout.kd + 1, n), b[layout.perm], lower=0)
+    else:
+        _, x, info = lapack.dposv(store.reshape(n, n), b[layout.perm], lower=0)
+    if info != 0:
+        raise SingularConstraintError(f"penalty matrix C M^-1 C^T + I/alpha is not positive definite (LAPACK info={info})")
+    lam = np.empty(n)
+    lam[layout.perm] = x
+    return lam
 
 
 @dataclass(frozen=True)
@@ -38,6 +77,9 @@ class Index1:
     """
 
     name: ClassVar[str] = "index1"
+    #: The one integrator this formulation accepts (None: any); set by formulations that step
+    #: themselves.
+    integrator: ClassVar[str | None] = None
 
     def solve(self, system: System, Q, rows: ConstraintRows, twist: Twist):
         return solve_augmented(system, Q, rows, rows.gamma)
@@ -90,8 +132,93 @@ class Projection(Index1):
         return state.replace(q=q, v=project_velocities(system, q, state.v, state.chart))
 
 
+@dataclass(frozen=True)
+class Penalty(Index1):
+    """Penalty formulation (seed 004, eq. 3.16): each constraint is a critically damped spring.
+
+    ``M v_dot + C_v^T alpha (C_dd + 2 xi omega C_d + omega^2 C) = Q``, i.e. multipliers
+    ``lam = alpha (C_dd + 2 xi omega C_d + omega^2 C)`` proportional to the violation and its
+    derivatives, with ``C_dd = C_v v_dot - gamma``. Eliminating ``v_dot`` gives the augmented system
+    with a compliance ``1 / alpha`` on its diagonal:
+
+        (C_v M^-1 C_v^T + I / alpha) lam = C_v M^-1 Q - gamma + 2 xi omega C_d + omega^2 C,
+
+    solved by the same Schur-complement factorization as ``Index1`` (positive definite even for
+    redundant joints). The violation then obeys ``C_dd + 2 xi omega C_d + omega^2 C = lam / alpha``:
+    with ``xi = 1`` its impulse response is positive with integral ``1 / omega^2``, so beyond
+    transients ``|C| <= max |lam| / (alpha omega^2)``. ``alpha -> infinity`` is Baumgarte with
+    ``alpha_B = xi omega``, ``beta_B = omega``. Not stiff: the eigenvalues of the violation are
+    ``-xi omega +- ...``, whatever ``alpha``.
+
+    Attributes
+    ----------
+    alpha : float
+        Penalty factor [kg] (``alpha`` times an acceleration is a force); seed 004: 1e6 - 1e11.
+    xi : float
+        Damping ratio of the constraint springs [-] (seed 004: 1, critical).
+    omega : float
+        Their natural frequency [rad/s] (seed 004: 10).
+
+    References
+    ----------
+    E. Bayo, J. Garcia de Jalon, M. A. Serna, Comput. Methods Appl. Mech. Eng. 71 (1988) 183-195.
+    """
+
+    name: ClassVar[str] = "penalty"
+    alpha: float = 1e7
+    xi: float = 1.0
+    omega: float = 10.0
+
+    def solve(self, system, Q, rows, twist):
+        C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(twist))
+        gamma = rows.gamma - 2.0 * self.xi * self.omega * C_d - self.omega**2 * rows.C
+        return solve_augmented(system, Q, rows, gamma, compliance=1.0 / self.alpha)
+
+
+@dataclass(frozen=True)
+class ALI3P(Index1):
+    """Index-3 augmented Lagrangian with mass-orthogonal projections (ALI3-P, seed 004 eqs.
+    3.17-3.28), on the implicit trapezoidal rule: a formulation that does its own time stepping.
+
+    Order 2. Per step, Newton-Raphson with the approximate tangent on the trapezoidal equations of
+    motion ``M v_dot + C_v^T (alpha C + lam*) = Q`` at ``t + h``, the multipliers updated by
+    ``lam* += alpha C`` after every iteration until ``max |C| <= tol``; then velocities and
+    accelerations are projected (eqs. 3.27, 3.28). Positions move on ``R^3 x SO(3)`` by the
+    velocity-space increment ``h (v0 + v1) / 2`` (``viz3d.ali3p``). ``solve`` (used for the
+    reaction forces of output frames) is the index-1 solve at the state reached.
+
+    Attributes
+    ----------
+    alpha : float
+        Penalty factor of the augmented Lagrangian [N/m] (``alpha C`` is a force).
+    tol : float
+        Constraint tolerance of the iteration [m] (and of its velocity-space update [m, rad]).
+    start : Penalty
+        Formulation of the initial accelerations and multipliers (seed 004: the penalty method).
+
+    References
+    ----------
+    J. Cuadrado, J. Cardenal, P. Morer, E. Bayo, Multibody Syst. Dyn. 4 (2000) 55-73.
+    D. Dopico, F. Gonzalez, J. Cuadrado, J. Kovecses, J. Comput. Nonlinear Dyn. 9 (2014) 041006.
+    """
+
+    name: ClassVar[str] = "ali3p"
+    integrator: ClassVar[str | None] = "trapezoidal"
+    alpha: float = 1e9
+    tol: float = 1e-12
+    start: Penalty = field(default_factory=Penalty)
+
+    def init_memory(self, system: System, state: State) -> ALI3PMemory:
+        """Accelerations and multipliers at ``state`` from ``start``, and the force tangent."""
+        return init_memory(system, self, state)
+
+    def step(self, system: System, state: State, h: float, memory: ALI3PMemory) -> tuple[State, ALI3PMemory, Status]:
+        """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``)."""
+        return ali3p_step(system, self, state, h, memory)
+
+
 def _per_body_twist(twist: Twist):
     return np.concatenate([twist.W_v, twist.B_omega], axis=1)
 
 
-FORMULATIONS = {cls.name: cls for cls in (Index1, Baumgarte, Projection)}
+FORMULATIONS = {cls.name: cls for cls in (Index1, Baumgarte, Projection, Penalty, ALI3P)}

@@ -13,7 +13,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -21,10 +21,14 @@ from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import SimulationFailure, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
 from viz3d.frames import Frame, frame_from_state
-from viz3d.integrators import Integrator, make_integrator
+from viz3d.integrators import Integrator
+from viz3d.integrators.adaptive import Controller, StepSizeUnderflow
+from viz3d.integrators.stepping import accepted_step, error_order
+from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
-from viz3d.scene.build import build, make_formulation
+from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene
+from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
@@ -34,71 +38,196 @@ from viz3d.viz.sink import Sink
 DEFAULT_OUTPUT_DT = 0.01
 #: Show a progress bar when a run is projected to take longer than this [s] of wall time.
 PROGRESS_AFTER = 2.0
+#: Largest change of an orientation coordinate in one adaptive step [rad]: a chart is re-centred
+#: when its nutation comes within 30 deg (0.52 rad) of the singular one, and only between steps,
+#: so no step may turn the angles further than that.
+ADAPTIVE_MAX_TURN = 0.5
 
 
 class Simulation:
-    """Advance a ``System`` from a ``State`` by fixed steps; used by ``simulate`` and the viewer.
+    """Advance a ``System`` from a ``State`` by fixed intervals; used by ``simulate`` and the viewer.
+
+    Each ``step`` returns the state ``dt`` later. How it gets there:
+
+    * fixed steps (default): one step of ``integrator`` (with its solver state and, for FSAL
+      methods, the derivative carried over while nothing changed ``y`` in between);
+    * adaptive steps (``controller`` given; the integrator needs an embedded error estimate): as
+      many accepted steps as ``adaptive.Controller`` chooses, the state at ``t0 + n dt`` sampled
+      from the last step's dense output (the tableau's continuous extension, else cubic Hermite);
+    * a formulation that steps itself (``ALI3P``): its own ``step`` with its memory.
+
+    Between accepted steps, always in this order: ``formulation.post_step`` (projections), the
+    health check, ``rotation.normalize`` (unit quaternions) and ``rotation.rechart`` (per-body
+    chart switch).
 
     Parameters
     ----------
     system, state : System, State
     integrator : Integrator
-    formulation : Index1, Baumgarte or Projection
+    formulation : a formulation of ``viz3d.formulation.FORMULATIONS``
     dt : float
-        Step [s].
+        Interval between returned states [s]: the step itself unless ``controller`` is given.
     blowup_speed : float
         Speed [m/s] above which the run is declared diverged.
+    controller : adaptive.Controller, optional
+        Error control of adaptive steps.
+
+    Raises
+    ------
+    MethodError
+        If the integrator, formulation, rotation and controller cannot run together.
 
     Attributes
     ----------
     state : State
         Current state.
     chart_switches : ndarray of int, shape (nb,)
-    n_steps, n_rhs : int
-        Steps taken and vector-field evaluations so far.
+    n_steps, n_rejected, n_rhs : int
+        Accepted and rejected integration steps, vector-field evaluations so far.
     """
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
-                 blowup_speed: float = 1e4):
+                 blowup_speed: float = 1e4, controller: Controller | None = None):
+        check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
         self.system, self.state = system, state
         self.integrator, self.formulation, self.dt = integrator, formulation, dt
-        self.blowup_speed = blowup_speed
+        self.blowup_speed, self.controller = blowup_speed, controller
         self.chart_switches = np.zeros(system.n_bodies, dtype=int)
-        self.t0, self.n_steps, self.n_rhs = state.t, 0, 0
+        self.t0, self.n_steps, self.n_rejected, self.n_rhs, self.n_samples = state.t, 0, 0, 0, 0
+        self._f = None          # vector field at the current (inner) state, when known
+        self._solver = None     # the integrator's solver state
+        self._memory = None     # the memory of a formulation that steps itself
+        self._inner = state     # adaptive: state at the last accepted step (may be ahead of .state)
+        self._span = None       # adaptive: the last accepted step, for dense output
+        self._h = None          # adaptive: next step to try [s]
+        self._fields: list[VectorField] = []
 
     def step(self) -> State:
-        """Take one step; raise ``SimulationFailure`` with a diagnosis if the run cannot go on."""
-        s, system = self.state, self.system
-        rhs = VectorField(system, self.formulation, s.chart)
+        """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
+        cannot go on."""
+        target = self.t0 + (self.n_samples + 1) * self.dt
         try:
-            with np.errstate(all="ignore"):
-                y = self.integrator.step(rhs, s.t, s.y, self.dt).y
-            new = State(self.t0 + (self.n_steps + 1) * self.dt, y[: system.n_q], y[system.n_q:], s.chart)
-            new = self.formulation.post_step(system, new)
+            if self.formulation.integrator is not None:
+                new = self._own_step(target)
+            elif self.controller is None:
+                new = self._fixed_step(target)
+            else:
+                new = self._adaptive_samples(target)
         except SingularConstraintError:
-            raise SimulationFailure(self._singular_message(s)) from None
-        except ProjectionError as exc:
-            raise SimulationFailure(f"t = {s.t + self.dt:.6g} s: {exc}") from None
+            raise SimulationFailure(self._singular_message(self.state)) from None
+        except (ProjectionError, StepSizeUnderflow) as exc:
+            raise SimulationFailure(f"t = {target:.6g} s: {exc}") from None
         finally:
-            self.n_rhs += rhs.n_evals
-        check_state(system, new, self.blowup_speed, self.dt)
-        self.state = self._rechart(new)
-        self.n_steps += 1
-        return self.state
+            self.n_rhs += sum(f.n_evals for f in self._fields)
+            self._fields.clear()
+        self.state = new
+        self.n_samples += 1
+        return new
 
-    def _rechart(self, state: State) -> State:
-        W_r, theta = self.system.split_q(state.q)
-        theta, chart, switched = self.system.rotation.rechart(theta, state.chart)
-        if not np.any(switched):
-            return state
+    # ------------------------------------------------------------------ the three ways to step
+
+    def _fixed_step(self, target: float) -> State:
+        s, system = self.state, self.system
+        rhs = self._field(s.chart)
+        if self._solver is None:
+            self._solver = self.integrator.init(rhs, s.t, s.y)
+        with np.errstate(all="ignore"):
+            res = self.integrator.step(rhs, s.t, s.y, self.dt, f0=self._f, state=self._solver)
+        if not res.status.ok:
+            raise SimulationFailure(res.status.message)
+        self._solver = res.state
+        raw = State(target, res.y[: system.n_q], res.y[system.n_q:], s.chart)
+        return self._accept(raw, res.f1, self.dt)
+
+    def _own_step(self, target: float) -> State:
+        s = self.state
+        if self._memory is None:
+            self._memory = self.formulation.init_memory(self.system, s)
+            self.n_rhs += self._memory.n_evals
+        new, memory, status = self.formulation.step(self.system, s, self.dt, self._memory)
+        self.n_rhs += memory.n_evals - self._memory.n_evals
+        if not status.ok:
+            raise SimulationFailure(status.message)
+        self._memory = memory
+        return self._accept(new.replace(t=target), None, self.dt, post_step=False)
+
+    def _adaptive_samples(self, target: float) -> State:
+        while self._span is None or self._span.t1 < target:
+            self._adaptive_step()
+        sample = self._span.sample(target)
+        sample = self.formulation.post_step(self.system, sample)
+        check_state(self.system, sample, self.blowup_speed, self._span.t1 - self._span.t0)
+        W_r, theta = self.system.split_q(sample.q)
+        return sample.replace(q=self.system.join_q(W_r, self.system.rotation.normalize(theta)))
+
+    def _adaptive_step(self) -> None:
+        s, system, method = self._inner, self.system, self.integrator
+        rhs = self._field(s.chart)
+        f = rhs(s.t, s.y) if self._f is None else self._f
+        if self._h is None:
+            self._h = min(self.controller.first_step(rhs, s.t, s.y, f, error_order(method)), self._turn_limit(f))
+        with np.errstate(all="ignore"):
+            acc = accepted_step(rhs, s.t, s.y, f, min(self._h, self.controller.max_step), method, self.controller)
+            t1 = s.t + acc.h
+            f1 = acc.res.f1 if acc.res.f1 is not None else rhs(t1, acc.res.y)
+        self.n_rejected += acc.n_rejected
+        self._span = _Span(s.t, t1, s.chart, system.n_q, lambda: method.interpolant(rhs, s.t, s.y, acc.h, acc.res, f1))
+        raw = State(t1, acc.res.y[: system.n_q], acc.res.y[system.n_q:], s.chart)
+        self._inner = self._accept(raw, f1, acc.h)
+        self._h = min(acc.h_next, self._turn_limit(f1))
+
+    # ------------------------------------------------------------------ between steps
+
+    def _accept(self, raw: State, f1, h: float, post_step: bool = True) -> State:
+        """An integration step's end state after projections, checks, normalization and re-charting;
+        keeps ``f1`` (the vector field at ``raw``) for the next step while ``raw`` is unchanged."""
+        new = self.formulation.post_step(self.system, raw) if post_step else raw
+        check_state(self.system, new, self.blowup_speed, h)
+        W_r, theta0 = self.system.split_q(new.q)
+        normal = self.system.rotation.normalize(theta0)
+        theta, chart, switched = self.system.rotation.rechart(normal, new.chart)
         self.chart_switches += switched
-        return state.replace(q=self.system.join_q(W_r, theta), chart=chart)
+        self.n_steps += 1
+        if new is raw and normal is theta0 and not np.any(switched):
+            self._f = f1
+            return new
+        self._f = None
+        return new.replace(q=self.system.join_q(W_r, theta), chart=chart)
+
+    def _turn_limit(self, f: np.ndarray) -> float:
+        """Longest adaptive step [s] that turns no orientation coordinate by more than
+        ``ADAPTIVE_MAX_TURN`` at the rates in ``f`` (charts are only switched between steps)."""
+        rates = f[: self.system.n_q].reshape(self.system.n_bodies, -1)[:, 3:]
+        fastest = np.max(np.abs(rates), initial=0.0)
+        return ADAPTIVE_MAX_TURN / fastest if fastest > 0.0 else np.inf
+
+    def _field(self, chart) -> VectorField:
+        rhs = VectorField(self.system, self.formulation, chart)
+        self._fields.append(rhs)
+        return rhs
 
     def _singular_message(self, s: State) -> str:
         pose, twist = body_state(self.system, s.q, s.v, s.chart)
         names = redundant_joints(self.system, constraint_rows(self.system.joints, pose, twist).J)
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "constraint matrix lost rank"
         return f"t = {s.t:.6g} s: singular constraint Jacobian: {who}"
+
+
+class _Span:
+    """One accepted adaptive step ``[t0, t1]`` in its chart; its interpolant is built on first use
+    (a continuous extension may cost extra evaluations, e.g. three for DOP853)."""
+
+    def __init__(self, t0: float, t1: float, chart: np.ndarray, n_q: int, make_interpolant: Callable):
+        self.t0, self.t1, self.chart, self.n_q = t0, t1, chart, n_q
+        self._make, self._interp = make_interpolant, None
+
+    def sample(self, t: float) -> State:
+        """The interpolated state at ``t0 <= t <= t1`` (chart of the step)."""
+        if self._interp is None:
+            with np.errstate(all="ignore"):
+                self._interp = self._make()
+        y = self._interp(t)
+        return State(t, y[: self.n_q], y[self.n_q:], self.chart)
 
 
 class FrameRecorder:
@@ -167,8 +296,11 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     system, state = build(scene)
     sim_cfg = scene.data["sim"]
     formulation = make_formulation(sim_cfg)
-    sim = Simulation(system, state, make_integrator(sim_cfg["integrator"]), formulation, sim_cfg["dt"],
-                     sim_cfg["blowup_speed"])
+    try:
+        sim = Simulation(system, state, make_integrator_from(sim_cfg), formulation, sim_cfg["dt"],
+                         sim_cfg["blowup_speed"], make_controller(sim_cfg))
+    except MethodError as exc:
+        raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
     return run(sim, scene, formulation, progress, sinks)
 
 

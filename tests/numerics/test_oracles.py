@@ -48,15 +48,18 @@ def _vertical_passes(R, deg=1.0):
     return theta[i][theta[i] < deg]
 
 
-def test_top_through_vertical_matches_reference_across_many_passes():
-    traj = viz3d.simulate(SCENES / "top_through_vertical.toml", ["sim.output_dt=5e-4"])
+@pytest.mark.parametrize("rotation", ["euler_switching", "quaternion"])
+def test_top_through_vertical_matches_reference_across_many_passes(rotation):
+    """Both regular parametrizations: re-charted Euler angles and Euler parameters (measured
+    4.0e-7 m with quaternions, 2026-11-21); plain angles fail (next test)."""
+    traj = viz3d.simulate(SCENES / "top_through_vertical.toml", ["sim.output_dt=5e-4", f"sim.rotation={rotation}"])
     assert traj.ok, traj.status
     pos_err, rot_err, R_ref = _compare_top(traj, [0.0, 0.0, -0.1])
     passes = _vertical_passes(R_ref)
     assert len(passes) >= 12, f"the reference axis passes the vertical only {len(passes)} times"
     assert len(_vertical_passes(traj.rotation[:, 0])) == len(passes)
     assert pos_err < TTV_POS_TOL and rot_err < TTV_POS_TOL / 0.1, (pos_err, rot_err)
-    assert traj.chart_switches[0] >= 1
+    assert traj.chart_switches[0] >= (1 if rotation == "euler_switching" else 0)
 
 
 def test_top_exactly_through_the_pole():

@@ -2,23 +2,30 @@
 
 from __future__ import annotations
 
-from viz3d.integrators.base import Integrator, Rhs, StepResult
+from viz3d.integrators.base import Integrator, Rhs, Status, StepResult
 from viz3d.integrators.explicit_rk import ExplicitRK
-from viz3d.integrators.tableaus import DOPRI5, EULER, HEUN, RK4, ButcherTableau
+from viz3d.integrators.implicit import GeneralizedAlpha, Trapezoidal
+from viz3d.integrators.tableaus import DOP853, DOPRI5, EULER, HEUN, RK4, ButcherTableau
 
 INTEGRATORS = {
     "euler": lambda: ExplicitRK(EULER),
     "heun": lambda: ExplicitRK(HEUN),
     "rk4": lambda: ExplicitRK(RK4),
+    "dopri5": lambda: ExplicitRK(DOPRI5),
+    "dop853": lambda: ExplicitRK(DOP853),
+    "trapezoidal": Trapezoidal,
+    "gen_alpha": GeneralizedAlpha,
 }
 
 
 def make_integrator(name: str) -> Integrator:
-    """Instantiate the registered integrator ``name`` (KeyError lists the valid names)."""
+    """Instantiate the registered integrator ``name`` with its default parameters (KeyError lists
+    the valid names)."""
     try:
         return INTEGRATORS[name]()
     except KeyError:
         raise KeyError(f"unknown integrator {name!r}; valid: {', '.join(INTEGRATORS)}") from None
 
 
-__all__ = ["INTEGRATORS", "DOPRI5", "Integrator", "Rhs", "StepResult", "ButcherTableau", "ExplicitRK", "make_integrator"]
+__all__ = ["INTEGRATORS", "DOP853", "DOPRI5", "Integrator", "Rhs", "Status", "StepResult", "ButcherTableau",
+           "ExplicitRK", "GeneralizedAlpha", "Trapezoidal", "make_integrator"]

@@ -19,8 +19,10 @@ from viz3d.constraints import SingularConstraintError, build_layout, constraint_
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, SpringDamper
-from viz3d.formulation import Baumgarte, Index1, Projection
+from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
+from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
+from viz3d.integrators.adaptive import Controller
 from viz3d.joints import BallJoint
 from viz3d.kinematics import pose_from
 from viz3d.rotations import matrix_from_euler
@@ -32,6 +34,8 @@ from viz3d.timefunctions import TimeFunctions
 
 #: Initial-condition corrections larger than this are reported [m, m/s].
 REPORT_CORRECTION = 1e-9
+#: Adaptive runs fail (with a diagnosis) rather than take steps below this [s].
+ADAPTIVE_MIN_STEP = 1e-12
 
 
 class InitialConditionsWarning(UserWarning):
@@ -83,7 +87,26 @@ def make_formulation(sim: dict):
         return Baumgarte(sim["baumgarte_alpha"], sim["baumgarte_beta"])
     if name == "projection":
         return Projection(sim["projection_tol"])
+    penalty = Penalty(sim["penalty_alpha"], sim["penalty_xi"], sim["penalty_omega"])
+    if name == "penalty":
+        return penalty
+    if name == "ali3p":
+        return ALI3P(sim["ali3p_alpha"], sim["projection_tol"], start=penalty)
     return Index1()
+
+
+def make_integrator_from(sim: dict) -> Integrator:
+    """Integrator named by ``sim.integrator`` with its scene parameters (``sim.rho_inf``)."""
+    if sim["integrator"] == "gen_alpha":
+        return GeneralizedAlpha(sim["rho_inf"])
+    return make_integrator(sim["integrator"])
+
+
+def make_controller(sim: dict) -> Controller | None:
+    """Step-size controller of an adaptive run (``sim.rtol`` given), else ``None`` (fixed steps)."""
+    if "rtol" not in sim:
+        return None
+    return Controller(sim["rtol"], sim["atol"], sim.get("max_step", np.inf), ADAPTIVE_MIN_STEP)
 
 
 # ---------------------------------------------------------------- bodies

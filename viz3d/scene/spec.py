@@ -12,6 +12,7 @@ from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
     Field,
+    Invalid,
     Table,
     boolean,
     color,
@@ -36,9 +37,20 @@ SCENE = Table({
     "description": Field(string, "", "one line shown by `viz3d list`"),
 }, "what the scene is")
 
+def unit_interval(x):
+    """A number in [0, 1] (``sim.rho_inf``)."""
+    try:
+        x = number(x)
+    except Invalid:
+        raise Invalid("a number in [0, 1]") from None
+    if not 0.0 <= x <= 1.0:
+        raise Invalid("a number in [0, 1]")
+    return x
+
+
 SIM = Table({
     "t_end": Field(positive, 5.0, "simulated duration [s]"),
-    "dt": Field(positive, 1e-3, "fixed integration step [s]"),
+    "dt": Field(positive, 1e-3, "fixed integration step [s] (with sim.rtol: interval between the dense-output samples)"),
     "output_dt": Field(positive, OPTIONAL, "interval between stored frames [s] (default: 0.01 s, at least dt)"),
     "integrator": Field(one_of(*INTEGRATORS), "rk4", f"one of {list(INTEGRATORS)}"),
     "formulation": Field(one_of(*FORMULATIONS), "index1", f"one of {list(FORMULATIONS)}"),
@@ -46,7 +58,16 @@ SIM = Table({
     "gravity": Field(vec3, [0.0, 0.0, -9.81], "gravitational acceleration [m/s^2]"),
     "baumgarte_alpha": Field(nonnegative, 10.0, "Baumgarte damping rate [1/s] (formulation = baumgarte)"),
     "baumgarte_beta": Field(nonnegative, 10.0, "Baumgarte frequency [rad/s] (formulation = baumgarte)"),
-    "projection_tol": Field(positive, 1e-12, "position tolerance of projections [m]"),
+    "projection_tol": Field(positive, 1e-12, "position tolerance of projections and of ali3p's iteration [m]"),
+    "rtol": Field(positive, OPTIONAL, "relative tolerance: adaptive steps with error control (integrators dopri5, "
+                  "dop853); sim.dt is then the interval between returned states, sampled by dense output"),
+    "atol": Field(positive, 1e-9, "absolute tolerance of adaptive steps [m, rad, m/s, rad/s] (with sim.rtol)"),
+    "max_step": Field(positive, OPTIONAL, "largest adaptive step [s] (with sim.rtol; default: unbounded)"),
+    "rho_inf": Field(unit_interval, 0.8, "spectral radius at infinity of gen_alpha, in [0, 1] (1: no damping)"),
+    "penalty_alpha": Field(positive, 1e7, "penalty factor [kg] (formulation = penalty; seed 004: 1e6 to 1e11)"),
+    "penalty_xi": Field(positive, 1.0, "damping ratio of the penalty springs [-] (formulation = penalty)"),
+    "penalty_omega": Field(positive, 10.0, "natural frequency of the penalty springs [rad/s] (formulation = penalty)"),
+    "ali3p_alpha": Field(positive, 1e9, "augmented-Lagrangian penalty factor [N/m] (formulation = ali3p)"),
     "blowup_violation": Field(positive, 0.1, "stop with a diagnosis when max |C| exceeds this [m]"),
     "blowup_speed": Field(positive, 1e4, "stop with a diagnosis when a body's speed exceeds this [m/s]"),
 }, "how to integrate")

@@ -1,0 +1,65 @@
+"""Adaptive rigid-body runs (sim.rtol with dopri5, dop853) against scipy's DOP853 on an
+independent quaternion formulation of the heavy top (tests/references.py)."""
+
+import numpy as np
+import pytest
+
+import viz3d
+from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
+from viz3d.simulate import Simulation
+
+from conftest import SCENES
+from references import fixed_point_body
+
+T_END = 0.5          # s of the heavy top
+SAMPLE_DT = 0.01     # s between returned states (dense output)
+#: Reference at scipy's tightest tolerance (100 eps): its error is below 1e-13 m.
+REF_RTOL, REF_ATOL = 2.3e-14, 1e-15
+#: Tolerances of the three runs per method, each 100x tighter.
+RTOLS = {"dopri5": (1e-6, 1e-8, 1e-10), "dop853": (1e-6, 1e-8, 1e-10)}
+#: Error per unit rtol [m]: DOPRI5 measured 1.2-1.8 (2026-11-21), DOP853 below 0.004 (its estimate is
+#: 5th order for an 8th-order solution).
+ERROR_PER_RTOL = 10.0
+#: 100x tighter rtol divides the error by at least this (measured 137 and 115 for DOPRI5, 24 and
+#: 84 for DOP853).
+MIN_GAIN = 10.0
+
+
+def _adaptive_run(method: str, rtol: float):
+    scene = viz3d.load_scene(SCENES / "heavy_top.toml", [f"sim.integrator={method}", f"sim.rtol={rtol}",
+                                                         f"sim.atol={rtol * 1e-2}", f"sim.dt={SAMPLE_DT}"])
+    system, state = viz3d.build(scene)
+    cfg = scene.data["sim"]
+    sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"], cfg["blowup_speed"],
+                     make_controller(cfg))
+    t, W_r = [], []
+    for _ in range(round(T_END / SAMPLE_DT)):
+        sim.step()
+        t.append(sim.state.t)
+        W_r.append(system.split_q(sim.state.q)[0][0].copy())
+    R0 = system.rotation.matrix(system.split_q(state.q)[1], state.chart)[0]
+    _, _, rG = fixed_point_body(system.bodies.inertia[0], system.bodies.mass[0], [0.0, 0.0, 0.15], (0.0, 0.0, -9.81), R0,
+                                R0 @ system.split_v(state.v)[1][0], np.array([0.0] + t), rtol=REF_RTOL, atol=REF_ATOL)
+    return sim, np.array(t), float(np.abs(np.array(W_r) - rG[1:]).max())
+
+
+@pytest.mark.parametrize("method", sorted(RTOLS))
+def test_adaptive_error_falls_with_the_tolerance(method):
+    runs = [_adaptive_run(method, rtol) for rtol in RTOLS[method]]
+    errors = [err for _, _, err in runs]
+    for (_, t, err), rtol in zip(runs, RTOLS[method]):
+        np.testing.assert_allclose(t, SAMPLE_DT * np.arange(1, len(t) + 1), rtol=1e-12)  # the sampling grid
+        assert err <= ERROR_PER_RTOL * rtol, (method, rtol, err)
+    assert all(a > MIN_GAIN * b for a, b in zip(errors, errors[1:])), (method, errors)
+    steps = [sim.n_steps for sim, _, _ in runs]
+    assert steps == sorted(steps) and steps[0] < steps[-1], steps   # tighter: more, shorter steps
+
+
+def test_a_tolerance_driven_run_rejects_and_accepts_steps():
+    """DOPRI5 at rtol 1e-8 on the heavy top: the controller rejects some trial steps (measured 14,
+    2026-11-21) and accepts many more (304)."""
+    sim, _, _ = _adaptive_run("dopri5", 1e-8)
+    assert sim.n_rejected > 0
+    assert sim.n_steps > 10 * sim.n_rejected
+    # 6 evaluations per attempt, FSAL, plus the first-step estimate
+    assert sim.n_rhs == pytest.approx(6 * (sim.n_steps + sim.n_rejected), abs=10)

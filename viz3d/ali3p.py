@@ -1,0 +1,197 @@
+"""One step of ALI3-P (index-3 augmented Lagrangian with projections) on the trapezoidal rule, in
+viz3d's velocity variables ``v = [W_v, B_omega]`` (seed 004, eqs. 3.17-3.28; docs/notation.md).
+
+The seed writes the method for coordinates whose derivative is the velocity (natural
+coordinates). Here positions live on ``R^3 x SO(3)`` per body, so the unknown of a step is the
+velocity-space increment ``dx`` (n_v,) that moves the positions, ``q1 = retract(q0, dx)``
+(``W_r + dW_r``, ``R_WB exp(skew(B_dphi))``), and the trapezoidal rule reads
+
+    dx = h (v0 + v1) / 2,   v1 = v0 + h (a0 + a1) / 2,
+
+so that ``v1 = 2 dx / h - v0`` and ``a1 = 4 dx / h^2 - 4 v0 / h - a0`` (eqs. 3.19, 3.20). The
+equations of motion at ``t1``, scaled by ``h^2 / 4`` (eq. 3.23), are solved for ``dx`` by
+Newton-Raphson with the approximate tangent (eq. 3.26)
+
+    T = M + h/2 D + h^2/4 (alpha C_v^T C_v + K),   K = -dQ/dx,  D = -dQ/dv,
+
+(the seed prints ``K = dQ/dq``, ``C = dQ/dq_dot``: the minus signs are needed for ``T`` to be the
+derivative of its residual), and ``lam* += alpha C`` after each iteration (eq. 3.18). ``K`` and
+``D`` come from finite differences of the applied and gyroscopic forces; they are kept between
+steps and rebuilt when the iteration stalls. Then velocities and accelerations are projected
+with the same matrix (eqs. 3.27, 3.28), ``gamma = -C_v_dot v`` standing for ``-Phi_q_dot q_dot``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve
+
+from viz3d._typing import FloatArray
+from viz3d.constraints import constraint_rows
+from viz3d.dynamics import accelerations, body_state, generalized_forces, retract
+from viz3d.integrators.base import Status
+from viz3d.system import State, System
+
+#: Iterations of the augmented-Lagrangian Newton loop per attempt.
+MAX_ITER = 40
+#: A step that needed more iterations than this rebuilds the force tangent for the next step.
+REFRESH_ITER = 12
+#: Finite-difference step of the force tangent [m, rad, m/s, rad/s] (square root of machine eps).
+FD_STEP = np.sqrt(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class ALI3PMemory:
+    """What ALI3-P carries from one step to the next (held by ``viz3d.simulate.Simulation``).
+
+    Attributes
+    ----------
+    v_dot : ndarray, shape (n_v,)
+        Accelerations at the current state [m/s^2, rad/s^2] (eq. 3.20 needs them).
+    lam : ndarray, shape (n_c,)
+        Augmented-Lagrangian multipliers ``lam*`` [N].
+    K, D : ndarray, shape (n_v, n_v) or None
+        Force tangents ``-dQ/dx`` [N/m, N] and ``-dQ/dv`` [N s/m, N s], possibly from an
+        earlier step; ``None``: rebuild before the next step.
+    n_evals : int
+        Evaluations of forces and constraint rows so far (the cost, like vector-field evaluations).
+    """
+
+    v_dot: FloatArray
+    lam: FloatArray
+    K: FloatArray | None
+    D: FloatArray | None
+    n_evals: int = 0
+
+
+@dataclass(frozen=True)
+class _Point:
+    """Everything the iteration needs at one trial increment ``dx``."""
+
+    q: FloatArray
+    v: FloatArray
+    a: FloatArray
+    C: FloatArray
+    Cv: FloatArray
+    Q: FloatArray
+
+
+def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
+    """Initial accelerations and multipliers from ``formulation.start`` (the penalty method)."""
+    acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart)
+    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1)
+
+
+def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory
+               ) -> tuple[State, ALI3PMemory, Status]:
+    """Advance ``state`` by ``h`` [s]; return the new state, memory and a status.
+
+    Tries with the kept force tangent first, then once with a fresh one; a failed step returns the
+    old state and memory with the reason.
+    """
+    with np.errstate(all="ignore"):
+        for fresh in ((False, True) if memory.K is not None else (True,)):
+            if fresh:
+                K, D = force_tangent(system, state.t, state.q, state.v, state.chart)
+                memory = ALI3PMemory(memory.v_dot, memory.lam, K, D, memory.n_evals + 2 * system.n_v + 1)
+            result = _iterate(system, formulation, state, h, memory)
+            if isinstance(result, tuple):
+                return result + (Status.OK,)
+            memory = ALI3PMemory(memory.v_dot, memory.lam, memory.K, memory.D, memory.n_evals + MAX_ITER)
+    return state, memory, Status.failed(f"t = {state.t:.6g} s: ALI3-P iteration did not converge in {MAX_ITER} "
+                                        f"iterations with h = {h:.3g} s ({result}); try a smaller sim.dt or "
+                                        f"another sim.ali3p_alpha")
+
+
+def _iterate(system, formulation, state, h, memory):
+    """Newton-Raphson + multiplier updates, then projections; a reason string if it fails."""
+    alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
+    M = mass_matrix(system)
+    W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
+    lam = memory.lam.copy()
+    dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
+    lu, step, prev = None, np.inf, np.inf
+    for it in range(MAX_ITER):
+        p = _evaluate(system, state, memory.v_dot, dx, h, t1)
+        if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
+            return "non-finite state"
+        if it > 0:
+            lam += alpha * p.C
+            rate = step / prev if np.isfinite(prev) else np.inf
+            # the update, or the error still ahead of a contracting iteration, is below tol
+            small = step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
+            if small and np.max(np.abs(p.C), initial=0.0) <= tol:
+                return _finish(system, state, p, W, alpha, h, t1, lam, memory, it + 1)
+        prev = step
+        residual = 0.25 * h * h * (M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
+        if lu is None:
+            lu = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
+        ddx = lu_solve(lu, -residual)
+        step = np.max(np.abs(ddx))
+        dx = dx + ddx
+    return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m"
+
+
+def _evaluate(system, state, a0, dx, h, t1) -> _Point:
+    q1 = retract(system, state.q, dx, state.chart)
+    v1 = 2.0 / h * dx - state.v
+    a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
+    pose, twist = body_state(system, q1, v1, state.chart)
+    rows = constraint_rows(system.joints, pose, twist)
+    Q = generalized_forces(system, t1, pose, twist)[:-1].reshape(-1)
+    return _Point(q1, v1, a1, rows.C, dense_jacobian(system, rows.J), Q)
+
+
+def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, n_iter: int) -> tuple[State, ALI3PMemory]:
+    """Project velocities (eq. 3.27; the joints are scleronomic, ``Phi_t = 0``) and accelerations
+    (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged positions."""
+    T = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
+    v = lu_solve(T, W @ p.v)
+    pose, twist = body_state(system, p.q, v, state.chart)
+    gamma = constraint_rows(system.joints, pose, twist).gamma
+    a = lu_solve(T, W @ p.a + 0.25 * h * h * alpha * p.Cv.T @ gamma)
+    keep = n_iter <= REFRESH_ITER
+    return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
+                                                       memory.n_evals + n_iter + 1)
+
+
+def mass_matrix(system: System) -> FloatArray:
+    """Dense block-diagonal ``M = diag(m I3, I)`` per body, shape (n_v, n_v) [kg, kg m^2]."""
+    nb = system.n_bodies
+    M = np.zeros((nb, 6, nb, 6))
+    idx = np.arange(nb)
+    M[idx, :3, idx, :3] = system.bodies.mass[:, None, None] * np.eye(3)
+    M[idx, 3:, idx, 3:] = system.bodies.inertia
+    return M.reshape(6 * nb, 6 * nb)
+
+
+def dense_jacobian(system: System, J: FloatArray) -> FloatArray:
+    """``C_v`` as a dense matrix, shape (n_c, n_v), from its row blocks ``J`` (n_c, 2, 6)."""
+    n_c, nb = J.shape[0], system.n_bodies
+    dense = np.zeros((n_c, 6 * (nb + 1)))
+    cols = system.joints.row_body[:, :, None] * 6 + np.arange(6)
+    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
+    return dense[:, : 6 * nb]
+
+
+def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray
+                  ) -> tuple[FloatArray, FloatArray]:
+    """``K = -dQ/dx`` and ``D = -dQ/dv``, shapes (n_v, n_v), by forward differences of the applied
+    and gyroscopic forces (``dx``: velocity-space displacement of the positions)."""
+
+    def forces(q_, v_):
+        pose, twist = body_state(system, q_, v_, chart)
+        return generalized_forces(system, t, pose, twist)[:-1].reshape(-1)
+
+    Q0, n_v = forces(q, v), system.n_v
+    K, D = np.empty((n_v, n_v)), np.empty((n_v, n_v))
+    for j in range(n_v):
+        e = np.zeros(n_v)
+        e[j] = FD_STEP
+        K[:, j] = -(forces(retract(system, q, e, chart), v) - Q0) / FD_STEP
+        dv = FD_STEP * max(1.0, abs(v[j]))
+        e[j] = dv
+        D[:, j] = -(forces(q, v + e) - Q0) / dv
+    return K, D
