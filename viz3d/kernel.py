@@ -476,6 +476,26 @@ def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray) -> 
     return out
 
 
+class KernelStepper:
+    """Explicit RK steps of one system through the kernel, with the workspace allocated once."""
+
+    def __init__(self, data: KernelData, tableau):
+        from viz3d.rotations import matrix_from_euler
+
+        self.data, self.tableau = data, tableau
+        self.args = args_of(data)
+        self.ws = _workspace(data)
+        self.centre, self.centre_R = CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE)
+
+    def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
+             max_speed: float) -> int:
+        """One step of ``y``, ``chart`` in place; returns the status code (``OK`` = 0)."""
+        tab = self.tableau
+        _, status = advance(1, t, h, y, chart, switches, tab.a, tab.b, tab.c, self.data.switching, max_speed,
+                            *self.args, self.centre, self.centre_R, self.ws)
+        return status
+
+
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
                    switches: np.ndarray, max_speed: float) -> tuple[int, int]:
     """Advance ``y`` and ``chart`` in place by up to ``n_steps`` steps; (steps done, status)."""

@@ -65,7 +65,7 @@ class RigidDriver:
         cfg = {**self.scene.data["sim"], **self.settings}
         self.formulation = make_formulation(cfg)
         self.sim = Simulation(self.system, state, make_integrator(cfg["integrator"]), self.formulation,
-                              float(cfg["dt"]), cfg["blowup_speed"])
+                              float(cfg["dt"]), cfg["blowup_speed"], compiled=cfg["compiled"])
 
     @property
     def t(self) -> float:

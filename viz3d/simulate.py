@@ -71,6 +71,9 @@ class Simulation:
         Speed [m/s] above which the run is declared diverged.
     controller : adaptive.Controller, optional
         Error control of adaptive steps.
+    compiled : bool
+        Take fixed explicit Runge-Kutta steps through the compiled kernel (``viz3d.kernel``) when
+        it covers the system and formulation; the NumPy path otherwise.
 
     Raises
     ------
@@ -87,7 +90,7 @@ class Simulation:
     """
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
-                 blowup_speed: float = 1e4, controller: Controller | None = None):
+                 blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True):
         check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
         self.system, self.state = system, state
         self.integrator, self.formulation, self.dt = integrator, formulation, dt
@@ -101,6 +104,7 @@ class Simulation:
         self._span = None       # adaptive: the last accepted step, for dense output
         self._h = None          # adaptive: next step to try [s]
         self._fields: list[VectorField] = []
+        self._kernel = _compiled(system, integrator, formulation, controller) if compiled else None
 
     def step(self) -> State:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
@@ -128,6 +132,10 @@ class Simulation:
 
     def _fixed_step(self, target: float) -> State:
         s, system = self.state, self.system
+        if self._kernel is not None:
+            new = self._kernel_step(target)
+            if new is not None:
+                return new
         rhs = self._field(s.chart)
         if self._solver is None:
             self._solver = self.integrator.init(rhs, s.t, s.y)
@@ -138,6 +146,21 @@ class Simulation:
         self._solver = res.state
         raw = State(target, res.y[: system.n_q], res.y[system.n_q:], s.chart)
         return self._accept(raw, res.f1, self.dt)
+
+    def _kernel_step(self, target: float) -> State | None:
+        """The step through the compiled kernel, which also makes the health checks and the chart
+        switch; None when it reports a failure (the NumPy path then redoes the step and raises
+        the detailed diagnosis)."""
+        s, system = self.state, self.system
+        y, chart = s.y.copy(), s.chart.copy()
+        switches = np.zeros(system.n_bodies, np.int64)
+        status = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed)
+        self.n_rhs += self._kernel.tableau.stages
+        if status != 0:
+            return None
+        self.chart_switches += switches
+        self.n_steps += 1
+        return State(target, y[: system.n_q], y[system.n_q:], chart)
 
     def _own_step(self, target: float) -> State:
         s = self.state
@@ -230,6 +253,17 @@ class _Span:
         return State(t, y[: self.n_q], y[self.n_q:], self.chart)
 
 
+def _compiled(system, integrator, formulation, controller):
+    """A ``KernelStepper`` when the kernel covers this run, else None."""
+    from viz3d.integrators import ExplicitRK
+    from viz3d.kernel import KernelStepper, kernel_for
+
+    if controller is not None or not isinstance(integrator, ExplicitRK) or formulation.integrator is not None:
+        return None
+    data = kernel_for(system, formulation)
+    return None if data is None else KernelStepper(data, integrator.tableau)
+
+
 class FrameRecorder:
     """Collects output frames of a run into a ``Trajectory``."""
 
@@ -298,7 +332,7 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     formulation = make_formulation(sim_cfg)
     try:
         sim = Simulation(system, state, make_integrator_from(sim_cfg), formulation, sim_cfg["dt"],
-                         sim_cfg["blowup_speed"], make_controller(sim_cfg))
+                         sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"])
     except MethodError as exc:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
     return run(sim, scene, formulation, progress, sinks)

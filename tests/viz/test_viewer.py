@@ -138,11 +138,11 @@ def test_runner_keeps_requested_speed_and_reports_achieved_factor():
 
 
 def test_runner_that_cannot_keep_up_reports_it_instead_of_stalling():
-    runner = _runner("chain", speed=4.0)                                 # 10 links x4: beyond this machine
+    runner = _runner("chain", speed=50.0)  # 10 links at 50x real time: beyond this machine (~20x with the kernel)
     try:
         time.sleep(2.0)
         snap = runner.snapshot
-        assert 0.0 < snap.rtf < 3.5 and snap.frame.t > 0.1
+        assert 0.0 < snap.rtf < 45.0 and snap.frame.t > 0.1
         assert wait_for(lambda: runner.snapshot.frame.t > snap.frame.t)  # still advancing
     finally:
         runner.stop()
