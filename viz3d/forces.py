@@ -184,6 +184,8 @@ class AppliedTorque(AppliedForce):
         return np.zeros_like(pose.W_r), scatter(pose.W_r.shape[0], self.body, tau_k)
 
 
+#: Force elements by scene type. Contact elements (viz3d.contact.element) register themselves
+#: here when imported, which viz3d.scene.build does.
 FORCES: dict[str, type[ForceElement]] = {
     cls.type_name: cls for cls in (SpringDamper, AppliedForce, AppliedTorque)
 }

@@ -162,11 +162,13 @@ def frame_from_state(system: System, formulation, state: State) -> Frame:
         reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
         points.append(pose.point(js.body[:, 0], js.B_s[:, 0]))
     springs = [e.endpoints(pose)[0] for e in system.forces if isinstance(e, SpringDamper)]
+    contacts = [e.contacts(pose, twist) for e in system.forces if hasattr(e, "contacts")]
     return Frame(
         t=state.t, W_r=pose.W_r[:-1], R_WB=pose.R_WB[:-1], W_v=twist.W_v[:-1], W_omega=twist.W_omega[:-1],
         joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
-        constraint_violation=float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0)
+        constraint_violation=float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0,
+        contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
 
 
 def _stack(parts: list, empty_shape: tuple) -> FloatArray:

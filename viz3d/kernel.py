@@ -3,7 +3,8 @@
 The NumPy implementation (dynamics.py, constraints.py, forces.py, joints.py) is the reference;
 this module computes the same quantities with loops compiled by numba, because for small systems
 NumPy's per-call overhead (about 50 small array operations per right-hand side) dominates.
-It covers systems of ball joints, gravity, spring-dampers and applied forces/torques, with ZXZ
+It covers systems of ball joints, gravity, spring-dampers, applied forces/torques and sphere-plane
+contacts (Hertz or linear, with a dashpot), with ZXZ
 Euler angles (plain or chart-switching), the index-1 or Baumgarte formulations and any explicit
 Runge-Kutta tableau; ``kernel_for`` returns None for anything else, and the caller then uses the
 NumPy path. tests/numerics/test_kernel.py checks the two against each other to round-off.
@@ -57,6 +58,8 @@ class KernelData:
     load_info: np.ndarray     # (nl, 3) int: torque?, body frame?, kind
     load_s: np.ndarray        # (nl, 3)
     load_f: np.ndarray        # (nl, 10): offset (3), amplitude (3), frequency, phase, start, duration
+    contact_body: np.ndarray  # (nk,) int
+    contact_f: np.ndarray     # (nk, 11): centre (3), radius, plane point (3), normal (3)... see pack
     perm: np.ndarray          # (n_c,) int: solve order of the rows
     pair: np.ndarray          # (n_pairs, 5) int: row, side, col, colside, slot
     kd: int
@@ -72,22 +75,39 @@ def kernel_for(system, formulation) -> KernelData | None:
         return None
     if any(type(js) is not BallJoint for js in system.joints.joints):
         return None
-    if any(type(e) not in (Gravity, SpringDamper, AppliedForce, AppliedTorque) for e in system.forces):
+    from viz3d.contact.element import SpherePlane
+    from viz3d.contact.laws import Hertz, Linear
+
+    if any(type(e) not in (Gravity, SpringDamper, AppliedForce, AppliedTorque, SpherePlane) for e in system.forces):
         return None
+    for e in system.forces:
+        if isinstance(e, SpherePlane) and any(type(law) not in (Hertz, Linear) or getattr(law, "damping", 0.0)
+                                              for law in e.laws):
+            return None
     return pack(system, formulation)
 
 
 def pack(system, formulation) -> KernelData:
     nb = system.n_bodies
+    from viz3d.contact.element import SpherePlane
+
     gravity = np.zeros(3)
-    springs, loads = [], []
+    springs, loads, contacts = [], [], []
     for e in system.forces:
         if isinstance(e, Gravity):
             gravity = gravity + e.g
         elif isinstance(e, SpringDamper):
             springs.append(e)
+        elif isinstance(e, SpherePlane):
+            contacts.append(e)
         else:
             loads.append(e)
+    kb, kf = [], []
+    for e in contacts:  # centre (3), radius, plane point (3), normal (3), K, exponent, damping
+        for k, law in enumerate(e.laws):
+            kb.append(e.body[k])
+            kf.append([*e.B_c[k], e.radius[k], *e.plane_point[k], *e.normal[k], law.stiffness,
+                       getattr(law, "exponent", 1.0), e.damping[k]])
     joints = system.joints.joints
     jb = np.concatenate([js.body for js in joints]) if joints else np.zeros((0, 2), int)
     js_ = np.concatenate([js.B_s for js in joints]) if joints else np.zeros((0, 2, 3))
@@ -120,13 +140,15 @@ def pack(system, formulation) -> KernelData:
         np.linalg.inv(system.bodies.inertia), np.asarray(gravity, float), jb.astype(np.int64), js_.astype(float),
         sb.astype(np.int64), ss.astype(float), sk.astype(float), np.array(lb, np.int64),
         np.array(li, np.int64).reshape(-1, 3), np.array(ls, float).reshape(-1, 3), np.array(lf, float).reshape(-1, 10),
+        np.array(kb, np.int64), np.array(kf, float).reshape(-1, 13),
         lay.perm.astype(np.int64), pair, int(kd), ab, isinstance(system.rotation, EulerSwitching))
 
 
 def args_of(d: KernelData) -> tuple:
     """The arrays the compiled functions take, in order."""
     return (d.mass, d.inertia, d.inertia_inv, d.gravity, d.joint_body, d.joint_s, d.spring_body, d.spring_s,
-            d.spring_k, d.load_body, d.load_info, d.load_s, d.load_f, d.perm, d.pair, d.kd, d.baumgarte)
+            d.spring_k, d.load_body, d.load_info, d.load_s, d.load_f, d.contact_body, d.contact_f, d.perm, d.pair,
+            d.kd, d.baumgarte)
 
 
 # ---------------------------------------------------------------------------- compiled pieces
@@ -220,7 +242,7 @@ def _banded_cholesky_solve(ab, n, kd, b):
 
 @njit(cache=True)
 def rhs(t, y, chart, mass, inertia, inertia_inv, gravity, joint_body, joint_s, spring_body, spring_s, spring_k,
-        load_body, load_info, load_s, load_f, perm, pair, kd, baumgarte, ydot, ws):
+        load_body, load_info, load_s, load_f, contact_body, contact_f, perm, pair, kd, baumgarte, ydot, ws):
     """``ydot = f(t, y)``; returns False when the constraint matrix is not positive definite.
 
     ``ws`` is the workspace of ``workspace``: no array is allocated here (allocation, not
@@ -287,6 +309,29 @@ def rhs(t, y, chart, mass, inertia, inertia_inv, gravity, joint_body, joint_s, s
             for k in range(3):
                 F[b, k] += t1[k]
                 tau[b, k] += t2[k]
+    # sphere-plane contacts: F = K alpha^n + c alpha_dot >= 0 along the normal, at the deepest point
+    for i in range(contact_body.shape[0]):
+        b = contact_body[i]
+        cf = contact_f[i]
+        _mv(R[b], cf[0:3], rho1)
+        alpha = cf[3]
+        for k in range(3):
+            alpha -= cf[7 + k] * (r[b, k] + rho1[k] - cf[4 + k])
+        if alpha <= 0.0:
+            continue
+        for k in range(3):
+            rho1[k] -= cf[3] * cf[7 + k]           # lever to the contact point
+        _cross(wW[b], rho1, t1)
+        adot = 0.0
+        for k in range(3):
+            adot -= cf[7 + k] * (vW[b, k] + t1[k])
+        mag = max(cf[10] * alpha ** cf[11] + cf[12] * adot, 0.0)
+        for k in range(3):
+            f[k] = mag * cf[7 + k]
+            F[b, k] += f[k]
+        _cross(rho1, f, t2)
+        for k in range(3):
+            tau[b, k] += t2[k]
     # free accelerations: [F / m, I^-1 (R^T tau - w x I w)]
     for b in range(nb + 1):
         for m in range(6):
@@ -406,7 +451,7 @@ def workspace(nb: int, n_c: int, kd: int) -> tuple:
 @njit(cache=True)
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, switching, max_speed, mass, inertia, inertia_inv,
             gravity, joint_body, joint_s, spring_body, spring_s, spring_k, load_body, load_info, load_s, load_f,
-            perm, pair, kd, baumgarte, centre, centre_R, ws):
+            contact_body, contact_f, perm, pair, kd, baumgarte, centre, centre_R, ws):
     """Take up to ``n_steps`` explicit RK steps in place; returns (steps done, status code).
 
     Between steps, bodies near gimbal lock are re-charted (``switching``) and counted in
@@ -429,7 +474,8 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, switching, max_speed
                         acc += h * ta[i, j] * k[j, m]
                 yi[m] = acc
             if not rhs(t + tc[i] * h, yi, chart, mass, inertia, inertia_inv, gravity, joint_body, joint_s, spring_body,
-                       spring_s, spring_k, load_body, load_info, load_s, load_f, perm, pair, kd, baumgarte, k[i], ws):
+                       spring_s, spring_k, load_body, load_info, load_s, load_f, contact_body, contact_f, perm, pair, kd,
+                       baumgarte, k[i], ws):
                 return step, SINGULAR
         for m in range(n):
             acc = y[m]

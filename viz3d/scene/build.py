@@ -16,6 +16,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_residual
+from viz3d.contact.element import SpherePlane
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, SpringDamper
@@ -189,7 +190,24 @@ def build_forces(scene: Scene, bodies: Bodies, pose0) -> tuple:
     for kind, cls in (("force", AppliedForce), ("torque", AppliedTorque)):
         if kind in groups:
             out.append(_loads(cls, groups[kind], bodies, pose0))
+    if "contact" in groups:
+        out.append(_contacts(groups["contact"], bodies, pose0))
     return tuple(out)
+
+
+def _contacts(entries: list[dict], bodies: Bodies, pose0) -> SpherePlane:
+    from viz3d.contact.laws import Hertz, Linear
+
+    body = np.array([bodies.index(f["body"]) for f in entries], dtype=int)
+    B_c = np.array([_local_point(pose0, body[k], f, "point", "local") if ("point" in f or "local" in f)
+                    else np.zeros(3) for k, f in enumerate(entries)]).reshape(-1, 3)
+    normal = np.array([f["plane_normal"] for f in entries], float)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    laws = tuple(Hertz(f["stiffness"], f["exponent"]) if f["law"] == "hertz" else Linear(f["stiffness"], 0.0)
+                 for f in entries)
+    return SpherePlane(tuple(f["name"] for f in entries), body, B_c, np.array([f["radius"] for f in entries]),
+                       np.array([f["plane_point"] for f in entries], float), normal, laws,
+                       np.array([f["damping"] for f in entries]))
 
 
 def _springs(entries: list[dict], bodies: Bodies, pose0) -> SpringDamper:

@@ -224,7 +224,7 @@ def _cross_check(data: dict, source: str) -> None:
             for side in "12":
                 if (f"point{side}" in f) == (f"local{side}" in f):
                     raise SceneError(source, f"{where}.point{side}", f"exactly one of point{side} or local{side}")
-        if f["type"] == "force" and "point" in f and "local" in f:
+        if f["type"] in ("force", "contact") and "point" in f and "local" in f:
             raise SceneError(source, f"{where}.point", "at most one of point or local")
         if f.get("body") == "ground":
             raise SceneError(source, f"{where}.body", "a body (not ground)")

@@ -145,6 +145,19 @@ FORCE_TYPES = {
                                    "point of application, body axes from the centre of mass [m] (default: centre of mass)")},
                    "applied force = value + amplitude * f(t)"),
     "torque": Table(dict(_LOAD), "applied couple = value + amplitude * f(t)"),
+    "contact": Table({
+        "name": Field(name, OPTIONAL, "default contact<index>"),
+        "body": Field(string, doc="body carrying the sphere"),
+        "point": Field(vec3, OPTIONAL, "sphere centre, world, initial configuration [m]"),
+        "local": Field(vec3, OPTIONAL, "sphere centre, body axes from the centre of mass [m] (default: centre of mass)"),
+        "radius": Field(positive, doc="sphere radius [m]"),
+        "plane_point": Field(vec3, ZERO3, "a point of the fixed plane [m]"),
+        "plane_normal": Field(nonzero_vec3, [0.0, 0.0, 1.0], "plane normal, towards the free side"),
+        "law": Field(one_of("hertz", "linear"), "hertz", "normal force law (memoryless)"),
+        "stiffness": Field(positive, doc="K [N/m^n] (Hertz: 4/3 E* sqrt(R))"),
+        "exponent": Field(positive, 1.5, "n of the Hertz law"),
+        "damping": Field(nonnegative, 0.0, "linear dashpot [N s/m], never pulls"),
+    }, "a sphere on a body against a fixed plane"),
 }
 FORCE = Table({"type": Field(one_of(*FORCE_TYPES), doc=f"one of {list(FORCE_TYPES)}")}, "a force element",
               tag="type", variants=FORCE_TYPES)
