@@ -5,6 +5,8 @@ Usage::
     viz3d run SCENE [--t-end T] [--dt DT] [--set key.path=value ...] [--out FILE.npz] [--record FILE.rrd] [--view]
     viz3d view SCENE [--host H] [--port P] [--speed S] [--paused] [--record FILE.rrd] [--set ...]
     viz3d replay FILE.rrd
+    viz3d bench SCENE --methods LIST (--dt LIST | --tol LIST) [--t-end T] [--out DIR]
+    viz3d stability SCENE --methods LIST [--sweep key.path=V1,V2,...] [--t-end T] [--out DIR]
     viz3d check SCENE [SCENE ...]
     viz3d list [--format]
 
@@ -63,6 +65,24 @@ def _parser() -> argparse.ArgumentParser:
     replay.add_argument("recording", type=Path)
     replay.add_argument("--web", action="store_true", help="serve the rerun web viewer instead of a native window")
     replay.set_defaults(func=cmd_replay)
+    bench = sub.add_parser("bench", help="work-precision benchmark of methods on a scene")
+    bench.add_argument("scene", type=Path)
+    bench.add_argument("--methods", required=True, help="comma-separated method strings, e.g. rk4,dopri5,ali3p+quaternion")
+    bench.add_argument("--dt", help="comma-separated steps [s] for fixed-step methods")
+    bench.add_argument("--tol", help="comma-separated relative tolerances for dopri5/dop853")
+    bench.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
+    bench.add_argument("--out", type=Path, help="output directory (default out/bench/<scene>)")
+    bench.set_defaults(func=cmd_bench)
+    stab = sub.add_parser("stability", help="map where methods fail (largest stable step, failure reasons)")
+    stab.add_argument("scene", type=Path)
+    stab.add_argument("--methods", required=True, help="comma-separated method strings")
+    stab.add_argument("--sweep", help="key.path=V1,V2,...: find the largest stable step at each value")
+    stab.add_argument("--dt", type=float, help="step of the runs without --sweep (default: the scene's)")
+    stab.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
+    stab.add_argument("--drift-tol", type=float, default=0.05,
+                      help="a run whose relative energy drift exceeds this is unstable (conservative scenes)")
+    stab.add_argument("--out", type=Path, help="output directory (default out/stability/<scene>)")
+    stab.set_defaults(func=cmd_stability)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
@@ -71,6 +91,42 @@ def _parser() -> argparse.ArgumentParser:
     lst.add_argument("--format", action="store_true", help="print the scene file reference instead")
     lst.set_defaults(func=cmd_list)
     return p
+
+
+def _floats(text: str | None) -> list[float] | None:
+    return None if not text else [float(x) for x in text.split(",")]
+
+
+def cmd_bench(args) -> int:
+    from viz3d.bench import bench, save
+    from viz3d.methods import MethodError
+
+    try:
+        report = bench(args.scene, [m.strip() for m in args.methods.split(",")], _floats(args.dt), _floats(args.tol),
+                       args.t_end)
+    except (ValueError, MethodError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(report.markdown())
+    for path in save(report, args.out or Path("out") / "bench" / args.scene.stem):
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_stability(args) -> int:
+    from viz3d.methods import MethodError
+    from viz3d.stability import save, stability
+
+    try:
+        report = stability(args.scene, [m.strip() for m in args.methods.split(",")], args.sweep, args.dt, args.t_end,
+                           args.drift_tol)
+    except (ValueError, MethodError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(report.markdown())
+    for path in save(report, args.out or Path("out") / "stability" / args.scene.stem):
+        print(f"wrote {path}")
+    return 0
 
 
 def _viewer_args(p) -> None:

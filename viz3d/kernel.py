@@ -522,6 +522,28 @@ def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray) -> 
     return out
 
 
+class CompiledField:
+    """A ``dynamics.VectorField`` whose evaluations run in the kernel (same interface)."""
+
+    def __init__(self, field, data: KernelData, ws: tuple):
+        self.field, self.data, self.ws, self.args = field, data, ws, args_of(data)
+        self.n_q, self.chart = field.n_q, field.chart
+
+    @property
+    def n_evals(self) -> int:
+        return self.field.n_evals
+
+    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.field.n_evals += 1
+        out = np.empty_like(y)
+        if not rhs(t, y, self.chart, *self.args, out, self.ws):
+            return self.field(t, y)  # the NumPy path raises the detailed error
+        return out
+
+    def retract(self, q, w):
+        return self.field.retract(q, w)
+
+
 class KernelStepper:
     """Explicit RK steps of one system through the kernel, with the workspace allocated once."""
 

@@ -132,7 +132,7 @@ class Simulation:
 
     def _fixed_step(self, target: float) -> State:
         s, system = self.state, self.system
-        if self._kernel is not None:
+        if self._kernel is not None and self._kernel.tableau is not None and self.controller is None:
             new = self._kernel_step(target)
             if new is not None:
                 return new
@@ -227,6 +227,10 @@ class Simulation:
     def _field(self, chart) -> VectorField:
         rhs = VectorField(self.system, self.formulation, chart)
         self._fields.append(rhs)
+        if self._kernel is not None:  # evaluations in the compiled kernel (same interface)
+            from viz3d.kernel import CompiledField
+
+            return CompiledField(rhs, self._kernel.data, self._kernel.ws)
         return rhs
 
     def _singular_message(self, s: State) -> str:
@@ -254,14 +258,14 @@ class _Span:
 
 
 def _compiled(system, integrator, formulation, controller):
-    """A ``KernelStepper`` when the kernel covers this run, else None."""
-    from viz3d.integrators import ExplicitRK
+    """A ``KernelStepper`` when the kernel covers this system and formulation, else None. Its
+    whole-step path serves fixed explicit RK steps; its right-hand side serves every method."""
     from viz3d.kernel import KernelStepper, kernel_for
 
-    if controller is not None or not isinstance(integrator, ExplicitRK) or formulation.integrator is not None:
+    if formulation.integrator is not None:
         return None
     data = kernel_for(system, formulation)
-    return None if data is None else KernelStepper(data, integrator.tableau)
+    return None if data is None else KernelStepper(data, getattr(integrator, "tableau", None))
 
 
 class FrameRecorder:

@@ -1,0 +1,188 @@
+"""Work-precision benchmarks: ``viz3d bench SCENE --methods LIST --dt LIST | --tol LIST``.
+
+Every method (a method string, viz3d.methods) runs at every step (fixed-step methods) or every
+tolerance (embedded pairs: dopri5, dop853) on the same scene and output grid. The reference is
+computed automatically: the most accurate method in the registry (dop853, adaptive) at
+rtol = 1e-12, whose self-convergence (its distance to the same method at rtol = 1e-11) is reported
+beside it. The error of a run is the largest distance, over output frames and bodies, between
+its body points and the reference's: ``|dW_r| + r_g |dR|`` with ``r_g`` the body's radius of
+gyration [m]. Results: a table (printed, and saved as Markdown and CSV) and a log-log chart of
+error against CPU time, one line per method.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from viz3d.methods import method_overrides, parse_method
+from viz3d.scene.load import Scene, load_scene
+from viz3d.simulate import ProgressBar, simulate
+
+#: Embedded pairs run adaptively when tolerances are given.
+ADAPTIVE = ("dopri5", "dop853")
+#: Reference: the most accurate method, much tighter than any run.
+REFERENCE_METHOD = "dop853"
+REFERENCE_RTOL = 1e-12
+CHECK_RTOL = 1e-11
+#: Absolute tolerance as a fraction of the relative one.
+ATOL_FACTOR = 1e-3
+
+
+@dataclass
+class BenchRow:
+    """One run of a work-precision benchmark."""
+
+    method: str
+    setting: str           # "dt=..." or "rtol=..."
+    error: float           # [m], see the module docstring
+    cpu: float             # process time of the run [s]
+    steps: int
+    rhs: int
+    energy_drift: float    # relative to the largest kinetic energy
+    constraint: float      # max |C| [m]
+    status: str
+
+
+@dataclass
+class BenchReport:
+    scene: str
+    rows: list[BenchRow]
+    reference: str
+    reference_self: float  # [m]
+
+    def markdown(self) -> str:
+        lines = [f"Reference: {self.reference}; its self-convergence {self.reference_self:.2e} m.", "",
+                 "| method | setting | error [m] | CPU time [s] | steps | RHS evaluations | energy drift | max abs C [m] "
+                 "| status |",
+                 "|---|---|---|---|---|---|---|---|---|"]
+        for r in self.rows:
+            lines.append(f"| {r.method} | {r.setting} | {r.error:.2e} | {r.cpu:.3f} | {r.steps} | {r.rhs} | "
+                         f"{r.energy_drift:.1e} | {r.constraint:.1e} | {r.status[:70]} |")
+        return "\n".join(lines)
+
+
+def run_overrides(method: str, setting: tuple[str, float], output_dt: float) -> list[str]:
+    """Scene overrides of one run: the method, and its step or its tolerances."""
+    kind, value = setting
+    out = method_overrides(method)
+    if kind == "dt":
+        return out + [f"sim.dt={value!r}"]
+    return out + [f"sim.dt={output_dt!r}", f"sim.rtol={value!r}", f"sim.atol={value * ATOL_FACTOR!r}"]
+
+
+def settings_for(method: str, dts, tols) -> list[tuple[str, float]]:
+    """The steps or tolerances a method runs at (embedded pairs prefer tolerances)."""
+    integrator = parse_method(method).get("sim.integrator")
+    if integrator in ADAPTIVE and tols:
+        return [("rtol", t) for t in tols]
+    if dts:
+        return [("dt", d) for d in dts]
+    raise ValueError(f"method {method!r} runs at fixed steps: give --dt (only {', '.join(ADAPTIVE)} use --tol)")
+
+
+def body_point_error(traj, ref) -> float:
+    """Largest ``|dW_r| + r_g |dR|`` over common frames and bodies [m] (inf if the run stopped)."""
+    n = min(len(traj.t), len(ref.t))
+    if n == 0 or not np.allclose(traj.t[:n], ref.t[:n], atol=1e-9):
+        raise ValueError("runs do not share their output times")
+    r_g = np.sqrt(np.trace(ref.inertia_body, axis1=1, axis2=2) / (2 * ref.mass))
+    dr = np.linalg.norm(traj.position[:n] - ref.position[:n], axis=2)
+    dR = np.abs(traj.rotation[:n] - ref.rotation[:n]).max(axis=(2, 3))
+    err = float((dr + r_g[None] * dR).max())
+    return err if n == len(ref.t) else np.inf
+
+
+def common_grid(dts: list[float] | None, output_dt: float, t_end: float) -> tuple[float, float]:
+    """An output interval that every step divides (a common multiple near the scene's own) and
+    a duration that it divides: every run then has frames at the same times."""
+    from fractions import Fraction
+    from math import lcm
+
+    if dts:
+        fr = [Fraction(d).limit_denominator(10**9) for d in dts]
+        den = lcm(*(f.denominator for f in fr))
+        base = Fraction(lcm(*(int(f * den) for f in fr)), den)
+        output_dt = float(base * max(1, round(output_dt / float(base))))
+    return output_dt, output_dt * max(1, round(t_end / output_dt))
+
+
+def _run(path, overrides: list[str], t_end: float | None):
+    scene = load_scene(path, overrides)
+    t0 = time.process_time()
+    traj = simulate(scene, t_end=t_end)
+    return traj, time.process_time() - t0
+
+
+def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, tols: list[float] | None = None,
+          t_end: float | None = None, progress: bool = True) -> BenchReport:
+    """Run the benchmark (see the module docstring)."""
+    base = load_scene(path)
+    if base.kind != "rigid":
+        raise ValueError(f"{path}: bench runs multibody scenes (impact scenes: see benchmarks/bench_impact_convergence.py)")
+    output_dt, t_end = common_grid(dts, base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
+    plan = [(m, s) for m in methods for s in settings_for(m, dts, tols)]
+    bar = ProgressBar(len(plan) + 2) if progress else None
+    grid = [f"sim.output_dt={output_dt!r}"]
+    ref_over = grid + [f"sim.integrator={REFERENCE_METHOD}", f"sim.dt={output_dt!r}"]
+    ref, _ = _run(path, ref_over + [f"sim.rtol={REFERENCE_RTOL!r}", f"sim.atol={REFERENCE_RTOL * ATOL_FACTOR!r}"], t_end)
+    chk, _ = _run(path, ref_over + [f"sim.rtol={CHECK_RTOL!r}", f"sim.atol={CHECK_RTOL * ATOL_FACTOR!r}"], t_end)
+    if not (ref.ok and chk.ok):
+        raise RuntimeError(f"the reference run failed: {ref.status if not ref.ok else chk.status}")
+    for method, setting in {m: s for m, s in plan}.items():  # untimed warm-up: compilation, caches
+        _run(path, grid + run_overrides(method, setting, output_dt), 3 * output_dt)
+    rows = []
+    for i, (method, setting) in enumerate(plan):
+        if bar:
+            bar.update(i + 2)
+        traj, cpu = _run(path, grid + run_overrides(method, setting, output_dt), t_end)
+        rows.append(BenchRow(method, f"{setting[0]}={setting[1]:g}", body_point_error(traj, ref), cpu, traj.n_steps,
+                             traj.n_rhs, traj.energy_drift_rel, traj.max_constraint_violation, traj.status))
+    if bar:
+        bar.close()
+    desc = f"{REFERENCE_METHOD} adaptive, rtol {REFERENCE_RTOL:g}, {ref.n_steps} steps"
+    return BenchReport(Path(path).stem, rows, desc, body_point_error(chk, ref))
+
+
+def save(report: BenchReport, out: Path) -> list[Path]:
+    """Write ``bench.md``, ``bench.csv`` and ``work_precision.png`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench.md").write_text(report.markdown() + "\n")
+    with open(out / "bench.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["method", "setting", "error_m", "cpu_s", "steps", "rhs", "energy_drift", "max_abs_C_m", "status"])
+        for r in report.rows:
+            w.writerow([r.method, r.setting, r.error, r.cpu, r.steps, r.rhs, r.energy_drift, r.constraint, r.status])
+    chart = out / "work_precision.png"
+    work_precision_chart(report, chart)
+    return [out / "bench.md", out / "bench.csv", chart]
+
+
+def work_precision_chart(report: BenchReport, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for method in dict.fromkeys(r.method for r in report.rows):
+        rows = [r for r in report.rows if r.method == method and np.isfinite(r.error) and r.status == "ok"]
+        if rows:
+            ax.loglog([r.cpu for r in rows], [max(r.error, 1e-16) for r in rows], "o-", label=method)
+    ax.axhline(max(report.reference_self, 1e-16), color="gray", ls=":", lw=1, label="reference self-convergence")
+    ax.set_xlabel("CPU time [s]")
+    ax.set_ylabel("error [m] (body points vs reference)")
+    ax.set_title(f"work-precision: {report.scene}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def scene_or_path(scene) -> Path:
+    return scene.path if isinstance(scene, Scene) else Path(scene)
