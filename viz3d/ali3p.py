@@ -17,7 +17,10 @@ Newton-Raphson with the approximate tangent (eq. 3.26)
 (the seed prints ``K = dQ/dq``, ``C = dQ/dq_dot``: the minus signs are needed for ``T`` to be the
 derivative of its residual), and ``lam* += alpha C`` after each iteration (eq. 3.18). ``K`` and
 ``D`` come from finite differences of the applied and gyroscopic forces; they are kept between
-steps and rebuilt when the iteration stalls. Then velocities and accelerations are projected
+steps and rebuilt when the iteration stalls; an iteration that still contracts slowly switches
+to Newton on the exact tangent of its residual by finite differences (the seed's tangent omits the
+geometric stiffness of the constraint forces ``d(C_v^T lam)/dx`` and, on rotations, the
+kinematics of the increment: it matters when joint arms turn fast). Then velocities and accelerations are projected
 with the same matrix (eqs. 3.27, 3.28), ``gamma = -C_v_dot v`` standing for ``-Phi_q_dot q_dot``.
 """
 
@@ -38,6 +41,12 @@ from viz3d.system import State, System
 MAX_ITER = 40
 #: A step that needed more iterations than this rebuilds the force tangent for the next step.
 REFRESH_ITER = 12
+#: An iteration contracting slower than this (after 3 updates) switches to Newton on the exact
+#: tangent of its residual, by finite differences, rebuilt while the contraction stays slow.
+SLOW_RATE = 0.5
+#: An iteration whose updates stop shrinking (rate above STALL_RATE) while below
+#: ROUND_OFF_FACTOR times the tolerance has reached round-off: accepted if |C| <= tol.
+STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
 #: Finite-difference step of the force tangent [m, rad, m/s, rad/s] (square root of machine eps).
 FD_STEP = np.sqrt(np.finfo(float).eps)
 
@@ -112,22 +121,30 @@ def _iterate(system, formulation, state, h, memory):
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = memory.lam.copy()
     dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
-    lu, step, prev = None, np.inf, np.inf
+    lu, step, prev, exact = None, np.inf, np.inf, False
     for it in range(MAX_ITER):
         p = _evaluate(system, state, memory.v_dot, dx, h, t1)
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
             return "non-finite state"
+        rate = np.inf
         if it > 0:
             lam += alpha * p.C
             rate = step / prev if np.isfinite(prev) else np.inf
             # the update, or the error still ahead of a contracting iteration, is below tol
-            small = step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
+            # or it stopped contracting at the round-off floor of the penalty forces
+            # (about alpha h^2 / (4 m) eps |q|, comparable to tol for stiff alpha)
+            small = (step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
+                     or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
             if small and np.max(np.abs(p.C), initial=0.0) <= tol:
                 return _finish(system, state, p, W, alpha, h, t1, lam, memory, it + 1)
         prev = step
-        residual = 0.25 * h * h * (M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
+        residual = _residual(p, M, alpha, lam, h)
         if lu is None:
             lu = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
+        elif (exact or it >= 3) and rate > SLOW_RATE:
+            # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
+            # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
+            lu, exact = lu_factor(_residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual)), True
         ddx = lu_solve(lu, -residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
@@ -155,6 +172,24 @@ def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, n_iter: int)
     keep = n_iter <= REFRESH_ITER
     return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
                                                        memory.n_evals + n_iter + 1)
+
+
+def _residual(p: _Point, M, alpha, lam, h) -> FloatArray:
+    """Equations of motion at ``t1`` scaled by ``h^2 / 4`` (eq. 3.23), shape (n_v,) [N s^2]."""
+    return 0.25 * h * h * (M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
+
+
+def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0) -> FloatArray:
+    """``d residual / d dx`` at fixed multipliers by forward differences, shape (n_v, n_v):
+    everything the seed's tangent (eq. 3.26) leaves out (the geometric stiffness of the constraint
+    forces, the rotation kinematics, gyroscopic terms at the iterate) is in it."""
+    n_v = dx.size
+    T = np.empty((n_v, n_v))
+    for j in range(n_v):
+        e = np.zeros(n_v)
+        e[j] = FD_STEP * max(1.0, abs(dx[j]))
+        T[:, j] = (_residual(_evaluate(system, state, a0, dx + e, h, t1), M, alpha, lam, h) - r0) / e[j]
+    return T
 
 
 def mass_matrix(system: System) -> FloatArray:

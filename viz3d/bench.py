@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from viz3d.methods import method_overrides, parse_method
-from viz3d.scene.load import Scene, load_scene
+from viz3d.scene.load import load_scene
 from viz3d.simulate import ProgressBar, simulate
 
 #: Embedded pairs run adaptively when tolerances are given.
@@ -111,6 +111,17 @@ def common_grid(dts: list[float] | None, output_dt: float, t_end: float) -> tupl
     return output_dt, output_dt * max(1, round(t_end / output_dt))
 
 
+def reference_run(path, overrides: list[str], output_dt: float, t_end: float, rtol: float = REFERENCE_RTOL):
+    """The reference trajectory: ``REFERENCE_METHOD`` adaptive at ``rtol`` (atol = rtol *
+    ATOL_FACTOR) on the output grid ``output_dt``; raises if it fails."""
+    over = list(overrides) + [f"sim.output_dt={output_dt!r}", f"sim.integrator={REFERENCE_METHOD}",
+                              f"sim.dt={output_dt!r}", f"sim.rtol={rtol!r}", f"sim.atol={rtol * ATOL_FACTOR!r}"]
+    traj = simulate(load_scene(path, over), t_end=t_end)
+    if not traj.ok:
+        raise RuntimeError(f"the reference run ({REFERENCE_METHOD}, rtol {rtol:g}) failed: {traj.status}")
+    return traj
+
+
 def _run(path, overrides: list[str], t_end: float | None):
     scene = load_scene(path, overrides)
     t0 = time.process_time()
@@ -119,20 +130,17 @@ def _run(path, overrides: list[str], t_end: float | None):
 
 
 def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, tols: list[float] | None = None,
-          t_end: float | None = None, progress: bool = True) -> BenchReport:
-    """Run the benchmark (see the module docstring)."""
-    base = load_scene(path)
+          t_end: float | None = None, progress: bool = True, overrides: list[str] = ()) -> BenchReport:
+    """Run the benchmark (see the module docstring); ``overrides`` apply to every run."""
+    base = load_scene(path, list(overrides))
     if base.kind != "rigid":
         raise ValueError(f"{path}: bench runs multibody scenes (impact scenes: see benchmarks/bench_impact_convergence.py)")
     output_dt, t_end = common_grid(dts, base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
     plan = [(m, s) for m in methods for s in settings_for(m, dts, tols)]
     bar = ProgressBar(len(plan) + 2) if progress else None
-    grid = [f"sim.output_dt={output_dt!r}"]
-    ref_over = grid + [f"sim.integrator={REFERENCE_METHOD}", f"sim.dt={output_dt!r}"]
-    ref, _ = _run(path, ref_over + [f"sim.rtol={REFERENCE_RTOL!r}", f"sim.atol={REFERENCE_RTOL * ATOL_FACTOR!r}"], t_end)
-    chk, _ = _run(path, ref_over + [f"sim.rtol={CHECK_RTOL!r}", f"sim.atol={CHECK_RTOL * ATOL_FACTOR!r}"], t_end)
-    if not (ref.ok and chk.ok):
-        raise RuntimeError(f"the reference run failed: {ref.status if not ref.ok else chk.status}")
+    grid = list(overrides) + [f"sim.output_dt={output_dt!r}"]
+    ref = reference_run(path, grid, output_dt, t_end, REFERENCE_RTOL)
+    chk = reference_run(path, grid, output_dt, t_end, CHECK_RTOL)
     for method, setting in {m: s for m, s in plan}.items():  # untimed warm-up: compilation, caches
         _run(path, grid + run_overrides(method, setting, output_dt), 3 * output_dt)
     rows = []
@@ -182,7 +190,3 @@ def work_precision_chart(report: BenchReport, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
-
-
-def scene_or_path(scene) -> Path:
-    return scene.path if isinstance(scene, Scene) else Path(scene)

@@ -72,16 +72,18 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--tol", help="comma-separated relative tolerances for dopri5/dop853")
     bench.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
     bench.add_argument("--out", type=Path, help="output directory (default out/bench/<scene>)")
+    bench.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
+                       help="scene overrides applied to every run")
     bench.set_defaults(func=cmd_bench)
     stab = sub.add_parser("stability", help="map where methods fail (largest stable step, failure reasons)")
     stab.add_argument("scene", type=Path)
-    stab.add_argument("--methods", required=True, help="comma-separated method strings")
+    stab.add_argument("--methods", default="", help="comma-separated method strings (multibody scenes)")
     stab.add_argument("--sweep", help="key.path=V1,V2,...: find the largest stable step at each value")
     stab.add_argument("--dt", type=float, help="step of the runs without --sweep (default: the scene's)")
     stab.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
-    stab.add_argument("--drift-tol", type=float, default=0.05,
-                      help="a run whose relative energy drift exceeds this is unstable (conservative scenes)")
     stab.add_argument("--out", type=Path, help="output directory (default out/stability/<scene>)")
+    stab.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
+                      help="scene overrides applied to every run")
     stab.set_defaults(func=cmd_stability)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
@@ -103,7 +105,7 @@ def cmd_bench(args) -> int:
 
     try:
         report = bench(args.scene, [m.strip() for m in args.methods.split(",")], _floats(args.dt), _floats(args.tol),
-                       args.t_end)
+                       args.t_end, overrides=args.overrides)
     except (ValueError, MethodError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -118,8 +120,8 @@ def cmd_stability(args) -> int:
     from viz3d.stability import save, stability
 
     try:
-        report = stability(args.scene, [m.strip() for m in args.methods.split(",")], args.sweep, args.dt, args.t_end,
-                           args.drift_tol)
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        report = stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides)
     except (ValueError, MethodError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

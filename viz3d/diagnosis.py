@@ -61,6 +61,43 @@ def check_violation(system: System, state: State, violation: float, limit: float
                                 f"{limit:.3g} m{_worst_joint(system, state)}; try a smaller sim.dt or a stabilizing formulation")
 
 
+class EnergyWatch:
+    """Stops a conservative run whose total energy grows: a step beyond the method's stability
+    limit on a stiff force (a hard contact, a stiff spring) pumps energy into the motion long
+    before anything becomes non-finite, and a one-sided contact may even return the body intact
+    with the energy it gained.
+
+    ``check(frame)`` raises ``SimulationFailure`` when ``E - E0`` exceeds ``limit`` times the
+    largest kinetic energy seen so far (``sim.blowup_energy``); non-conservative scenes are not
+    watched (their energy may legitimately grow)."""
+
+    def __init__(self, system: System, limit: float, conservative: bool):
+        self.system, self.limit, self.active = system, float(limit), conservative
+        self.E0: float | None = None
+        self.T_max = 0.0
+
+    def check(self, frame) -> None:
+        if not self.active:
+            return
+        E = frame.energy_kinetic + frame.energy_potential
+        self.E0 = E if self.E0 is None else self.E0
+        self.T_max = max(self.T_max, frame.energy_kinetic)
+        growth = E - self.E0
+        if self.T_max > 0.0 and growth > self.limit * self.T_max:
+            raise SimulationFailure(
+                f"t = {frame.t:.6g} s: total energy grew by {growth:.3g} J = {growth / self.T_max:.3g} of the largest kinetic "
+                f"energy (> sim.blowup_energy = {self.limit:g}) in a conservative scene: diverged, the step is beyond the "
+                f"method's stability limit; body {self._most_energetic(frame)!r} carries the most kinetic energy; "
+                f"try a smaller sim.dt or an implicit integrator")
+
+    def _most_energetic(self, frame) -> str:
+        b = self.system.bodies
+        R = frame.R_WB
+        B_omega = np.einsum("nji,nj->ni", R, frame.W_omega)
+        T = 0.5 * b.mass * np.sum(frame.W_v**2, axis=1) + 0.5 * np.einsum("ni,nij,nj->n", B_omega, b.inertia, B_omega)
+        return b.names[int(np.argmax(T))]
+
+
 def _nonfinite(system: System, state: State) -> str:
     qb = state.q.reshape(system.n_bodies, -1)
     vb = state.v.reshape(system.n_bodies, 6)

@@ -18,7 +18,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from viz3d.constraints import SingularConstraintError, constraint_rows
-from viz3d.diagnosis import SimulationFailure, check_state, check_violation, redundant_joints
+from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
@@ -352,7 +352,8 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
     full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
-    emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"])
+    energy = EnergyWatch(sim.system, cfg["blowup_energy"], all(e.conservative for e in sim.system.forces))
+    emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"], energy)
     try:
         emitter.open(scene)
         emitter.emit(output=True)
@@ -379,9 +380,9 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
 class _Emitter:
     """Computes frames and hands them to the trajectory recorder and the sinks."""
 
-    def __init__(self, sim, formulation, recorder, sinks, blowup_violation):
+    def __init__(self, sim, formulation, recorder, sinks, blowup_violation, energy: EnergyWatch):
         self.sim, self.formulation, self.recorder, self.sinks = sim, formulation, recorder, list(sinks)
-        self.blowup_violation = blowup_violation
+        self.blowup_violation, self.energy = blowup_violation, energy
         self.opened: list[Sink] = []
 
     def open(self, scene: Scene) -> None:
@@ -401,6 +402,7 @@ class _Emitter:
             if output or s.full_rate:
                 s.log(frame)
         check_violation(self.sim.system, self.sim.state, frame.constraint_violation, self.blowup_violation)
+        self.energy.check(frame)
 
     def close(self, status: str) -> None:
         for s in self.opened:

@@ -23,6 +23,8 @@ NEWTON_MAX_ITER = 12
 #: Converged when an update moves the step's result by at most ``NEWTON_TOL * max(1, max |y|)``:
 #: far below the truncation errors the convergence tests measure (1e-8 at their finest steps).
 NEWTON_TOL = 1e-11
+#: Iterations of the damped full Newton tried when the simplified one fails.
+NEWTON_DAMPED_ITER = 30
 #: An iteration whose update shrinks by less than this factor is too slow: rebuild the matrix.
 NEWTON_MAX_RATE = 0.5
 #: Relative finite-difference step of the Jacobian (square root of machine epsilon), applied to
@@ -84,6 +86,9 @@ def newton_solve(residual, guesses, matrix: NewtonMatrix | None, h: float, what:
             x, size = _iterate(residual, x0, r, matrix, tol, fresh)
             if size <= tol:
                 return x, matrix, Status.OK
+    x, last, size = _damped_newton(residual, guesses[0], tol, 1.0 / effect, h)
+    if size <= tol:
+        return x, last, Status.OK
     return guesses[0], matrix, Status.failed(f"{what}: Newton iteration did not converge with h = {h:.3g} s "
                                              f"(last update {size * effect:.2e} against a tolerance {tol * effect:.2e}); "
                                              f"try a smaller sim.dt")
@@ -108,6 +113,29 @@ def _iterate(residual, x0, r, matrix, tol, fresh):
         prev = size
         r = residual(x)
     return x0, size
+
+
+def _damped_newton(residual, x0, tol, floor, h):
+    """Last resort when simplified Newton fails (large steps across a nonlinearity, a contact
+    opening or closing inside the step): full Newton, the matrix rebuilt at every iterate, each
+    update halved until the residual norm falls (Armijo backtracking, Dennis & Schnabel, sec. 6.3).
+    Returns ``(x, matrix at x, size)``, ``size <= tol`` on success."""
+    x, r, matrix, size = x0.copy(), residual(x0), None, np.inf
+    for _ in range(NEWTON_DAMPED_ITER):
+        if not np.all(np.isfinite(r)):
+            break
+        matrix = NewtonMatrix(lu_factor(fd_jacobian(residual, x, r, floor)), h)
+        dx = lu_solve(matrix.lu, -r)
+        norm, lam = np.linalg.norm(r), 1.0
+        while True:
+            r_new = residual(x + lam * dx)
+            if np.all(np.isfinite(r_new)) and np.linalg.norm(r_new) <= (1.0 - 1e-4 * lam) * norm or lam < 2.0**-6:
+                break
+            lam *= 0.5
+        x, r, size = x + lam * dx, r_new, lam * np.max(np.abs(dx))
+        if size <= tol:
+            return x, matrix, size
+    return x0, matrix, size
 
 
 @dataclass(frozen=True)

@@ -71,6 +71,8 @@ SIM = Table({
     "ali3p_alpha": Field(positive, 1e9, "augmented-Lagrangian penalty factor [N/m] (formulation = ali3p)"),
     "blowup_violation": Field(positive, 0.1, "stop with a diagnosis when max |C| exceeds this [m]"),
     "blowup_speed": Field(positive, 1e4, "stop with a diagnosis when a body's speed exceeds this [m/s]"),
+    "blowup_energy": Field(positive, 0.5, "conservative scenes: stop with a diagnosis when the total energy grows by more "
+                           "than this fraction of the largest kinetic energy [-]"),
 }, "how to integrate")
 
 SHAPES = {
