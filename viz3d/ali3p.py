@@ -105,27 +105,30 @@ def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3
             if fresh:
                 K, D = force_tangent(system, state.t, state.q, state.v, state.chart)
                 memory = ALI3PMemory(memory.v_dot, memory.lam, K, D, memory.n_evals + 2 * system.n_v + 1)
-            result = _iterate(system, formulation, state, h, memory)
+            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh)
             if isinstance(result, tuple):
                 return result + (Status.OK,)
-            memory = ALI3PMemory(memory.v_dot, memory.lam, memory.K, memory.D, memory.n_evals + MAX_ITER)
+            memory = ALI3PMemory(memory.v_dot, memory.lam, memory.K, memory.D, memory.n_evals + evals)
     return state, memory, Status.failed(f"t = {state.t:.6g} s: ALI3-P iteration did not converge in {MAX_ITER} "
                                         f"iterations with h = {h:.3g} s ({result}); try a smaller sim.dt or "
                                         f"another sim.ali3p_alpha")
 
 
-def _iterate(system, formulation, state, h, memory):
-    """Newton-Raphson + multiplier updates, then projections; a reason string if it fails."""
+def _iterate(system, formulation, state, h, memory, exact_ok: bool):
+    """Newton-Raphson + multiplier updates, then projections: ``(result, evaluations)``, the
+    result a reason string if it fails. With ``exact_ok``, an iteration that would not converge
+    within ``MAX_ITER`` at its present rate switches to the exact tangent."""
     alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
     M = mass_matrix(system)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = memory.lam.copy()
     dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
-    lu, step, prev, exact = None, np.inf, np.inf, False
+    lu, step, prev, exact, evals = None, np.inf, np.inf, False, 0
     for it in range(MAX_ITER):
         p = _evaluate(system, state, memory.v_dot, dx, h, t1)
+        evals += 1
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
-            return "non-finite state"
+            return "non-finite state", evals
         rate = np.inf
         if it > 0:
             lam += alpha * p.C
@@ -136,19 +139,20 @@ def _iterate(system, formulation, state, h, memory):
             small = (step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
                      or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
             if small and np.max(np.abs(p.C), initial=0.0) <= tol:
-                return _finish(system, state, p, W, alpha, h, t1, lam, memory, it + 1)
+                return _finish(system, state, p, W, alpha, h, t1, lam, memory, evals), evals
         prev = step
         residual = _residual(p, M, alpha, lam, h)
         if lu is None:
             lu = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
-        elif (exact or it >= 3) and rate > SLOW_RATE:
+        elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
             lu, exact = lu_factor(_residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual)), True
+            evals += dx.size
         ddx = lu_solve(lu, -residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
-    return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m"
+    return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m", evals
 
 
 def _evaluate(system, state, a0, dx, h, t1) -> _Point:
@@ -161,17 +165,23 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     return _Point(q1, v1, a1, rows.C, dense_jacobian(system, rows.J), Q)
 
 
-def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, n_iter: int) -> tuple[State, ALI3PMemory]:
+def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
     """Project velocities (eq. 3.27; the joints are scleronomic, ``Phi_t = 0``) and accelerations
-    (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged positions."""
+    (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged positions. A step
+    that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent for the next."""
     T = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
     v = lu_solve(T, W @ p.v)
     pose, twist = body_state(system, p.q, v, state.chart)
     gamma = constraint_rows(system.joints, pose, twist).gamma
     a = lu_solve(T, W @ p.a + 0.25 * h * h * alpha * p.Cv.T @ gamma)
-    keep = n_iter <= REFRESH_ITER
+    keep = evals <= REFRESH_ITER
     return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
-                                                       memory.n_evals + n_iter + 1)
+                                                       memory.n_evals + evals + 1)
+
+
+def _too_slow(step: float, rate: float, tol: float, left: int) -> bool:
+    """Would an iteration contracting at ``rate`` miss ``tol`` within ``left`` more updates?"""
+    return rate >= 1.0 or step * rate**left > tol
 
 
 def _residual(p: _Point, M, alpha, lam, h) -> FloatArray:

@@ -556,12 +556,12 @@ class KernelStepper:
         self.centre, self.centre_R = CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE)
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
-             max_speed: float) -> int:
-        """One step of ``y``, ``chart`` in place; returns the status code (``OK`` = 0)."""
+             max_speed: float, n_steps: int = 1) -> tuple[int, int]:
+        """``n_steps`` steps of ``y``, ``chart`` in place; returns (steps done, status code, ``OK`` =
+        0). On a failure ``y`` holds the failed step's result."""
         tab = self.tableau
-        _, status = advance(1, t, h, y, chart, switches, tab.a, tab.b, tab.c, self.data.switching, max_speed,
-                            *self.args, self.centre, self.centre_R, self.ws)
-        return status
+        return advance(n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, self.data.switching, max_speed,
+                       *self.args, self.centre, self.centre_R, self.ws)
 
 
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,

@@ -66,3 +66,33 @@ def test_kernel_reports_failures():
 def test_kernel_declines_what_it_does_not_cover():
     _, system, _, form = _setup(SCENES / "double_pendulum.toml", "projection")
     assert K.kernel_for(system, form) is None
+
+
+@pytest.mark.parametrize("rotation", ["euler_switching", "euler_zxz"])
+def test_many_steps_in_one_call_equal_single_steps_and_fail_at_the_same_step(rotation):
+    """``Simulation.steps(n)`` (one kernel call) against n ``step()`` calls: the same states, step
+    counts and chart switches, and with plain Euler angles the same diagnosis at the same time."""
+    from viz3d.diagnosis import SimulationFailure
+
+    _, system, state, form = _setup(SCENES / "top_through_vertical.toml", overrides={"sim.rotation": rotation})
+    runs = []
+    for batched in (True, False):
+        sim = Simulation(system, state, make_integrator("rk4"), form, 5e-4)
+        status = "ok"
+        try:
+            for _ in range(30):
+                sim.steps(20) if batched else [sim.step() for _ in range(20)]
+        except SimulationFailure as exc:
+            status = str(exc)
+        runs.append((sim, status))
+    (a, status_a), (b, status_b) = runs
+    assert status_a == status_b
+    assert (a.n_samples, a.n_steps) == (b.n_samples, b.n_steps)
+    # a batch that fails is redone up to the failing step: those evaluations are counted too
+    assert a.n_rhs == b.n_rhs if status_a == "ok" else a.n_rhs > b.n_rhs
+    assert np.array_equal(a.chart_switches, b.chart_switches)
+    assert a.state.t == b.state.t and np.array_equal(a.state.y, b.state.y)
+    if rotation == "euler_zxz":
+        assert "gimbal lock" in status_a and a.n_samples < 600, status_a
+    else:
+        assert status_a == "ok" and a.chart_switches.sum() >= 1
