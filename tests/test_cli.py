@@ -108,3 +108,37 @@ def test_view_command_serves_on_loopback_and_prints_the_url(capsys):
     out = capsys.readouterr().out
     assert "viz3d viewer: open http://127.0.0.1:" in out and "heavy_top" in out
     assert main(["run", str(SCENES / "heavy_top.toml"), "--view", "--port", "0", "--duration", "0.5", "--paused"]) == 0
+
+
+def test_bench_prints_its_table_and_writes_chart_and_csv(tmp_path, capsys):
+    out = tmp_path / "bench"
+    code = main(["bench", str(SCENES / "double_pendulum.toml"), "--methods", "rk4,dopri5", "--dt", "4e-3,2e-3",
+                 "--tol", "1e-8", "--t-end", "0.2", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "self-convergence" in text and "| rk4 | dt=0.004 |" in text and "| dopri5 | rtol=1e-08 |" in text
+    rows = (out / "bench.csv").read_text().splitlines()
+    assert len(rows) == 4 and rows[0].startswith("method,setting,error_m")
+    assert (out / "work_precision.png").stat().st_size > 10_000
+
+
+def test_stability_prints_reasons_and_writes_chart_and_csv(tmp_path, capsys):
+    out = tmp_path / "stab"
+    code = main(["stability", str(SCENES / "impact_free_bar.toml"), "--sweep", "bar.modes=2,16", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "restitution error above tolerance" in text and "| 16 | ok |" in text
+    assert (out / "stability.csv").read_text().count("\n") == 3 and (out / "stability.png").exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["stability", "SCENES/chain.toml"], ["--methods"]),
+    (["stability", "SCENES/chain.toml", "--methods", "rk4", "--sweep", "forces.k"], ["--sweep", "key.path=V1,V2"]),
+    (["bench", "SCENES/chain.toml", "--methods", "rk4"], ["--dt"]),
+    (["bench", "SCENES/chain.toml", "--methods", "rk5", "--dt", "1e-3"], ["rk5"]),
+])
+def test_bench_and_stability_refuse_bad_arguments_saying_what_is_expected(args, words, capsys):
+    code = main([a.replace("SCENES", str(SCENES)) for a in args])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert all(w in err for w in words), err

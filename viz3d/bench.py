@@ -158,16 +158,26 @@ def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, 
 
 def save(report: BenchReport, out: Path) -> list[Path]:
     """Write ``bench.md``, ``bench.csv`` and ``work_precision.png`` into ``out``."""
+    header = ["method", "setting", "error_m", "cpu_s", "steps", "rhs", "energy_drift", "max_abs_C_m", "status"]
+    rows = [[r.method, r.setting, r.error, r.cpu, r.steps, r.rhs, r.energy_drift, r.constraint, r.status]
+            for r in report.rows]
+    return write_report(out, "bench", report.markdown(), header, rows,
+                        lambda path: work_precision_chart(report, path), "work_precision.png")
+
+
+def write_report(out: Path, stem: str, markdown: str, header: list[str], rows: list[list], chart, chart_name: str
+                 ) -> list[Path]:
+    """``out/<stem>.md``, ``out/<stem>.csv`` (``header`` + ``rows``) and the chart drawn by
+    ``chart(path)`` into ``out/<chart_name>``; returns the three paths."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.md").write_text(report.markdown() + "\n")
-    with open(out / "bench.csv", "w", newline="") as fh:
+    paths = [out / f"{stem}.md", out / f"{stem}.csv", out / chart_name]
+    paths[0].write_text(markdown + "\n")
+    with open(paths[1], "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["method", "setting", "error_m", "cpu_s", "steps", "rhs", "energy_drift", "max_abs_C_m", "status"])
-        for r in report.rows:
-            w.writerow([r.method, r.setting, r.error, r.cpu, r.steps, r.rhs, r.energy_drift, r.constraint, r.status])
-    chart = out / "work_precision.png"
-    work_precision_chart(report, chart)
-    return [out / "bench.md", out / "bench.csv", chart]
+        w.writerow(header)
+        w.writerows(rows)
+    chart(paths[2])
+    return paths
 
 
 def work_precision_chart(report: BenchReport, path: Path) -> None:

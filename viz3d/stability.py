@@ -23,13 +23,12 @@ tolerance``, ``failed`` (any other diagnosis); the diagnosis's full text is kept
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from viz3d.bench import body_point_error, common_grid, reference_run
+from viz3d.bench import body_point_error, common_grid, reference_run, write_report
 from viz3d.methods import method_overrides
 from viz3d.scene.load import load_scene
 from viz3d.simulate import simulate
@@ -271,16 +270,12 @@ def _window_text(w) -> str:
 
 
 def save(report: StabilityReport, out: Path) -> list[Path]:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "stability.md").write_text(report.markdown() + "\n")
-    with open(out / "stability.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["method", "value", "dt", "reason", "detail", "t_fail", "error", "energy_drift", "constraint"])
-        for r in report.rows:
-            w.writerow([r.method, r.value, r.dt, r.reason, r.detail, r.t_fail, r.error, r.energy_drift, r.constraint])
-    chart = out / "stability.png"
-    _chart(report, chart)
-    return [out / "stability.md", out / "stability.csv", chart]
+    """Write ``stability.md``, ``stability.csv`` and ``stability.png`` into ``out``."""
+    header = ["method", "value", "dt", "reason", "detail", "t_fail", "error", "energy_drift", "constraint"]
+    rows = [[r.method, r.value, r.dt, r.reason, r.detail, r.t_fail, r.error, r.energy_drift, r.constraint]
+            for r in report.rows]
+    return write_report(out, "stability", report.markdown(), header, rows, lambda path: _chart(report, path),
+                        "stability.png")
 
 
 def _chart(report: StabilityReport, path: Path) -> None:
