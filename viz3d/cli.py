@@ -101,32 +101,32 @@ def _floats(text: str | None) -> list[float] | None:
 
 def cmd_bench(args) -> int:
     from viz3d.bench import bench, save
-    from viz3d.methods import MethodError
 
-    try:
-        report = bench(args.scene, [m.strip() for m in args.methods.split(",")], _floats(args.dt), _floats(args.tol),
-                       args.t_end, overrides=args.overrides)
-    except (ValueError, MethodError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(report.markdown())
-    for path in save(report, args.out or Path("out") / "bench" / args.scene.stem):
-        print(f"wrote {path}")
-    return 0
+    methods = [m.strip() for m in args.methods.split(",")]
+    return _report(lambda: bench(args.scene, methods, _floats(args.dt), _floats(args.tol), args.t_end,
+                                 overrides=args.overrides),
+                   save, args.out or Path("out") / "bench" / args.scene.stem)
 
 
 def cmd_stability(args) -> int:
-    from viz3d.methods import MethodError
     from viz3d.stability import save, stability
 
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    return _report(lambda: stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides),
+                   save, args.out or Path("out") / "stability" / args.scene.stem)
+
+
+def _report(make, save, out: Path) -> int:
+    """Run ``make()`` (a bench or stability report), print its table and save it into ``out``."""
+    from viz3d.methods import MethodError
+
     try:
-        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-        report = stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides)
+        report = make()
     except (ValueError, MethodError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(report.markdown())
-    for path in save(report, args.out or Path("out") / "stability" / args.scene.stem):
+    for path in save(report, out):
         print(f"wrote {path}")
     return 0
 

@@ -178,8 +178,11 @@ def apply_jacobian_transpose(layout: ConstraintLayout, J: FloatArray, lam: Float
     return out
 
 
-def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: FloatArray) -> FloatArray:
-    """Solve ``(C_v M^-1 C_v^T) lam = b`` for ``lam`` (n_c,).
+def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: FloatArray,
+                shift: float = 0.0) -> FloatArray:
+    """Solve ``(C_v M^-1 C_v^T + shift I) lam = b`` for ``lam`` (n_c,), on dense or banded storage
+    (``shift > 0``: the compliance of penalty-like formulations, positive definite even for
+    redundant joints).
 
     Raises
     ------
@@ -192,13 +195,16 @@ def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: F
     vals = np.einsum("pi,pi->p", W[layout.pair_row, layout.pair_side], J[layout.pair_col, layout.pair_colside])
     store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size)
     n = layout.n_rows
+    if shift:
+        store[layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)] += shift
     rhs = b[layout.perm]
     if layout.banded:
         _, x, info = lapack.dpbsv(store.reshape(layout.kd + 1, n), rhs, lower=0)
     else:
         _, x, info = lapack.dposv(store.reshape(n, n), rhs, lower=0)
     if info != 0:
-        raise SingularConstraintError(f"constraint matrix C M^-1 C^T is singular (LAPACK info={info})")
+        what = "C M^-1 C^T" if not shift else f"C M^-1 C^T + {shift:.3g} I"
+        raise SingularConstraintError(f"constraint matrix {what} is singular (not positive definite, LAPACK info={info})")
     lam = np.empty(n)
     lam[layout.perm] = x
     return lam

@@ -14,13 +14,10 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from scipy.linalg import lapack
 
 from viz3d.ali3p import ALI3PMemory, ali3p_step, init_memory
 from viz3d.constraints import (
-    ConstraintLayout,
     ConstraintRows,
-    SingularConstraintError,
     apply_jacobian,
     apply_jacobian_transpose,
     schur_solve,
@@ -40,33 +37,9 @@ def solve_augmented(system: System, Q, rows: ConstraintRows, gamma, compliance: 
     M_inv = system.bodies.M_inv
     a_free = np.einsum("bij,bj->bi", M_inv, Q)
     rhs = apply_jacobian(system.joints, rows.J, a_free) - gamma
-    if compliance > 0.0:
-        lam = _schur_solve_shifted(system.joints, M_inv, rows.J, rhs, compliance)
-    else:
-        lam = schur_solve(system.joints, M_inv, rows.J, rhs)
+    lam = schur_solve(system.joints, M_inv, rows.J, rhs, compliance)
     CtL = apply_jacobian_transpose(system.joints, rows.J, lam, Q.shape[0])
     return a_free - np.einsum("bij,bj->bi", M_inv, CtL), lam
-
-
-def _schur_solve_shifted(layout: ConstraintLayout, M_inv, J, b, shift: float):
-    """Solve ``(C_v M^-1 C_v^T + shift I) lam = b``: ``constraints.schur_solve`` with a diagonal
-    shift, on the same dense or banded storage (positive definite even for redundant joints)."""
-    if layout.n_rows == 0:
-        return np.zeros(0)
-    W = np.einsum("rsi,rsij->rsj", J, M_inv[layout.row_body])
-    vals = np.einsum("pi,pi->p", W[layout.pair_row, layout.pair_side], J[layout.pair_col, layout.pair_colside])
-    store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size)
-    n = layout.n_rows
-    store[layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)] += shift
-    if layout.banded:
-        _, x, info = lapack.dpbsv(store.reshape(layout.kd + 1, n), b[layout.perm], lower=0)
-    else:
-        _, x, info = lapack.dposv(store.reshape(n, n), b[layout.perm], lower=0)
-    if info != 0:
-        raise SingularConstraintError(f"penalty matrix C M^-1 C^T + I/alpha is not positive definite (LAPACK info={info})")
-    lam = np.empty(n)
-    lam[layout.perm] = x
-    return lam
 
 
 @dataclass(frozen=True)
