@@ -20,8 +20,9 @@ def test_all_required_scenes_ship():
             "top_through_vertical"} <= names
 
 
-@pytest.mark.parametrize("path", RIGID, ids=lambda p: p.stem)
-def test_scene_runs_headless_and_passes_its_checks(path):
+def _run_with_checks(path):
+    """Run a scene to its checks' t_end: (scene, checks, trajectory), after the checks every
+    scene has (its warnings, its final status)."""
     scene = viz3d.load_scene(path)
     checks = scene.data["checks"]
     with warnings.catch_warnings(record=True) as caught:
@@ -30,6 +31,12 @@ def test_scene_runs_headless_and_passes_its_checks(path):
     if checks["no_warnings"]:
         assert not caught, [str(w.message) for w in caught]
     assert traj.status == checks["status"], traj.status
+    return scene, checks, traj
+
+
+@pytest.mark.parametrize("path", RIGID, ids=lambda p: p.stem)
+def test_scene_runs_headless_and_passes_its_checks(path):
+    scene, checks, traj = _run_with_checks(path)
     for key in ("position", "rotation", "velocity", "omega", "energy_total", "reaction_force"):
         assert np.all(np.isfinite(getattr(traj, key))), f"NaN in {key}"
     assert traj.t[-1] == pytest.approx(checks.get("t_end", scene.data["sim"]["t_end"]))
@@ -43,14 +50,7 @@ def test_scene_runs_headless_and_passes_its_checks(path):
 
 @pytest.mark.parametrize("path", IMPACT, ids=lambda p: p.stem)
 def test_impact_scene_runs_headless_and_passes_its_checks(path):
-    scene = viz3d.load_scene(path)
-    checks = scene.data["checks"]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        traj = viz3d.simulate(scene, t_end=checks.get("t_end"))
-    if checks["no_warnings"]:
-        assert not caught, [str(w.message) for w in caught]
-    assert traj.status == checks["status"], traj.status
+    scene, checks, traj = _run_with_checks(path)
     x = traj.extras
     for key in ("contact_force", "penetration", "gauge_strain", "energy_dissipated", "energy_balance_error"):
         assert np.all(np.isfinite(x[key])), f"NaN in {key}"
