@@ -2,7 +2,8 @@
 
     python benchmarks/bench_chain.py [--n 2,5,10,20,50] [--t-end 0.5] [--out docs/bench_chain.png]
 
-For each N: build the chain, run RK4 at the scene's step for ``t_end`` simulated seconds
+For each N: build the chain, run RK4 through the NumPy reference path (``compiled=False``; the
+compiled kernel is timed by bench_mujoco.py) at the scene's step for ``t_end`` simulated seconds
 (no output frames inside the timed loop), and report time per step, per RHS evaluation and per
 simulated second, the real-time factor, and which solver the constraint layout chose. Prints a
 Markdown table and writes a log-log chart. Times are wall-clock on this machine; compare rows of
@@ -32,7 +33,8 @@ def measure(n: int, t_end: float, repeats: int = 3) -> dict:
     steps = max(1, round(t_end / cfg["dt"]))
     best = np.inf
     for _ in range(repeats):
-        sim = Simulation(system, state, make_integrator(cfg["integrator"]), make_formulation(cfg), cfg["dt"])
+        sim = Simulation(system, state, make_integrator(cfg["integrator"]), make_formulation(cfg), cfg["dt"],
+                         compiled=False)
         t0 = time.perf_counter()
         for _ in range(steps):
             sim.step()

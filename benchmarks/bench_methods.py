@@ -66,7 +66,7 @@ def chart(rows: list[dict], ns: list[int], path: Path) -> None:
         mine = [r for r in rows if r["method"] == label and r["scene"].startswith("chain")]
         a.loglog(ns, [r["us_per_step"] for r in mine], "o-", label=label)
         b.loglog(ns, [max(r["error"], 1e-16) for r in mine], "o-", label=label)
-    a.set_ylabel("CPU µs per step (adaptive: per output interval)")
+    a.set_ylabel("CPU µs per step (adaptive: per accepted step)")
     b.set_ylabel("error reached [m]")
     for ax in (a, b):
         ax.set_xlabel("links N")

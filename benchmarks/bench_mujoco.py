@@ -63,7 +63,7 @@ def time_kernel(system, state, formulation, steps: int) -> float:
 def time_numpy(system, state, formulation, steps: int) -> float:
     best = np.inf
     for _ in range(2):
-        sim = Simulation(system, state, make_integrator("rk4"), formulation, DT)
+        sim = Simulation(system, state, make_integrator("rk4"), formulation, DT, compiled=False)
         t0 = time.perf_counter()
         for _ in range(steps):
             sim.step()

@@ -32,9 +32,10 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import constraint_rows
+from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian
 from viz3d.dynamics import accelerations, body_state, generalized_forces, retract
 from viz3d.integrators.base import Status
+from viz3d.integrators.implicit import fd_jacobian
 from viz3d.system import State, System
 
 #: Iterations of the augmented-Lagrangian Newton loop per attempt.
@@ -47,8 +48,6 @@ SLOW_RATE = 0.5
 #: An iteration whose updates stop shrinking (rate above STALL_RATE) while below
 #: ROUND_OFF_FACTOR times the tolerance has reached round-off: accepted if |C| <= tol.
 STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
-#: Finite-difference step of the force tangent [m, rad, m/s, rad/s] (square root of machine eps).
-FD_STEP = np.sqrt(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -160,9 +159,9 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     v1 = 2.0 / h * dx - state.v
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
     pose, twist = body_state(system, q1, v1, state.chart)
-    rows = constraint_rows(system.joints, pose, twist)
+    C_v = dense_jacobian(system.joints, constraint_jacobian(system.joints, pose), system.n_bodies)
     Q = generalized_forces(system, t1, pose, twist)[:-1].reshape(-1)
-    return _Point(q1, v1, a1, rows.C, dense_jacobian(system, rows.J), Q)
+    return _Point(q1, v1, a1, constraint_residual(system.joints, pose), C_v, Q)
 
 
 def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
@@ -193,13 +192,7 @@ def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0) -> FloatA
     """``d residual / d dx`` at fixed multipliers by forward differences, shape (n_v, n_v):
     everything the seed's tangent (eq. 3.26) leaves out (the geometric stiffness of the constraint
     forces, the rotation kinematics, gyroscopic terms at the iterate) is in it."""
-    n_v = dx.size
-    T = np.empty((n_v, n_v))
-    for j in range(n_v):
-        e = np.zeros(n_v)
-        e[j] = FD_STEP * max(1.0, abs(dx[j]))
-        T[:, j] = (_residual(_evaluate(system, state, a0, dx + e, h, t1), M, alpha, lam, h) - r0) / e[j]
-    return T
+    return fd_jacobian(lambda x: _residual(_evaluate(system, state, a0, x, h, t1), M, alpha, lam, h), dx, r0)
 
 
 def mass_matrix(system: System) -> FloatArray:
@@ -212,15 +205,6 @@ def mass_matrix(system: System) -> FloatArray:
     return M.reshape(6 * nb, 6 * nb)
 
 
-def dense_jacobian(system: System, J: FloatArray) -> FloatArray:
-    """``C_v`` as a dense matrix, shape (n_c, n_v), from its row blocks ``J`` (n_c, 2, 6)."""
-    n_c, nb = J.shape[0], system.n_bodies
-    dense = np.zeros((n_c, 6 * (nb + 1)))
-    cols = system.joints.row_body[:, :, None] * 6 + np.arange(6)
-    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
-    return dense[:, : 6 * nb]
-
-
 def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray
                   ) -> tuple[FloatArray, FloatArray]:
     """``K = -dQ/dx`` and ``D = -dQ/dv``, shapes (n_v, n_v), by forward differences of the applied
@@ -230,13 +214,7 @@ def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart:
         pose, twist = body_state(system, q_, v_, chart)
         return generalized_forces(system, t, pose, twist)[:-1].reshape(-1)
 
-    Q0, n_v = forces(q, v), system.n_v
-    K, D = np.empty((n_v, n_v)), np.empty((n_v, n_v))
-    for j in range(n_v):
-        e = np.zeros(n_v)
-        e[j] = FD_STEP
-        K[:, j] = -(forces(retract(system, q, e, chart), v) - Q0) / FD_STEP
-        dv = FD_STEP * max(1.0, abs(v[j]))
-        e[j] = dv
-        D[:, j] = -(forces(q, v + e) - Q0) / dv
+    Q0 = forces(q, v)
+    K = -fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), np.zeros(system.n_v), Q0)
+    D = -fd_jacobian(lambda v_: forces(q, v_), v, Q0)
     return K, D

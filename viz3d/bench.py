@@ -1,7 +1,7 @@
 """Work-precision benchmarks: ``viz3d bench SCENE --methods LIST --dt LIST | --tol LIST``.
 
 Every method (a method string, viz3d.methods) runs at every step (fixed-step methods) or every
-tolerance (embedded pairs: dopri5, dop853) on the same scene and output grid. The reference is
+tolerance (integrators with an embedded error estimate: dopri5, dop853) on the same scene and output grid. The reference is
 computed automatically: the most accurate method in the registry (dop853, adaptive) at
 rtol = 1e-12, whose self-convergence (its distance to the same method at rtol = 1e-11) is reported
 beside it. The error of a run is the largest distance, over output frames and bodies, between
@@ -19,12 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.methods import method_overrides, parse_method
 from viz3d.scene.load import load_scene
 from viz3d.simulate import ProgressBar, simulate
 
-#: Embedded pairs run adaptively when tolerances are given.
-ADAPTIVE = ("dopri5", "dop853")
 #: Reference: the most accurate method, much tighter than any run.
 REFERENCE_METHOD = "dop853"
 REFERENCE_RTOL = 1e-12
@@ -78,11 +77,12 @@ def run_overrides(method: str, setting: tuple[str, float], output_dt: float) -> 
 def settings_for(method: str, dts, tols) -> list[tuple[str, float]]:
     """The steps or tolerances a method runs at (embedded pairs prefer tolerances)."""
     integrator = parse_method(method).get("sim.integrator")
-    if integrator in ADAPTIVE and tols:
+    if integrator and make_integrator(integrator).embedded and tols:  # embedded pairs run adaptively
         return [("rtol", t) for t in tols]
     if dts:
         return [("dt", d) for d in dts]
-    raise ValueError(f"method {method!r} runs at fixed steps: give --dt (only {', '.join(ADAPTIVE)} use --tol)")
+    embedded = ", ".join(n for n in INTEGRATORS if make_integrator(n).embedded)
+    raise ValueError(f"method {method!r} runs at fixed steps: give --dt (only {embedded} use --tol)")
 
 
 def body_point_error(traj, ref) -> float:

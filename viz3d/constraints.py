@@ -159,6 +159,22 @@ def constraint_rows(layout: ConstraintLayout, pose: Pose, twist: Twist) -> Const
     return ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma))
 
 
+def constraint_jacobian(layout: ConstraintLayout, pose: Pose) -> FloatArray:
+    """Jacobian blocks of every joint, stacked, shape (n_c, 2, 6) (see ``ConstraintRows``)."""
+    if not layout.joints:
+        return np.zeros((0, 2, 6))
+    return np.concatenate([js.jacobian(pose).reshape(-1, 2, 6) for js in layout.joints])
+
+
+def dense_jacobian(layout: ConstraintLayout, J: FloatArray, n_bodies: int) -> FloatArray:
+    """``C_v`` as a dense matrix, shape (n_c, 6 n_bodies), from its row blocks ``J`` (n_c, 2, 6)."""
+    n_c = J.shape[0]
+    dense = np.zeros((n_c, 6 * (n_bodies + 1)))
+    cols = layout.row_body[:, :, None] * 6 + np.arange(6)
+    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
+    return dense[:, : 6 * n_bodies]
+
+
 def constraint_residual(layout: ConstraintLayout, pose: Pose) -> FloatArray:
     """Stacked residuals ``C`` only, shape (n_c,) [m]."""
     if not layout.joints:

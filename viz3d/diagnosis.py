@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viz3d.constraints import constraint_residual
+from viz3d.constraints import constraint_residual, dense_jacobian
 from viz3d.kinematics import pose_from
 from viz3d.system import State, System
 
@@ -46,7 +46,7 @@ def check_state(system: System, state: State, blowup_speed: float, dt: float) ->
 
 def _singular(system: System, state: State, b: int, theta, turn) -> str:
     name = system.bodies.names[b]
-    if system.rotation.singular_bodies(theta)[b] or abs(np.sin(theta[b, 1])) < 0.1:
+    if system.rotation.near_singular(theta)[b]:
         return (f"t = {state.t:.6g} s: body {name!r}: nutation theta = {theta[b, 1]:.3e} rad at the gimbal lock of "
                 f"{system.rotation.name}: singular Euler-angle rate map (coordinates turn {turn[b]:.3g} rad per step); "
                 f"use sim.rotation = 'euler_switching'")
@@ -129,11 +129,8 @@ def _per_joint(system: System, row_values: np.ndarray) -> np.ndarray:
 
 def redundant_joints(system: System, J: np.ndarray, rel_tol: float = 1e-9) -> list[str]:
     """Names of the joints involved in a rank deficiency of ``C_v`` (rows (n_c, 2, 6))."""
-    n_c, nb = system.n_c, system.n_bodies
-    dense = np.zeros((n_c, 6 * (nb + 1)))
-    cols = system.joints.row_body[:, :, None] * 6 + np.arange(6)
-    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
-    U, s, _ = np.linalg.svd(dense[:, : 6 * nb])
+    n_c = system.n_c
+    U, s, _ = np.linalg.svd(dense_jacobian(system.joints, J, system.n_bodies))
     null = U[:, s <= rel_tol * max(s.max(), 1e-300)] if s.size else U
     if null.shape[1] == 0 and n_c > s.size:
         null = U[:, s.size:]

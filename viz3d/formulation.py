@@ -61,6 +61,13 @@ class Index1:
         return state
 
 
+def _stabilized_gamma(system, rows, twist, damping: float, frequency: float):
+    """``gamma - 2 damping C_d - frequency^2 C``, shape (n_c,): the right-hand side that makes the
+    violation obey ``C_dd + 2 damping C_d + frequency^2 C = 0`` (Baumgarte; penalty springs)."""
+    C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(twist))
+    return rows.gamma - 2.0 * damping * C_d - frequency**2 * rows.C
+
+
 @dataclass(frozen=True)
 class Baumgarte(Index1):
     """Index-1 with Baumgarte stabilization: ``C_dd + 2 alpha C_d + beta^2 C = 0``.
@@ -82,9 +89,7 @@ class Baumgarte(Index1):
     beta: float = 10.0
 
     def solve(self, system, Q, rows, twist):
-        C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(twist))
-        gamma = rows.gamma - 2.0 * self.alpha * C_d - self.beta**2 * rows.C
-        return solve_augmented(system, Q, rows, gamma)
+        return solve_augmented(system, Q, rows, _stabilized_gamma(system, rows, twist, self.alpha, self.beta))
 
 
 @dataclass(frozen=True)
@@ -143,8 +148,7 @@ class Penalty(Index1):
     omega: float = 10.0
 
     def solve(self, system, Q, rows, twist):
-        C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(twist))
-        gamma = rows.gamma - 2.0 * self.xi * self.omega * C_d - self.omega**2 * rows.C
+        gamma = _stabilized_gamma(system, rows, twist, self.xi * self.omega, self.omega)
         return solve_augmented(system, Q, rows, gamma, compliance=1.0 / self.alpha)
 
 

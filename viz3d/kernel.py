@@ -137,7 +137,7 @@ def pack(system, formulation) -> KernelData:
     assert TIME_FUNCTIONS == ("constant", "sine", "step", "ramp", "pulse")  # the codes below
     return KernelData(
         nb, system.bodies.mass.astype(float), system.bodies.inertia.astype(float),
-        np.linalg.inv(system.bodies.inertia), np.asarray(gravity, float), jb.astype(np.int64), js_.astype(float),
+        system.bodies.M_inv[:nb, 3:, 3:].copy(), np.asarray(gravity, float), jb.astype(np.int64), js_.astype(float),
         sb.astype(np.int64), ss.astype(float), sk.astype(float), np.array(lb, np.int64),
         np.array(li, np.int64).reshape(-1, 3), np.array(ls, float).reshape(-1, 3), np.array(lf, float).reshape(-1, 10),
         np.array(kb, np.int64), np.array(kf, float).reshape(-1, 13),
@@ -526,12 +526,8 @@ class CompiledField:
     """A ``dynamics.VectorField`` whose evaluations run in the kernel (same interface)."""
 
     def __init__(self, field, data: KernelData, ws: tuple):
-        self.field, self.data, self.ws, self.args = field, data, ws, args_of(data)
+        self.field, self.ws, self.args = field, ws, args_of(data)
         self.n_q, self.chart = field.n_q, field.chart
-
-    @property
-    def n_evals(self) -> int:
-        return self.field.n_evals
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         self.field.n_evals += 1
@@ -567,7 +563,4 @@ class KernelStepper:
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
                    switches: np.ndarray, max_speed: float) -> tuple[int, int]:
     """Advance ``y`` and ``chart`` in place by up to ``n_steps`` steps; (steps done, status)."""
-    from viz3d.rotations import matrix_from_euler
-
-    return advance(n_steps, t0, h, y, chart, switches, tableau.a, tableau.b, tableau.c, data.switching, max_speed,
-                   *args_of(data), CHART_CENTRE, matrix_from_euler(CHART_CENTRE), _workspace(data))
+    return KernelStepper(data, tableau).step(t0, h, y, chart, switches, max_speed, n_steps)

@@ -22,8 +22,7 @@ from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_state, check_v
 from viz3d.dynamics import VectorField, body_state
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
-from viz3d.integrators.adaptive import Controller, StepSizeUnderflow
-from viz3d.integrators.stepping import accepted_step, error_order
+from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
@@ -142,7 +141,7 @@ class Simulation:
 
     def _fixed_step(self, target: float) -> State:
         s, system = self.state, self.system
-        if self._kernel is not None and self._kernel.tableau is not None and self.controller is None:
+        if self._kernel_ready():
             new = self._kernel_step(target)
             if new is not None:
                 return new
@@ -158,45 +157,47 @@ class Simulation:
         return self._accept(raw, res.f1, self.dt)
 
     def _kernel_ready(self) -> bool:
-        return (self._kernel is not None and self._kernel.tableau is not None and self.controller is None
-                and self.formulation.integrator is None)
+        """Fixed explicit RK steps the kernel covers (``_compiled`` already declined formulations
+        that step themselves)."""
+        return self._kernel is not None and self._kernel.tableau is not None and self.controller is None
 
     def _kernel_step(self, target: float) -> State | None:
         """The step through the compiled kernel, which also makes the health checks and the chart
         switch; None when it reports a failure (the NumPy path then redoes the step and raises
         the detailed diagnosis)."""
-        s, system = self.state, self.system
-        y, chart = s.y.copy(), s.chart.copy()
-        switches = np.zeros(system.n_bodies, np.int64)
-        _, status = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed)
-        self.n_rhs += self._kernel.tableau.stages
-        if status != 0:
+        y, chart, _, ok = self._kernel_run(1)
+        if not ok:
             return None
-        self.chart_switches += switches
-        self.n_steps += 1
-        return State(target, y[: system.n_q], y[system.n_q:], chart)
+        return State(target, y[: self.system.n_q], y[self.system.n_q:], chart)
 
     def _kernel_steps(self, n: int) -> None:
         """Up to ``n`` kernel steps in one call; on a failure at step k, the k - 1 good steps are
         kept (redone from the start: the kernel is deterministic) and ``step`` takes the failing
         one to raise the diagnosis."""
-        from viz3d.kernel import OK as KERNEL_OK
-        from viz3d.kernel import SINGULAR as KERNEL_SINGULAR
+        y, chart, done, ok = self._kernel_run(n)
+        if not ok:
+            y, chart, done, _ = self._kernel_run(done)
+        self.n_samples += done
+        self.state = State(self.t0 + self.n_samples * self.dt, y[: self.system.n_q], y[self.system.n_q:], chart)
 
-        s, system = self.state, self.system
+    def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
+        """Up to ``n`` kernel steps from the current state: ``(y, chart, good steps, ok)``. The
+        evaluations are counted (a failed step's too); steps and chart switches only when all
+        ``n`` succeed. The FSAL value of the NumPy path is dropped (the state moves past it)."""
+        from viz3d.kernel import OK, SINGULAR
+
+        s = self.state
         y, chart = s.y.copy(), s.chart.copy()
-        switches = np.zeros(system.n_bodies, np.int64)
+        switches = np.zeros(self.system.n_bodies, np.int64)
         done, status = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed, n)
-        if status != KERNEL_OK:
-            self.n_rhs += done * self._kernel.tableau.stages
-            good = done if status == KERNEL_SINGULAR else done - 1  # a singular step stops inside its stages
-            y, chart, switches = s.y.copy(), s.chart.copy(), np.zeros(system.n_bodies, np.int64)
-            done, _ = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed, good)
-        self.n_rhs += done * self._kernel.tableau.stages
+        failed_inside = status == SINGULAR  # a singular step stops inside its stages: not counted in done
+        self.n_rhs += (done + failed_inside) * self._kernel.tableau.stages
+        if status != OK:
+            return y, chart, done if failed_inside else done - 1, False
         self.chart_switches += switches
         self.n_steps += done
-        self.n_samples += done
-        self.state = State(self.t0 + self.n_samples * self.dt, y[: system.n_q], y[system.n_q:], chart)
+        self._f = None
+        return y, chart, done, True
 
     def _own_step(self, target: float) -> State:
         s = self.state

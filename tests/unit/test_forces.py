@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from viz3d.dynamics import generalized_forces
-from viz3d.forces import FORCES, AppliedForce, AppliedTorque, SpringDamper
+from viz3d.forces import AppliedForce, AppliedTorque, SpringDamper
 from viz3d.kinematics import pose_from, twist_from
 from viz3d.timefunctions import TimeFunctions
 
@@ -88,7 +88,3 @@ def test_time_functions():
                         (2.0, [1, 1 + 2 * np.sin(np.pi * 2.0 + 0.1), 3, 2, 3]),
                         (3.5, [1, 1 + 2 * np.sin(np.pi * 3.5 + 0.1), 3, 3, 1])]:
         np.testing.assert_allclose(tf(t)[:, 0], expected, err_msg=f"t = {t}")
-
-
-def test_registry_names_match_classes():
-    assert all(cls.type_name == name for name, cls in FORCES.items())

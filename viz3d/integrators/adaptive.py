@@ -4,19 +4,21 @@ Three separate pieces, as in diffrax: a method with an embedded error estimate (
 ``ExplicitRK`` on an embedded tableau such as ``DOPRI5``), a step-size ``Controller``, and
 ``integrate``, which drives them over an interval, samples output through cubic Hermite dense
 output and stops exactly at the first event (a sign change of a scalar function ``g(t, y)``).
-Nothing here knows what ``y`` describes.
+``accepted_step`` (step rejection and the next step's proposal) serves ``integrate`` and the
+drivers that own the loop between steps (``viz3d.simulate`` re-charts and projects between
+accepted steps). Nothing here knows what ``y`` describes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 from scipy.optimize import brentq
 
 from viz3d._typing import FloatArray
-from viz3d.integrators.base import Integrator
+from viz3d.integrators.base import Integrator, StepResult
 
 #: Controller defaults (Hairer, Norsett & Wanner, Solving ODEs I, sec. II.4).
 SAFETY = 0.9
@@ -115,7 +117,6 @@ class Outcome:
     n_accepted: int = 0
     n_rejected: int = 0
     n_rhs: int = 0
-    step_sizes: list = field(default_factory=list)
 
 
 def hermite(t0, y0, f0, t1, y1, f1, t):
@@ -163,20 +164,13 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
     rhs = _Counted(rhs)
     t, y = t0, np.asarray(y0, float)
     f = rhs(t, y) if f0 is None else f0
-    order = method.tableau.error_order or method.order - 1
-    h = controller.first_step(rhs, t, y, f, order) if h is None else h
+    h = controller.first_step(rhs, t, y, f, error_order(method)) if h is None else h
     g = [0.0 if ev.name in disarmed else ev.g(t, y) for ev in events]
     out = Outcome(t, y, f, None, h)
     while t < t_end:
-        h = min(h, t_end - t, controller.max_step)
-        res = method.step(rhs, t, y, h, f0=f)
-        norm = controller.error_norm(res.error, y, res.y)
-        if norm > 1.0:
-            out.n_rejected += 1
-            h = controller.next_step(h, norm, order)
-            if h < controller.min_step:
-                raise StepSizeUnderflow(f"step {h:.3g} s below min_step {controller.min_step:.3g} s at t = {t:.9g} s")
-            continue
+        acc = accepted_step(rhs, t, y, f, min(h, t_end - t, controller.max_step), method, controller)
+        res, h = acc.res, acc.h
+        out.n_rejected += acc.n_rejected
         t1 = t + h
         f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
         hit = _first_event(events, g, t, y, f, t1, res.y, f1)
@@ -187,17 +181,15 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
             if on_step:
                 on_step(t, y, f, t_ev, res_ev.y, f_ev)
             out.n_accepted += 1
-            out.step_sizes.append(t_ev - t)
             out.t, out.y, out.f, out.event, out.h = t_ev, res_ev.y, f_ev, name, h
             out.n_rhs = rhs.n
             return out
         if on_step:
             on_step(t, y, f, t1, res.y, f1)
         out.n_accepted += 1
-        out.step_sizes.append(h)
         g = [ev.g(t1, res.y) for ev in events]
         t, y, f = t1, res.y, f1
-        h = controller.next_step(h, norm, order)
+        h = acc.h_next
     out.t, out.y, out.f, out.h, out.n_rhs = t, y, f, h, rhs.n
     return out
 
@@ -221,3 +213,56 @@ def _first_event(events, g0, t0, y0, f0, t1, y1, f1):
         if best is None or t_ev < best[1]:
             best = (ev.name, t_ev)
     return best
+
+
+@dataclass(frozen=True)
+class Accepted:
+    """The step ``accepted_step`` settled on.
+
+    Attributes
+    ----------
+    res : StepResult
+    h : float
+        Step taken [s].
+    h_next : float
+        Step the controller proposes next [s].
+    n_rejected : int
+        Trial steps rejected before this one.
+    """
+
+    res: StepResult
+    h: float
+    h_next: float
+    n_rejected: int
+
+
+def error_order(method: Integrator) -> int:
+    """Order of ``method``'s embedded error estimate (the controller's exponent uses it)."""
+    return method.tableau.error_order or method.order - 1
+
+
+def accepted_step(rhs, t: float, y: FloatArray, f: FloatArray, h: float, method: Integrator,
+                  controller: Controller) -> Accepted:
+    """Try steps of ``method`` from ``(t, y)`` (``f = rhs(t, y)``), shrinking ``h`` until the
+    error test of ``controller`` passes.
+
+    A trial step with a non-finite error (the vector field blew up inside it) is rejected like a
+    too-large one, with the smallest allowed factor.
+
+    Raises
+    ------
+    StepSizeUnderflow
+        If the step falls below ``controller.min_step`` or no longer changes ``t``.
+    """
+    order, n_rejected = error_order(method), 0
+    while True:
+        res = method.step(rhs, t, y, h, f0=f)
+        with np.errstate(all="ignore"):
+            norm = controller.error_norm(res.error, y, res.y)
+        if norm <= 1.0:
+            return Accepted(res, h, controller.next_step(h, norm, order), n_rejected)
+        n_rejected += 1
+        h = controller.next_step(h, norm, order) if np.isfinite(norm) else FAC_MIN * h
+        if h < controller.min_step or t + h == t:
+            raise StepSizeUnderflow(f"t = {t:.9g} s: adaptive step {h:.3g} s below min_step {controller.min_step:.3g} s "
+                                    f"({n_rejected} rejections in a row)")
