@@ -16,6 +16,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -47,8 +48,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", type=Path)
     run.add_argument("--t-end", type=float, help="simulated duration [s] (sim.t_end)")
     run.add_argument("--dt", type=float, help="integration step [s] (sim.dt)")
-    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                     help="override a scene value, e.g. --set chain.n=20 --set sim.integrator=heun")
+    _set_arg(run)
     run.add_argument("--out", type=Path, help="trajectory file (.npz); default out/<scene>.npz")
     run.add_argument("--no-progress", action="store_true", help="never draw the progress bar")
     run.add_argument("--record", type=Path, metavar="FILE.rrd", help="also write a rerun recording of the run")
@@ -57,7 +57,7 @@ def _parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
     view = sub.add_parser("view", help="animate a scene live in the browser (viser)")
     view.add_argument("scene", type=Path)
-    view.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
+    _set_arg(view)
     view.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a rerun recording of the viewed run")
     _viewer_args(view)
     view.set_defaults(func=cmd_view)
@@ -70,29 +70,34 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--methods", required=True, help="comma-separated method strings, e.g. rk4,dopri5,ali3p+quaternion")
     bench.add_argument("--dt", help="comma-separated steps [s] for fixed-step methods")
     bench.add_argument("--tol", help="comma-separated relative tolerances for dopri5/dop853")
-    bench.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
-    bench.add_argument("--out", type=Path, help="output directory (default out/bench/<scene>)")
-    bench.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                       help="scene overrides applied to every run")
+    _report_args(bench, "bench")
     bench.set_defaults(func=cmd_bench)
     stab = sub.add_parser("stability", help="map where methods fail (largest stable step, failure reasons)")
     stab.add_argument("scene", type=Path)
     stab.add_argument("--methods", default="", help="comma-separated method strings (multibody scenes)")
     stab.add_argument("--sweep", help="key.path=V1,V2,...: find the largest stable step at each value")
     stab.add_argument("--dt", type=float, help="step of the runs without --sweep (default: the scene's)")
-    stab.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
-    stab.add_argument("--out", type=Path, help="output directory (default out/stability/<scene>)")
-    stab.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                      help="scene overrides applied to every run")
+    _report_args(stab, "stability")
     stab.set_defaults(func=cmd_stability)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
-    check.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
+    _set_arg(check)
     check.set_defaults(func=cmd_check)
     lst = sub.add_parser("list", help="list scenes, integrators, formulations, rotations, joints, forces")
     lst.add_argument("--format", action="store_true", help="print the scene file reference instead")
     lst.set_defaults(func=cmd_list)
     return p
+
+
+def _set_arg(p, help="override a scene value, e.g. --set chain.n=20 --set sim.integrator=heun") -> None:
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE", help=help)
+
+
+def _report_args(p, kind: str) -> None:
+    """Options shared by ``bench`` and ``stability``."""
+    p.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
+    p.add_argument("--out", type=Path, help=f"output directory (default out/{kind}/<scene>)")
+    _set_arg(p, "scene overrides applied to every run")
 
 
 def _floats(text: str | None) -> list[float] | None:
@@ -166,7 +171,9 @@ def save_or_fallback(traj, out: Path, name: str) -> Path:
     except OSError as exc:
         import tempfile
 
-        fallback = Path(tempfile.mkstemp(prefix=f"{name}-", suffix=".npz")[1])
+        fd, name_tmp = tempfile.mkstemp(prefix=f"{name}-", suffix=".npz")
+        os.close(fd)
+        fallback = Path(name_tmp)
         print(f"error: cannot write {out} ({exc}); the trajectory was saved to {fallback} instead", file=sys.stderr)
         return traj.save(fallback)
 

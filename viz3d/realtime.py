@@ -27,7 +27,7 @@ from viz3d.diagnosis import SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals, frame_from_state
 from viz3d.integrators import INTEGRATORS, make_integrator
-from viz3d.scene.build import build, make_formulation
+from viz3d.scene.build import build, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.scene.visuals import scene_visuals
@@ -61,11 +61,18 @@ class RigidDriver:
         self.speed = 1.0
         self._make_sim(state)
 
-    def _make_sim(self, state) -> None:
-        cfg = {**self.scene.data["sim"], **self.settings}
-        self.formulation = make_formulation(cfg)
-        self.sim = Simulation(self.system, state, make_integrator(cfg["integrator"]), self.formulation,
-                              float(cfg["dt"]), cfg["blowup_speed"], compiled=cfg["compiled"])
+    def _make_sim(self, state, settings: dict | None = None) -> None:
+        """A fixed-step simulation from ``state`` with ``settings`` (default: the current ones);
+        the driver changes only if it can be built (a refused combination leaves it as it was)."""
+        settings = self.settings if settings is None else settings
+        cfg = {**self.scene.data["sim"], **settings}
+        self.sim = Simulation(self.system, state, make_integrator_from(cfg), make_formulation(cfg), float(cfg["dt"]),
+                              cfg["blowup_speed"], compiled=cfg["compiled"])
+        self.settings = settings
+
+    @property
+    def formulation(self):
+        return self.sim.formulation
 
     @property
     def t(self) -> float:
@@ -104,8 +111,7 @@ class RigidDriver:
             raise ValueError(f"dt must be positive, got {value}")
         if name not in self.settings:
             raise KeyError(f"{name!r} is not a setting of a multibody scene")
-        self.settings = {**self.settings, name: float(value) if name == "dt" else value}
-        self._make_sim(self.sim.state)
+        self._make_sim(self.sim.state, {**self.settings, name: float(value) if name == "dt" else value})
 
 
 class ImpactDriver:

@@ -133,6 +133,14 @@ def nonnegative(x):
     return x
 
 
+def unit_interval(x):
+    """A number in [0, 1] (``sim.rho_inf``)."""
+    x = _num(x, "a number in [0, 1]")
+    if not 0.0 <= x <= 1.0:
+        raise Invalid("a number in [0, 1]")
+    return x
+
+
 def _num(x, expected):
     try:
         return number(x)

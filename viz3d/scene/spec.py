@@ -12,7 +12,6 @@ from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
     Field,
-    Invalid,
     Table,
     boolean,
     color,
@@ -26,6 +25,7 @@ from viz3d.scene.schema import (
     positive,
     positive_int,
     string,
+    unit_interval,
     vec3,
 )
 from viz3d.timefunctions import TIME_FUNCTIONS
@@ -36,16 +36,6 @@ SCENE = Table({
     "name": Field(string, OPTIONAL, "scene name (default: the file name)"),
     "description": Field(string, "", "one line shown by `viz3d list`"),
 }, "what the scene is")
-
-def unit_interval(x):
-    """A number in [0, 1] (``sim.rho_inf``)."""
-    try:
-        x = number(x)
-    except Invalid:
-        raise Invalid("a number in [0, 1]") from None
-    if not 0.0 <= x <= 1.0:
-        raise Invalid("a number in [0, 1]")
-    return x
 
 
 SIM = Table({

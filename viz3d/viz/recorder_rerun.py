@@ -26,8 +26,9 @@ import numpy as np
 from viz3d.frames import Frame, SceneVisuals
 from viz3d.rotations import quat_from_matrix
 
-#: Buffered full-rate samples are written to the file every this many frames.
-FLUSH_EVERY = 20_000
+#: Buffered full-rate samples are written to the file (as columns) every this many frames: a
+#: 50-link chain's frame holds about 10 kB, so the buffer stays near 20 MB.
+FLUSH_EVERY = 2_000
 APPLICATION_ID = "viz3d"
 
 
@@ -57,7 +58,8 @@ class RerunRecorder:
         self.rec = None
         self._next_pose_t = -np.inf
         self._buffer: list[Frame] = []
-        self._scalar_names: list[str] = []
+        self._last: Frame | None = None      # the last frame logged
+        self._posed_t = -np.inf              # time of the last pose logged [s]
 
     # ------------------------------------------------------------------ Sink protocol
 
@@ -76,9 +78,10 @@ class RerunRecorder:
 
     def log(self, frame: Frame) -> None:
         self._buffer.append(frame)
+        self._last = frame
         if frame.t >= self._next_pose_t - 1e-12:
             self._log_pose(frame)
-            self._next_pose_t = frame.t + self.display_dt
+            self._next_pose_t, self._posed_t = frame.t + self.display_dt, frame.t
         if len(self._buffer) >= FLUSH_EVERY:
             self._flush_scalars()
 
@@ -93,8 +96,8 @@ class RerunRecorder:
         if self.rec is None:
             return
         try:
-            if self._buffer:
-                self._log_pose(self._buffer[-1])  # the last computed state is always on the timeline
+            if self._last is not None and self._last.t > self._posed_t:
+                self._log_pose(self._last)  # the last computed state is always on the timeline
             self._flush_scalars()
             self.rec.flush()
         finally:

@@ -41,23 +41,3 @@ class NullSink:
 
     def close(self):
         pass
-
-
-class MemorySink(NullSink):
-    """Keeps what it receives (for tests)."""
-
-    def __init__(self, full_rate: bool = False):
-        self.full_rate = full_rate
-        self.visuals, self.frames, self.events, self.closed = None, [], [], False
-
-    def open(self, visuals):
-        self.visuals = visuals
-
-    def log(self, frame):
-        self.frames.append(frame)
-
-    def event(self, t, text, level="info"):
-        self.events.append((t, text, level))
-
-    def close(self):
-        self.closed = True

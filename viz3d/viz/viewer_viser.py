@@ -30,8 +30,6 @@ class SceneNodes:
     """The viser scene-tree nodes of one scene, updated from frames."""
 
     def __init__(self, server, visuals: SceneVisuals):
-        import viser  # noqa: F401
-
         self.server, self.visuals = server, visuals
         scene = server.scene
         scene.reset()
