@@ -28,9 +28,24 @@ def _loaded(law, alpha_m):
     return law.update(law.onset(V0), alpha_m, 0.0)
 
 
+def _loaded_to_depth(name, depth):
+    """The example law, ``alpha_m = depth alpha_Y``, the memory at onset and the one after loading to ``alpha_m``."""
+    law = EXAMPLES[name]
+    alpha_m = depth * law.alpha_Y
+    return law, alpha_m, law.onset(V0), _loaded(law, alpha_m)
+
+
 def _integral(f, a, b, points=None):
     """quad to 1e-12 relative, no absolute floor (the energies are ~1e-4..1 J)."""
     return quad(f, a, b, points=points, epsrel=1e-12, epsabs=0.0, limit=200)[0]
+
+
+def _loop_works(law, fresh, mem, alpha_m):
+    """Quadrature of the force: work of loading from 0 to ``alpha_m`` (memory ``fresh``) and energy
+    given back unloading from ``alpha_m`` to the residual indentation (memory ``mem``)."""
+    load = _integral(lambda a: law.force(a, V0, fresh), 0.0, alpha_m, points=[law.alpha_Y])
+    unload = _integral(lambda a: law.force(a, -V0, mem), mem.alpha_residual, alpha_m)
+    return load, unload
 
 
 def _assert_continuous(force_near, value, label):
@@ -54,9 +69,7 @@ def test_force_is_continuous_at_yield(name):
 @pytest.mark.parametrize("depth", DEPTHS)
 def test_force_is_continuous_at_the_maximum_indentation(name, depth):
     """Unloading starts from the loading force at alpha_m; the memory update does not change the force."""
-    law = EXAMPLES[name]
-    alpha_m = depth * law.alpha_Y
-    before, after = law.onset(V0), _loaded(law, alpha_m)
+    law, alpha_m, before, after = _loaded_to_depth(name, depth)
     F_m = law.force(alpha_m, 0.0, before)
     assert law.force(alpha_m, 0.0, after) == pytest.approx(F_m, rel=FORMULA_RTOL)
     _assert_continuous(lambda h: law.force(alpha_m * (1 - h), -V0, after), F_m, "unloading from alpha_m")
@@ -121,11 +134,8 @@ def test_no_crater_without_yield(name):
 @pytest.mark.parametrize("depth", DEPTHS)
 def test_loop_area_is_the_dissipated_energy(name, depth):
     """Area between loading and unloading curves (quadrature of the force) = work - recoverable energy."""
-    law = EXAMPLES[name]
-    a_m = depth * law.alpha_Y
-    fresh, mem = law.onset(V0), _loaded(law, a_m)
-    load = _integral(lambda a: law.force(a, V0, fresh), 0.0, a_m, points=[law.alpha_Y])
-    unload = _integral(lambda a: law.force(a, -V0, mem), mem.alpha_residual, a_m)
+    law, a_m, fresh, mem = _loaded_to_depth(name, depth)
+    load, unload = _loop_works(law, fresh, mem, a_m)
     assert law.elastic_energy(a_m, mem) == pytest.approx(unload, rel=QUAD_RTOL)
     assert load - law.elastic_energy(a_m, mem) == pytest.approx(load - unload, rel=QUAD_RTOL, abs=QUAD_RTOL * load)
     assert (load - unload > QUAD_RTOL * load) == (depth > 1.0), "a loop without yield, or none with it"
@@ -136,9 +146,7 @@ def test_impact_loss_equals_the_loop_area(name):
     law = EXAMPLES[name]
     out = achieved_restitution(law, M_EFF, V0)
     mem = out.memory
-    fresh = law.onset(V0)
-    load = _integral(lambda a: law.force(a, V0, fresh), 0.0, mem.alpha_max, points=[law.alpha_Y])
-    unload = _integral(lambda a: law.force(a, -V0, mem), mem.alpha_residual, mem.alpha_max)
+    load, unload = _loop_works(law, law.onset(V0), mem, mem.alpha_max)
     assert out.energy_lost == pytest.approx(load - unload, rel=QUAD_RTOL)
 
 

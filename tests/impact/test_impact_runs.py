@@ -102,8 +102,8 @@ def test_hertz_sphere_on_rigid_wall():
 def test_repeated_short_contacts_are_all_found_and_follow_ballistics():
     traj = viz3d.simulate(SCENES / "bouncing_sphere.toml")
     c = traj.extras["contacts"]
-    g, h = 9.81, 0.02                      # the scene's weight is m g with g = 9.81 (0.3227 N / 0.0329 kg)
-    g = 0.3227 / 0.0329
+    h = 0.02
+    g = 0.3227 / 0.0329                    # the scene's weight is m g with g = 9.81 (0.3227 N / 0.0329 kg)
     assert c.shape[0] >= 5 and np.all(c[:, 2] - c[:, 0] < 1e-4)      # contacts last tens of microseconds
     assert c[0, 0] == pytest.approx(np.sqrt(2 * h / g), rel=1e-4)     # free fall to the first contact
     assert c[0, 1] == pytest.approx(np.sqrt(2 * g * h), rel=1e-4)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
-from typing import ClassVar
+from typing import ClassVar, Self
 
 import numpy as np
 
@@ -36,14 +36,17 @@ from viz3d._typing import FloatArray
 from viz3d.contact.parameters import (
     flores_factor,
     fully_plastic_indentation,
+    hertz_stiffness,
     hertz_stiffness_thesis,
     hunt_crossley_factor,
     lankarani_nikravesh_factor,
     linear_damping,
     plane_strain_modulus,
     power_plastic_constants,
+    yield_force,
     yield_indentation_thesis,
     yield_indentation_yigit,
+    yigit_plastic_stiffness,
 )
 
 #: Approach speeds below this at contact onset [m/s] are raised to it: the damping term of the
@@ -181,7 +184,27 @@ class Linear(NormalLaw):
 
 
 @dataclass(frozen=True)
-class Hertz(NormalLaw):
+class PowerLawElastic(NormalLaw):
+    """Laws whose elastic part is ``K alpha^n``: the stiffness, the exponent and their energy.
+
+    Attributes
+    ----------
+    stiffness : float
+        ``K`` [N/m^n].
+    exponent : float
+        ``n``.
+    """
+
+    stiffness: float
+    exponent: float = 1.5
+
+    def elastic_energy(self, alpha, memory):
+        n = self.exponent
+        return _result(self.stiffness * _pos(alpha) ** (n + 1.0) / (n + 1.0))
+
+
+@dataclass(frozen=True)
+class Hertz(PowerLawElastic):
     """Hertz (or any power-law elastic) contact, ``F = K alpha^n`` (thesis eqs. 3.26, 7.4).
 
     Attributes
@@ -194,19 +217,13 @@ class Hertz(NormalLaw):
 
     name = "hertz"
     kind = "elastic"
-    stiffness: float
-    exponent: float = 1.5
 
     def _magnitude(self, alpha, alpha_dot, memory):
         return self.stiffness * alpha**self.exponent
 
-    def elastic_energy(self, alpha, memory):
-        n = self.exponent
-        return _result(self.stiffness * _pos(alpha) ** (n + 1.0) / (n + 1.0))
-
 
 @dataclass(frozen=True)
-class HysteresisLaw(NormalLaw):
+class HysteresisLaw(PowerLawElastic):
     """``F = K alpha^n (1 + chi alpha_dot / alpha_dot_0)``: Hertz times a rate factor.
 
     ``alpha_dot_0`` is the approach speed at onset (``ContactMemory.approach_speed``); subclasses
@@ -226,8 +243,6 @@ class HysteresisLaw(NormalLaw):
     """
 
     kind = "viscoelastic"
-    stiffness: float
-    exponent: float = 1.5
     restitution: float = 1.0
 
     @abstractmethod
@@ -242,10 +257,6 @@ class HysteresisLaw(NormalLaw):
         if memory.approach_speed <= 0.0:
             raise ValueError(f"{self.name}: no approach speed in the contact memory; call onset() first")
         return self.stiffness * alpha**self.exponent * (1.0 + self.factor() * alpha_dot / memory.approach_speed)
-
-    def elastic_energy(self, alpha, memory):
-        n = self.exponent
-        return _result(self.stiffness * _pos(alpha) ** (n + 1.0) / (n + 1.0))
 
     def calibrated(self, restitution, m_eff):
         return replace(self, restitution=restitution)
@@ -327,7 +338,7 @@ class ElastoplasticLaw(NormalLaw):
     @property
     def F_Y(self) -> float:
         """Force at first yield, ``K_h alpha_Y^1.5`` [N]."""
-        return self.K_h * self.alpha_Y**1.5
+        return yield_force(self.K_h, self.alpha_Y)
 
     def _magnitude(self, alpha, alpha_dot, memory):
         virgin = alpha >= memory.alpha_max
@@ -344,10 +355,15 @@ class ElastoplasticLaw(NormalLaw):
 class YieldThenLinear(ElastoplasticLaw):
     """Loading of Yigit & Christoforou: Hertz, then linear with the Hertz slope at yield (eqs. 7.5, 7.8, 7.9)."""
 
+    @classmethod
+    def from_material(cls, R: float, E: float, nu: float, sigma_Y: float) -> Self:
+        """Sphere of radius ``R`` on a flat; thesis (7.6) and (7.7) (``LinearPlastic``: ``K_h2 = K_h``)."""
+        return cls(hertz_stiffness_thesis(R, E, nu), yield_indentation_yigit(R, E, nu, sigma_Y))
+
     @property
     def K_Y(self) -> float:
         """Plastic stiffness ``3/2 K_h alpha_Y^0.5`` [N/m] (eq. 7.8)."""
-        return 1.5 * self.K_h * np.sqrt(self.alpha_Y)
+        return yigit_plastic_stiffness(self.K_h, self.alpha_Y)
 
     def loading_force(self, alpha):
         alpha = _pos(alpha)
@@ -365,11 +381,6 @@ class YigitChristoforou(YieldThenLinear):
     """
 
     name = "yigit_christoforou"
-
-    @classmethod
-    def from_material(cls, R: float, E: float, nu: float, sigma_Y: float) -> YigitChristoforou:
-        """Sphere of radius ``R`` on a flat; thesis (7.6) and (7.7)."""
-        return cls(hertz_stiffness_thesis(R, E, nu), yield_indentation_yigit(R, E, nu, sigma_Y))
 
     def _offset(self, alpha_max):
         """``F_m - K_h alpha_m^1.5`` [N], <= 0 (0 while elastic)."""
@@ -428,11 +439,6 @@ class LinearPlastic(HertzianUnloading, YieldThenLinear):
         # alpha_r = alpha_m - (F_m / K_h2)^(2/3) would be negative just above yield (F_m ~ K_h alpha_m^1.5)
         if self.K_h2 is not None and self.K_h2 < self.K_h:
             raise ValueError(f"unloading constant K_h2 = {self.K_h2} below K_h = {self.K_h}: negative crater")
-
-    @classmethod
-    def from_material(cls, R: float, E: float, nu: float, sigma_Y: float) -> LinearPlastic:
-        """Sphere of radius ``R`` on a flat; thesis (7.6), (7.7), ``K_h2 = K_h``."""
-        return cls(hertz_stiffness_thesis(R, E, nu), yield_indentation_yigit(R, E, nu, sigma_Y))
 
     def unloading_stiffness(self, alpha_max):
         K_h2 = self.K_h if self.K_h2 is None else self.K_h2
@@ -497,7 +503,7 @@ class PowerPlastic(HertzianUnloading):
         # out so that alpha_max -> 0 does not divide 0 by 0.
         a_m = np.maximum(np.asarray(alpha_max, dtype=float), self.alpha_Y)
         R_star = 4.0 * self.E_star * self.contact_radius_squared(a_m) ** 1.5 / (3.0 * self.loading_force(a_m))
-        return np.where(np.asarray(alpha_max) > self.alpha_Y, 4.0 / 3.0 * self.E_star * np.sqrt(R_star), self.K_h)
+        return np.where(np.asarray(alpha_max) > self.alpha_Y, hertz_stiffness(self.E_star, R_star), self.K_h)
 
 
 NORMAL_LAWS: dict[str, type[NormalLaw]] = {

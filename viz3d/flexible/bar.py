@@ -116,6 +116,11 @@ class Section:
         return float(np.sqrt(self.second_moment / self.area))
 
 
+def shear_stiffness(material: Material, section: Section) -> float:
+    """Timoshenko shear stiffness ``k G A`` [N]."""
+    return section.shear_coefficient * material.shear_modulus * section.area
+
+
 @dataclass(frozen=True)
 class PointMass:
     """A rigid point mass attached to the bar (an impactor joined to it, a tip mass).
@@ -199,7 +204,7 @@ def rayleigh_ritz(
     elif theory == "timoshenko":
         P, dP = basis.evaluate(x, "psi", 0), basis.evaluate(x, "psi", 1)
         gamma = basis.evaluate(x, "u", 1) - P
-        kGA = section.shear_coefficient * material.shear_modulus * section.area
+        kGA = shear_stiffness(material, section)
         M = M + rhoI * (P.T * wq) @ P
         K = material.E * section.second_moment * (dP.T * wq) @ dP + kGA * (gamma.T * wq) @ gamma
     else:
@@ -365,8 +370,7 @@ class BarModel:
         """V(x) = -dM/dx shape functions (m, n) [N]: k G A (w' - psi) (Timoshenko), -EI w''' (Euler-Bernoulli)."""
         self._require("bending", "shear_force")
         if self.theory == "timoshenko":
-            kGA = self.section.shear_coefficient * self.material.shear_modulus * self.section.area
-            return kGA * (self.shape(x, "u", 1) - self.shape(x, "psi", 0))
+            return shear_stiffness(self.material, self.section) * (self.shape(x, "u", 1) - self.shape(x, "psi", 0))
         return -self.material.E * self.section.second_moment * self.shape(x, "u", 3)
 
     def point_force(self, x: float, force: float) -> FloatArray:

@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.flexible.bar import BarModel, Material, PointMass, Section, gauss_points
+from viz3d.flexible.bar import BarModel, Material, PointMass, Section, gauss_points, shear_stiffness
 
 #: Gauss points per element for the Timoshenko consistent mass: products of its cubic shape
 #: functions are of degree 6, integrated exactly by 4 points (degree 7).
@@ -128,8 +128,7 @@ class FKTimoshenkoBeam(Element):
 
     @staticmethod
     def _phi(h, material, section) -> float:
-        kGA = section.shear_coefficient * material.shear_modulus * section.area
-        return 12.0 * material.E * section.second_moment / (kGA * h * h)
+        return 12.0 * material.E * section.second_moment / (shear_stiffness(material, section) * h * h)
 
     def polynomials(self, h, material, section):
         phi = self._phi(h, material, section)

@@ -47,7 +47,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.flexible.bar import BarModel, Material, PointMass, Section, peak_points, rayleigh_ritz
+from viz3d.flexible.bar import BarModel, Material, PointMass, Section, peak_points, rayleigh_ritz, shear_stiffness
 
 #: Elementary function codes: cos(s x), sin(s x), exp(-s x), exp(-s (L - x)).
 COS, SIN, EXP_LEFT, EXP_RIGHT = 0, 1, 2, 3
@@ -270,13 +270,12 @@ class Timoshenko(_Beam):
 
     @property
     def _kGA(self) -> float:
-        return self.section.shear_coefficient * self.material.shear_modulus * self.section.area
+        return shear_stiffness(self.material, self.section)
 
     def cutoff(self) -> float | None:
         """Dimensionless b L at the cut-off frequency omega_c."""
         rho, E, kG = self.material.rho, self.material.E, self._kGA / self.section.area
-        omega_c2 = self._kGA / (rho * self.section.second_moment)
-        return float(np.sqrt(omega_c2 * (rho / E + rho / kG)) * self.length)
+        return float(np.sqrt(self._omega_c2 * (rho / E + rho / kG)) * self.length)
 
     def omega(self, s: float) -> float:
         """Lower-branch frequency [rad/s] at s = b L (the stable root of a quadratic in omega^2)."""

@@ -15,7 +15,7 @@ from viz3d.contact import laws as L
 from viz3d.contact.parameters import effective_modulus, hertz_stiffness
 from viz3d.flexible import BarModel, Material, Section, analytic_modes, contact_band, fe_model, reduce, select_modes
 from viz3d.flexible.bar import rigid_mode_count
-from viz3d.impact.bodies import bar_body, point_row
+from viz3d.impact.bodies import bar_body, frame_columns
 from viz3d.impact.engine import Contact, ImpactProblem, fixed_body, rigid_mass
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
@@ -61,7 +61,7 @@ def build_impact(scene: Scene) -> ImpactSetup:
     mass, velocity = impactor_motion(d["impactor"], src)
     bar = d.get("bar")
     side = 1.0 if d["contact"].get("side", "+") == "+" else -1.0
-    contact_model, requested = contact_from(d, mass, velocity, src)
+    contact_model, requested = contact_from(d, src)
     if bar is None:
         target, model, x_c, choice, reference = fixed_body("wall"), None, 0.0, "rigid wall", "fixed"
     else:
@@ -103,7 +103,7 @@ def impactor_motion(imp: dict, src: str) -> tuple[float, float]:
 # ---------------------------------------------------------------- contact
 
 
-def contact_from(d: dict, mass: float, velocity: float, src: str):
+def contact_from(d: dict, src: str):
     """The engine's ``Contact`` (gap filled in later) and the requested restitution, if any."""
     c, name = d["contact"], d["contact"]["law"]
     if name == "rigid":
@@ -113,7 +113,7 @@ def contact_from(d: dict, mass: float, velocity: float, src: str):
             raise SceneError(src, "contact.restitution", "a coefficient of restitution for law = restitution")
         return Contact("restitution", restitution=c["restitution"], hypothesis=c["hypothesis"]), c["restitution"]
     cls = L.NORMAL_LAWS[name]
-    if issubclass(cls, L.ElastoplasticLaw):
+    if cls.kind == "elastoplastic":
         return Contact("law", law=_elastoplastic(cls, d, src)), None
     stiffness = c.get("stiffness") or _hertz(d, src, name)
     if cls is L.Linear:
@@ -128,7 +128,7 @@ def contact_from(d: dict, mass: float, velocity: float, src: str):
     return Contact("law", law=cls(stiffness, exponent, c["restitution"])), c["restitution"]
 
 
-def _materials(d: dict, src: str):
+def _materials(d: dict):
     imp = d["impactor"].get("material", DEFAULT_IMPACTOR)
     if "bar" in d:
         tgt = d["bar"]["material"]
@@ -143,7 +143,7 @@ def _hertz(d: dict, src: str, name: str) -> float:
     """Hertz constant of the impactor sphere on the (locally flat) bar or wall [N/m^1.5]."""
     if d["impactor"]["shape"] != "sphere" or "radius" not in d["impactor"]:
         raise SceneError(src, "contact.stiffness", f"a stiffness, or a spherical impactor with a radius, for {name}")
-    imp, tgt = _materials(d, src)
+    imp, tgt = _materials(d)
     return hertz_stiffness(effective_modulus(imp["E"], imp["nu"], tgt["E"], tgt["nu"]), d["impactor"]["radius"])
 
 
@@ -153,7 +153,7 @@ def _elastoplastic(cls, d: dict, src: str):
         raise SceneError(src, "contact.yield_stress", f"the yield stress [Pa] for the {cls.name} law")
     if d["impactor"]["shape"] != "sphere" or "radius" not in d["impactor"]:
         raise SceneError(src, "impactor.radius", f"a sphere radius for the {cls.name} law")
-    _, tgt = _materials(d, src)
+    _, tgt = _materials(d)
     if not np.isfinite(tgt["E"]):
         raise SceneError(src, "wall.material", "a deformable target material for an elastoplastic law")
     return cls.from_material(d["impactor"]["radius"], tgt["E"], tgt["nu"], c["yield_stress"])
@@ -246,14 +246,7 @@ def _frame_velocity(bar: dict, model: BarModel, src: str):
     v = bar.get("frame_velocity")
     if v is None:
         return None
-    from viz3d.impact.bodies import frame_columns
-
     nf = frame_columns(model, bar["reference"])
     if len(v) != nf:
         raise SceneError(src, "bar.frame_velocity", f"{nf} values for reference = {bar['reference']}", v)
     return np.asarray(v, float)
-
-
-def contact_point_row(setup: ImpactSetup) -> np.ndarray:
-    """Deformation-direction displacement of the struck section per unit bar coordinate."""
-    return point_row(setup.bar, setup.reference, setup.x_contact)

@@ -8,6 +8,7 @@ w). The impactor is drawn at its true position (its centre moves along the conta
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -22,6 +23,28 @@ SECTIONS = 80
 RING = 12
 IMPACT_PLOTS = (("Contact force [N]", "contact/force"), ("Indentation [m]", "contact/penetration"),
                 ("Gauge strain [-]", "strain"), ("Energy ledger [J]", "energy"))
+
+
+@dataclass(frozen=True)
+class BarDrawing:
+    """What every frame of a bar reuses, computed once per setup.
+
+    Attributes
+    ----------
+    x : ndarray, shape (SECTIONS,)
+        Drawn sections along the bar [m].
+    shapes : ndarray, shape (SECTIONS, n)
+        Elastic displacement of those sections per unit bar coordinate (``bar.displacement(x)``).
+    ring : ndarray, shape (RING, 2)
+        Cross-section outline in (axis-normal, bend) coordinates [m].
+    gauge_strain : ndarray, shape (ng, n)
+        Strain at the gauges per unit bar coordinate (``bar.strain(gauge_x)``).
+    """
+
+    x: FloatArray
+    shapes: FloatArray
+    ring: FloatArray
+    gauge_strain: FloatArray
 
 
 @dataclass(frozen=True)
@@ -40,6 +63,8 @@ class ImpactGeometry:
         Undeformed contact point on the target's surface [m].
     radius : float
         Impactor radius drawn [m].
+    bar : BarDrawing or None
+        The bar's per-setup drawing data (None for a wall).
     """
 
     origin: FloatArray
@@ -49,6 +74,7 @@ class ImpactGeometry:
     n: FloatArray
     surface: FloatArray
     radius: float
+    bar: BarDrawing | None = None
 
     def impactor_centre(self, gap: float, z1: float) -> FloatArray:
         return self.surface - (gap + self.radius) * self.n + z1 * self.n
@@ -72,7 +98,14 @@ def geometry(scene: Scene, setup: ImpactSetup) -> ImpactGeometry:
     surface = origin + setup.x_contact * axis
     if not rod:
         surface = surface + setup.side * 0.5 * setup.bar.section.depth * bend
-    return ImpactGeometry(origin, axis, bend, d_dir, -setup.side * d_dir, surface, radius)
+    return ImpactGeometry(origin, axis, bend, d_dir, -setup.side * d_dir, surface, radius, _bar_drawing(setup))
+
+
+def _bar_drawing(setup: ImpactSetup) -> BarDrawing:
+    bar = setup.bar
+    x = np.linspace(0.0, bar.length, SECTIONS)
+    gauges = bar.strain(setup.gauge_x) if len(setup.gauge_x) else np.zeros((0, bar.n))
+    return BarDrawing(x, bar.displacement(x), _ring(setup), gauges)
 
 
 def impact_visuals(scene: Scene, setup: ImpactSetup, geo: ImpactGeometry) -> SceneVisuals:
@@ -125,10 +158,10 @@ def _ring(setup: ImpactSetup) -> FloatArray:
 
 def bar_mesh(setup: ImpactSetup, geo: ImpactGeometry, z2: FloatArray, amplification: float):
     """World vertices (SECTIONS * RING, 3) and faces of the bar at coordinates ``z2``."""
-    bar = setup.bar
-    x = np.linspace(0.0, bar.length, SECTIONS)
+    bar, drawing = setup.bar, geo.bar
+    x = drawing.x
     nf = _n_frame(setup)
-    elastic = bar.displacement(x) @ z2[nf:]
+    elastic = drawing.shapes @ z2[nf:]
     frame = np.zeros_like(x)
     if setup.reference == "free":
         frame = z2[0] + (x * z2[1] if bar.kind == "bending" else 0.0)
@@ -136,13 +169,15 @@ def bar_mesh(setup: ImpactSetup, geo: ImpactGeometry, z2: FloatArray, amplificat
         frame = x * z2[0]
     offset = frame + amplification * elastic
     side = np.cross(geo.bend, geo.axis)
-    ring = _ring(setup)
+    ring = drawing.ring
     centre = geo.origin + x[:, None] * geo.axis + offset[:, None] * geo.d
     verts = centre[:, None, :] + ring[None, :, 0:1] * side + ring[None, :, 1:2] * geo.bend
     return verts.reshape(-1, 3), _tube_faces()
 
 
+@cache
 def _tube_faces() -> np.ndarray:
+    """Triangles of the tube (shared by every frame: read-only)."""
     faces = []
     for i in range(SECTIONS - 1):
         for j in range(RING):
@@ -152,7 +187,9 @@ def _tube_faces() -> np.ndarray:
         for j in range(1, RING - 1):
             tri = (end, end + j, end + j + 1)
             faces.append(tri[::-1] if flip else tri)
-    return np.array(faces)
+    faces = np.array(faces)
+    faces.flags.writeable = False
+    return faces
 
 
 def impact_frame(setup: ImpactSetup, geo: ImpactGeometry, sample: Sample, gap: float, amplification: float) -> Frame:
@@ -175,7 +212,7 @@ def impact_frame(setup: ImpactSetup, geo: ImpactGeometry, sample: Sample, gap: f
     scalars.update({f"energy/{k}": v for k, v in led.items() if k != "total_plus_dissipated"})
     scalars["energy/balance_error"] = led["total_plus_dissipated"] - p.initial_energy
     if setup.bar is not None and len(setup.gauge_x):
-        strain = setup.bar.strain(setup.gauge_x) @ sample.z2[_n_frame(setup):]
+        strain = geo.bar.gauge_strain @ sample.z2[_n_frame(setup):]
         scalars.update({f"strain/{n}": float(e) for n, e in zip(setup.gauge_names, strain)})
     kinetic = led["impactor_kinetic"] + led["bar_kinetic"]
     zeros = np.zeros((len(W_r), 3))

@@ -34,9 +34,6 @@ from viz3d.integrators import ExplicitRK
 from viz3d.integrators.adaptive import Controller, Event, hermite, integrate
 from viz3d.integrators.tableaus import DOPRI5
 
-#: Bodies whose relative normal velocity after an impulse is below this [m/s] are considered
-#: at rest on each other (ends a run of restitution balances).
-REST_SPEED = 1e-9
 #: A kinematic contact needing less tension than this [N] (round-off) is kept at onset.
 RIGID_TENSION_TOL = 1e-9
 #: At most this many events per run (guards against Zeno sequences of impacts).
@@ -60,6 +57,12 @@ class LinearBody:
         Initial coordinates and velocities.
     rigid : ndarray of bool, shape (n,)
         Coordinates that are rigid-body (reference) motion, for the ledger's kinetic split.
+    M_inv : ndarray, shape (n, n)
+        ``M^-1`` (derived).
+    M_inv_r : ndarray, shape (n,)
+        ``M^-1 r`` [1/kg-consistent]: coordinate accelerations per unit contact force (derived).
+    mobility : float
+        ``r^T M^-1 r`` [1/kg]: contact-point velocity change per unit impulse (derived).
     """
 
     name: str
@@ -72,18 +75,18 @@ class LinearBody:
     zd0: FloatArray
     rigid: np.ndarray
     M_inv: FloatArray = field(init=False, repr=False)
+    M_inv_r: FloatArray = field(init=False, repr=False)
+    mobility: float = field(init=False, repr=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "M_inv", np.linalg.inv(self.M) if self.n else np.zeros((0, 0)))
+        M_inv = np.linalg.inv(self.M) if self.n else np.zeros((0, 0))
+        object.__setattr__(self, "M_inv", M_inv)
+        object.__setattr__(self, "M_inv_r", M_inv @ self.r)
+        object.__setattr__(self, "mobility", float(self.r @ M_inv @ self.r) if self.n else 0.0)
 
     @property
     def n(self) -> int:
         return len(self.r)
-
-    @property
-    def mobility(self) -> float:
-        """``r^T M^-1 r`` [1/kg]: contact-point velocity change per unit impulse."""
-        return float(self.r @ self.M_inv @ self.r) if self.n else 0.0
 
     def kinetic(self, zd: FloatArray) -> tuple[float, float]:
         """Kinetic energy of the rigid and of the elastic coordinates [J] (their coupling term
@@ -221,9 +224,9 @@ class ImpactProblem:
             F = float(law.force(alpha, alpha_dot, memory)) if alpha > 0 else 0.0
             a1, a2 = self.free_accelerations(y)
             if self.n1:
-                a1 = a1 - F * (self.b1.M_inv @ self.b1.r)
+                a1 = a1 - F * self.b1.M_inv_r
             if self.n2:
-                a2 = a2 + F * (self.b2.M_inv @ self.b2.r)
+                a2 = a2 + F * self.b2.M_inv_r
             return np.concatenate([z1d, z2d, a1, a2, [F * alpha_dot]])
 
         return rhs
@@ -233,20 +236,23 @@ class ImpactProblem:
         a1, a2 = self.free_accelerations(y)
         return np.concatenate([z1d, z2d, a1, a2, [0.0]])
 
-    def rigid_force(self, y) -> float:
-        """Multiplier keeping ``alpha_dd = 0``: ``F = (r1 a1_free - r2 a2_free) / (m1' + m2')``."""
-        a1, a2 = self.free_accelerations(y)
+    def rigid_force(self, y, free=None) -> float:
+        """Multiplier keeping ``alpha_dd = 0``: ``F = (r1 a1_free - r2 a2_free) / (m1' + m2')``.
+
+        ``free``: ``free_accelerations(y)`` when the caller already has them.
+        """
+        a1, a2 = self.free_accelerations(y) if free is None else free
         num = (self.b1.r @ a1 if self.n1 else 0.0) - (self.b2.r @ a2 if self.n2 else 0.0)
         return float(num / (self.b1.mobility + self.b2.mobility))
 
     def rhs_rigid(self, t, y):
         z1, z2, z1d, z2d, _ = self.split(y)
-        F = self.rigid_force(y)
-        a1, a2 = self.free_accelerations(y)
+        a1, a2 = free = self.free_accelerations(y)
+        F = self.rigid_force(y, free)
         if self.n1:
-            a1 = a1 - F * (self.b1.M_inv @ self.b1.r)
+            a1 = a1 - F * self.b1.M_inv_r
         if self.n2:
-            a2 = a2 + F * (self.b2.M_inv @ self.b2.r)
+            a2 = a2 + F * self.b2.M_inv_r
         return np.concatenate([z1d, z2d, a1, a2, [0.0]])
 
     def impulse(self, y: FloatArray, e: float, hypothesis: str = "newton") -> tuple[FloatArray, float, float]:
@@ -267,8 +273,8 @@ class ImpactProblem:
         else:
             P = (1.0 + e) * alpha_dot / mobility
         T0 = self.kinetic(y)
-        z1d = z1d - P * (self.b1.M_inv @ self.b1.r) if self.n1 else z1d
-        z2d = z2d + P * (self.b2.M_inv @ self.b2.r) if self.n2 else z2d
+        z1d = z1d - P * self.b1.M_inv_r if self.n1 else z1d
+        z2d = z2d + P * self.b2.M_inv_r if self.n2 else z2d
         y_new = self.join(z1, z2, z1d, z2d, W)
         return y_new, P, T0 - self.kinetic(y_new)
 
@@ -396,10 +402,10 @@ class _PhaseState:
 
     def crater(self) -> float:
         """Indentation at which the surfaces touch: the residual (plastic) indentation left by the
-        contacts so far, 0 for elastic and rate laws [m]."""
+        contacts so far (kept in the contact memory), 0 for elastic and rate laws [m]."""
         if self.memory is None or self.p.contact.model != "law" or not self.p.contact.law.dissipative:
             return 0.0
-        return float(self.p.contact.law.residual_indentation(self.memory.alpha_max))
+        return self.memory.alpha_residual
 
     def events(self) -> tuple[Event, ...]:
         p, model = self.p, self.p.contact.model
@@ -411,7 +417,7 @@ class _PhaseState:
         law = p.contact.law
         floor = self.crater()
         evs = [Event("separation", lambda t, y: p.indentation(y)[0] - floor, -1)]
-        if hasattr(law, "loading_force"):  # elastoplastic: the turning point sets alpha_max
+        if law.kind == "elastoplastic":  # the turning point sets alpha_max
             evs.append(Event("max_indentation", lambda t, y: p.indentation(y)[1], -1))
         return tuple(evs)
 

@@ -7,6 +7,9 @@ values so that ``--set impactor.mass=0.5`` or ``--set bar.modes=40`` vary them f
 from __future__ import annotations
 
 from viz3d.contact.laws import NORMAL_LAWS
+from viz3d.flexible.bar import SUPPORTS
+from viz3d.flexible.bar import THEORIES as THEORIES_BY_KIND
+from viz3d.impact.bodies import REFERENCES
 from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
@@ -29,8 +32,8 @@ from viz3d.scene.spec import SCENE
 
 #: Contact models besides the continuous laws of ``NORMAL_LAWS``.
 CONTACT_MODELS = ("rigid", "restitution")
-THEORIES = ("rod", "euler_bernoulli", "timoshenko")
-SUPPORTS = ("free", "clamped", "pinned")
+#: Bar theories of every deformation kind, in ``viz3d.flexible.bar.THEORIES`` order.
+THEORIES = tuple(theory for theories in THEORIES_BY_KIND.values() for theory in theories)
 
 
 def supports(x):
@@ -76,7 +79,7 @@ BAR = Table({
     "section": Field(SECTION, doc="cross-section"),
     "theory": Field(one_of(*THEORIES), doc="rod (axial impact), euler_bernoulli or timoshenko (transverse impact)"),
     "supports": Field(supports, doc="end conditions of the mode set / mesh at x = 0 and x = L"),
-    "reference": Field(one_of("fixed", "free", "pinned"), "fixed",
+    "reference": Field(one_of(*REFERENCES), "fixed",
                        "motion of the bar's frame: fixed (structure), free (floating), pinned (pendulum about x = 0)"),
     "model": Field(one_of("modal", "fe"), "modal", "analytic modes or finite elements"),
     "modes": Field(positive_int, OPTIONAL, "number of modes (modal; with fe: keep this many FE modes)"),
