@@ -89,6 +89,24 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def flag_type(check, expected: str | None = None):
+    """An argparse ``type=`` that parses a flag's text as a TOML value and checks it with a scene
+    checker (``viz3d.scene.schema``), so flags and scene keys share one validation. A bad value
+    ends the command with exit code 2 and "argument --flag: expected ..., got ...".
+    """
+    from viz3d.scene.load import parse_value
+    from viz3d.scene.schema import Invalid
+
+    def convert(text: str):
+        try:
+            return check(parse_value(text))
+        except Invalid as exc:
+            raise argparse.ArgumentTypeError(f"expected {expected or exc.expected}, got {text!r}") from None
+
+    convert.__name__ = getattr(check, "__name__", "value")
+    return convert
+
+
 def _set_arg(p, help="override a scene value, e.g. --set chain.n=20 --set sim.integrator=heun") -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE", help=help)
 
