@@ -34,19 +34,23 @@ Conventions (every module here follows them; SI units as in docs/notation.md):
   removes them.
 
 Modules: ``bar`` (Material, Section, PointMass, BarModel, reduce), ``modes`` (analytic mode sets,
-registry ``MODE_SETS``), ``fe`` (finite elements, ``fe_model``), ``selection`` (mode count).
+registry ``MODE_SETS``), ``fe`` (finite elements, ``fe_model``, element choice ``ELEMENT_TYPES``,
+nodal curvature and stress), ``planar`` (planar beams on a floating frame: seed 003's 8-DOF
+element and the 6-DOF cubic one), ``selection`` (mode count).
 Source: J. L. Escalona, *Análisis dinámico de impactos en barras flexibles*, PhD thesis, Sevilla
 2000 (seed 002); its digest lists the errata these modules correct.
 """
 
 from viz3d.flexible.bar import BarModel, Material, PointMass, Section, reduce
-from viz3d.flexible.fe import ELEMENTS, fe_model
+from viz3d.flexible.fe import ELEMENT_TYPES, ELEMENTS, fe_model, node_bending_stress, node_curvature
 from viz3d.flexible.modes import MODE_SETS, analytic_modes, mode_set
+from viz3d.flexible.planar import PLANAR_ELEMENTS, PlanarBeam, planar_beam
 from viz3d.flexible.selection import ModeSelection, contact_band, select_modes
 
 __all__ = [
     "BarModel", "Material", "PointMass", "Section", "reduce",
-    "ELEMENTS", "fe_model",
+    "ELEMENT_TYPES", "ELEMENTS", "fe_model", "node_bending_stress", "node_curvature",
     "MODE_SETS", "analytic_modes", "mode_set",
+    "PLANAR_ELEMENTS", "PlanarBeam", "planar_beam",
     "ModeSelection", "contact_band", "select_modes",
 ]

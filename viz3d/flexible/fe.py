@@ -1,9 +1,12 @@
-"""Finite-element models of uniform bars: 2-node rod, Hermite Euler-Bernoulli and locking-free
-Friedman-Kosmatka Timoshenko elements, assembled into a ``BarModel`` in nodal coordinates.
+"""Finite-element models of uniform bars: 2-node rod, cubic and quintic Hermite Euler-Bernoulli and
+locking-free Friedman-Kosmatka Timoshenko elements, assembled into a ``BarModel`` in nodal coordinates.
 
-Nodal coordinates per node: rod ``[u]`` [m]; Euler-Bernoulli ``[w, theta = w']`` [m, rad];
-Timoshenko ``[w, psi]`` [m, rad]. ``q`` holds the unconstrained ones, node by node, in order;
-supports remove the constrained ones (``BarModel.T`` selects them). Conventions: ``viz3d.flexible``.
+Nodal coordinates per node: rod ``[u]`` [m]; cubic Euler-Bernoulli ``[w, theta = w']`` [m, rad];
+quintic Euler-Bernoulli ``[w, w', w'']`` [m, rad, 1/m]; Timoshenko ``[w, psi]`` [m, rad]. ``q`` holds
+the unconstrained ones, node by node, in order; supports remove the constrained ones
+(``BarModel.T`` selects them). ``ELEMENTS`` maps each theory to its default element,
+``ELEMENT_TYPES`` every element by name (the choice ``fe_model(..., element=name)``).
+Conventions: ``viz3d.flexible``; the quintic element: docs/seed003_element.md.
 """
 
 from __future__ import annotations
@@ -22,6 +25,25 @@ MASS_GAUSS_POINTS = 4
 #: Mass matrix options (lumped only for the rod element).
 MASS_MATRICES = ("consistent", "lumped")
 
+#: Quintic Hermite element in the scaled nodal dofs [w1, h w1', h^2 w1'', w2, h w2', h^2 w2'']:
+#: stiffness K = EI / h^3 * QUINTIC_STIFFNESS_70 / 70 and consistent mass M = rho A h *
+#: QUINTIC_MASS_55440 / 55440 (exact rationals: int EI w''^2 and int rho A w^2 of the shapes of
+#: ``QuinticBeam``; derived with sympy in tests/flexible/test_beam_elements.py; Hossne 2007 eqs. 51, 56).
+QUINTIC_STIFFNESS_70 = np.array([
+    [1200, 600, 30, -1200, 600, -30],
+    [600, 384, 22, -600, 216, -8],
+    [30, 22, 6, -30, 8, 1],
+    [-1200, -600, -30, 1200, -600, 30],
+    [600, 216, 8, -600, 384, -22],
+    [-30, -8, 1, 30, -22, 6]], dtype=float)
+QUINTIC_MASS_55440 = np.array([
+    [21720, 3732, 281, 6000, -1812, 181],
+    [3732, 832, 69, 1812, -532, 52],
+    [281, 69, 6, 181, -52, 5],
+    [6000, 1812, 181, 21720, -3732, 281],
+    [-1812, -532, -52, -3732, 832, -69],
+    [181, 52, 5, 281, -69, 6]], dtype=float)
+
 
 def _poly_derivative(C: FloatArray, order: int) -> FloatArray:
     """Coefficients (..., p) of a polynomial in ascending powers after ``order`` d/dxi."""
@@ -38,11 +60,15 @@ class Element:
     functions in ascending powers of xi = (x - x_a) / h ("psi" may be absent: then psi = u');
     ``stiffness(h, material, section)`` and ``mass(h, material, section, lumped)``, (n_dof_e, n_dof_e);
     ``constrained(support) -> local dof indices of a node`` fixed by that support.
+    Class attributes: ``name`` (key in ``ELEMENT_TYPES``), ``theory``, ``dofs_per_node``, and
+    ``curvature_dof``, the local index of w'' (or psi') among a node's dofs, None if it is not a dof.
+    To add an element: subclass, implement the four hooks, add an instance to ``ELEMENT_TYPES``.
     """
 
     name: ClassVar[str]
     theory: ClassVar[str]
     dofs_per_node: ClassVar[int]
+    curvature_dof: ClassVar[int | None] = None
 
     def polynomials(self, h: float, material: Material, section: Section) -> dict[str, FloatArray]:
         raise NotImplementedError
@@ -166,8 +192,73 @@ class FKTimoshenkoBeam(Element):
         return {"free": [], "pinned": [0], "clamped": [0, 1]}[support]
 
 
-#: theory -> element used by ``fe_model``.
-ELEMENTS = {"rod": Rod2(), "euler_bernoulli": HermiteBeam(), "timoshenko": FKTimoshenkoBeam()}
+class QuinticBeam(Element):
+    """Quintic Hermite Euler-Bernoulli element, nodal dofs [w, w', w''] (C2 deflection).
+
+    Order: frequencies converge as O(h^8) (eigenvalue error h^(2(p - 1)), p = 5), against O(h^4) for
+    the cubic element. Exact nodal deflection and slope for any load with consistent loads (the
+    cubic homogeneous solutions are in the space); statics with polynomial solutions up to degree 5
+    (tip load, uniform load) exact everywhere. Consistent mass without rotary inertia.
+    Curvature: w'' is a nodal dof, so the bending moment EI w'' and the surface stress are read at
+    the nodes without differentiating, and are continuous across elements.
+    Supports: only w (pinned) and w, w' (clamped) are essential; M = EI w'' = 0 at a free or pinned
+    end is a natural condition, so the curvature dof stays free there (an end moment or an attached
+    mass may make it non-zero; the exact solution's w'' = 0 is reached as the mesh is refined).
+
+    Reference: A. G. Hossne, "Lagrangiano de un elemento finito plano elástico dinámico con ocho
+    grados de libertad", Ingeniería 11(1), 25-36 (2007), eqs. 34, 51, 56 (seed 003; errata in
+    docs/seed003_element.md); W. L. Cleghorn, R. G. Fenton, B. Tabarrok, Mech. Mach. Theory 16(4),
+    1981 (the same quintic element, axially rigid).
+    """
+
+    name, theory, dofs_per_node, curvature_dof = "quintic", "euler_bernoulli", 3, 2
+
+    @staticmethod
+    def _scale(h: float) -> FloatArray:
+        """diag(1, h, h^2, 1, h, h^2): physical dofs from the scaled ones of the tabulated matrices."""
+        return np.tile([1.0, h, h * h], 2)
+
+    def polynomials(self, h, material, section):
+        D = self._scale(h)[:, None]
+        return {"u": D * np.array([
+            [1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
+            [0.0, 1.0, 0.0, -6.0, 8.0, -3.0],
+            [0.0, 0.0, 0.5, -1.5, 1.5, -0.5],
+            [0.0, 0.0, 0.0, 10.0, -15.0, 6.0],
+            [0.0, 0.0, 0.0, -4.0, 7.0, -3.0],
+            [0.0, 0.0, 0.0, 0.5, -1.0, 0.5]])}
+
+    def stiffness(self, h, material, section):
+        D = self._scale(h)
+        return material.E * section.second_moment / h**3 * (D[:, None] * QUINTIC_STIFFNESS_70 * D[None, :]) / 70.0
+
+    def mass(self, h, material, section, lumped):
+        if lumped:
+            raise ValueError("lumped mass is offered for the rod element only")
+        D = self._scale(h)
+        return material.rho * section.area * h * (D[:, None] * QUINTIC_MASS_55440 * D[None, :]) / 55440.0
+
+    def constrained(self, support):
+        return {"free": [], "pinned": [0], "clamped": [0, 1]}[support]
+
+
+#: Every element by name: the finite-element choices of ``fe_model(..., element=name)``.
+ELEMENT_TYPES = {el.name: el for el in (Rod2(), HermiteBeam(), QuinticBeam(), FKTimoshenkoBeam())}
+#: theory -> element ``fe_model`` uses when no element is named.
+ELEMENTS = {"rod": ELEMENT_TYPES["rod2"], "euler_bernoulli": ELEMENT_TYPES["hermite"],
+            "timoshenko": ELEMENT_TYPES["timoshenko_fk"]}
+
+
+def element_for(theory: str, element: str | None = None) -> Element:
+    """The element named ``element`` (or the theory's default), checked to implement ``theory``."""
+    if theory not in ELEMENTS:
+        raise ValueError(f"unknown theory {theory!r}; valid: {sorted(ELEMENTS)}")
+    if element is None:
+        return ELEMENTS[theory]
+    valid = sorted(name for name, el in ELEMENT_TYPES.items() if el.theory == theory)
+    if element not in valid:
+        raise ValueError(f"element {element!r} for theory {theory!r}; valid: {valid}")
+    return ELEMENT_TYPES[element]
 
 
 @dataclass(frozen=True)
@@ -258,8 +349,9 @@ def fe_model(
     *,
     point_masses: tuple[PointMass, ...] = (),
     mass_matrix: str = "consistent",
+    element: str | None = None,
 ) -> BarModel:
-    """A uniform mesh of ``n_elements`` elements of ``ELEMENTS[theory]`` as a ``BarModel``.
+    """A uniform mesh of ``n_elements`` elements of ``element`` (default ``ELEMENTS[theory]``) as a ``BarModel``.
 
     Parameters
     ----------
@@ -275,6 +367,9 @@ def fe_model(
         Rigid masses joined to the bar, added as ``m N(x)^T N(x)`` (a nodal mass at a node).
     mass_matrix : str
         "consistent" or "lumped" (rod only).
+    element : str, optional
+        A key of ``ELEMENT_TYPES`` implementing ``theory``: "rod2"; "hermite" (cubic) or "quintic"
+        for "euler_bernoulli"; "timoshenko_fk". None: the theory's default in ``ELEMENTS``.
 
     Returns
     -------
@@ -283,7 +378,7 @@ def fe_model(
     """
     if mass_matrix not in MASS_MATRICES:
         raise ValueError(f"mass_matrix {mass_matrix!r}; valid: {MASS_MATRICES}")
-    element = ELEMENTS[theory]
+    element = element_for(theory, element)
     basis = FEBasis(element, np.linspace(0.0, length, n_elements + 1), material, section)
     M, K = assemble(basis, mass_matrix == "lumped")
     for pm in point_masses:
@@ -294,3 +389,38 @@ def fe_model(
     label = f"{element.name} FE, {n_elements} elements, {supports[0]}-{supports[1]}, {mass_matrix} mass"
     return BarModel(kind, theory, length, material, section, tuple(supports), basis, T, T.T @ M @ T, T.T @ K @ T,
                     tuple(point_masses), label)
+
+
+def node_curvature(model: BarModel, q: FloatArray) -> FloatArray:
+    """Bending curvature psi' (= w'' for Euler-Bernoulli) at the mesh nodes [1/m].
+
+    With a curvature dof (``QuinticBeam``) the nodal value is read from the coordinates, continuous
+    across elements. Otherwise it is psi' of the element on the node's left (the first element at
+    x = 0), which jumps between elements.
+
+    Parameters
+    ----------
+    model : BarModel
+        A bending FE model (``fe_model``).
+    q : ndarray, shape (n,) or (n, k)
+        Coordinates of the model [m, rad, 1/m].
+
+    Returns
+    -------
+    kappa : ndarray, shape (n_nodes,) or (n_nodes, k)
+    """
+    if model.kind != "bending" or not isinstance(model.basis, FEBasis):
+        raise ValueError("node_curvature needs a bending finite-element model")
+    element = model.basis.element
+    if element.curvature_dof is not None:
+        return (model.T @ q)[element.curvature_dof::element.dofs_per_node]
+    return model.shape(model.basis.nodes, "psi", 1) @ q
+
+
+def node_bending_stress(model: BarModel, q: FloatArray) -> FloatArray:
+    """Bending stress at the nodes on the fibre z = +depth/2 (the +w side) [Pa]: -E (depth/2) psi'.
+
+    Same sign as ``BarModel.strain``: a tip load P (+w) on a cantilever gives -P L (depth/2) / I at
+    the clamp. Shapes as ``node_curvature``.
+    """
+    return -model.material.E * 0.5 * model.section.depth * node_curvature(model, q)
