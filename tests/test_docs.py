@@ -20,3 +20,15 @@ def test_trajectory_doc_lists_every_saved_field():
     text = (ROOT / "docs" / "trajectory.md").read_text()
     missing = [f.name for f in fields(Trajectory) if f"`{f.name}`" not in text]
     assert not missing, missing
+
+
+def test_readme_commands_of_measured_numbers_are_the_generated_ones():
+    """Every `viz3d bench` / `viz3d stability` command the README shows is one that
+    benchmarks/docs_charts.py ran to produce docs/charts (so the numbers quoted next to it come
+    from that very command)."""
+    readme = (ROOT / "README.md").read_text()
+    generated = (ROOT / "docs" / "charts" / "README.md").read_text()
+    shown = [line.strip() for line in readme.splitlines() if line.strip().startswith(("viz3d bench", "viz3d stability"))]
+    assert shown, "the README shows no benchmark command"
+    missing = [c for c in shown if f"    {c}\n" not in generated]
+    assert not missing, f"not produced by benchmarks/docs_charts.py: {missing}"

@@ -8,7 +8,11 @@ Usage::
     viz3d bench SCENE --methods LIST (--dt LIST | --tol LIST) [--t-end T] [--out DIR]
     viz3d stability SCENE --methods LIST [--sweep key.path=V1,V2,...] [--t-end T] [--out DIR]
     viz3d check SCENE [SCENE ...]
-    viz3d list [--format]
+    viz3d list [--format] [--scenes DIR]
+
+Every flag value goes through the same checkers as the scene keys (``viz3d.scene.schema``); bad
+input ends with exit code 2 and one message naming the flag or key. SIGTERM is treated like
+Ctrl-C: a run stops, keeps and writes what it computed.
 
 ``python -m viz3d`` is the same command.
 """
@@ -17,28 +21,57 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import tempfile
+import threading
 import warnings
 from pathlib import Path
 
 from viz3d.scene.schema import SceneError
 
-#: Where ``viz3d list`` looks for scenes.
+#: Where ``viz3d list`` looks for scenes: the current folder's, then the repository's.
 SCENES_DIR = Path("scenes")
+REPOSITORY_SCENES = Path(__file__).resolve().parents[1] / "scenes"
+#: Exit code of a command stopped by Ctrl-C or SIGTERM outside a run (128 + SIGINT, as shells do).
+EXIT_INTERRUPTED = 130
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the process exit code (0 ok, 1 failed run, 2 bad input)."""
+    """Entry point; returns the process exit code (0 ok, 1 failed run, 2 bad input, 130 interrupted)."""
     parser = _parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse printed the usage and "argument --flag: ..." (or the help)
+        return int(exc.code or 0)
     if not hasattr(args, "func"):
         parser.print_help()
         return 2
+    previous = _terminate_like_interrupt()
     try:
         return args.func(args)
     except SceneError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate_like_interrupt():
+    """Make SIGTERM (the default of ``kill`` and ``timeout``) raise ``KeyboardInterrupt`` in the main
+    thread, so a run stops the way Ctrl-C stops it: frames kept, files written. Returns the
+    previous handler (None when not on the main thread, where signals cannot be set)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    return signal.signal(signal.SIGTERM, interrupt)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -46,9 +79,11 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers()
     run = sub.add_parser("run", help="run a scene headless and write its trajectory")
     run.add_argument("scene", type=Path)
-    run.add_argument("--t-end", type=float, help="simulated duration [s] (sim.t_end)")
-    run.add_argument("--dt", type=float, help="integration step [s] (sim.dt)")
+    run.add_argument("--t-end", type=_number_flag, help="simulated duration [s] (sim.t_end)")
+    run.add_argument("--dt", type=_number_flag,
+                     help="integration step [s] (sim.dt; impact scenes: the output interval sim.output_dt)")
     _set_arg(run)
+    _mesh_dir_arg(run)
     run.add_argument("--out", type=Path, help="trajectory file (.npz); default out/<scene>.npz")
     run.add_argument("--no-progress", action="store_true", help="never draw the progress bar")
     run.add_argument("--record", type=Path, metavar="FILE.rrd", help="also write a rerun recording of the run")
@@ -58,6 +93,7 @@ def _parser() -> argparse.ArgumentParser:
     view = sub.add_parser("view", help="animate a scene live in the browser (viser)")
     view.add_argument("scene", type=Path)
     _set_arg(view)
+    _mesh_dir_arg(view)
     view.add_argument("--record", type=Path, metavar="FILE.rrd", help="write a rerun recording of the viewed run")
     _viewer_args(view)
     view.set_defaults(func=cmd_view)
@@ -68,23 +104,25 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="work-precision benchmark of methods on a scene")
     bench.add_argument("scene", type=Path)
     bench.add_argument("--methods", required=True, help="comma-separated method strings, e.g. rk4,dopri5,ali3p+quaternion")
-    bench.add_argument("--dt", help="comma-separated steps [s] for fixed-step methods")
-    bench.add_argument("--tol", help="comma-separated relative tolerances for dopri5/dop853")
+    bench.add_argument("--dt", type=_positive_list("--dt"), help="comma-separated steps [s] for fixed-step methods")
+    bench.add_argument("--tol", type=_positive_list("--tol"), help="comma-separated relative tolerances for dopri5/dop853")
     _report_args(bench, "bench")
     bench.set_defaults(func=cmd_bench)
     stab = sub.add_parser("stability", help="map where methods fail (largest stable step, failure reasons)")
     stab.add_argument("scene", type=Path)
     stab.add_argument("--methods", default="", help="comma-separated method strings (multibody scenes)")
     stab.add_argument("--sweep", help="key.path=V1,V2,...: find the largest stable step at each value")
-    stab.add_argument("--dt", type=float, help="step of the runs without --sweep (default: the scene's)")
+    stab.add_argument("--dt", type=_positive_flag, help="step of the runs without --sweep (default: the scene's)")
     _report_args(stab, "stability")
     stab.set_defaults(func=cmd_stability)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
     _set_arg(check)
+    _mesh_dir_arg(check)
     check.set_defaults(func=cmd_check)
     lst = sub.add_parser("list", help="list scenes, integrators, formulations, rotations, joints, forces")
     lst.add_argument("--format", action="store_true", help="print the scene file reference instead")
+    lst.add_argument("--scenes", type=Path, help="folder of scene files to list (default: ./scenes, else the repository's)")
     lst.set_defaults(func=cmd_list)
     return p
 
@@ -107,40 +145,70 @@ def flag_type(check, expected: str | None = None):
     return convert
 
 
+def _number_flag(text: str) -> float:
+    """A flag's number, any sign: its own range is checked with the scene key it sets (one validation)."""
+    from viz3d.scene.schema import number
+
+    return flag_type(number)(text)
+
+
+def _positive_flag(text: str) -> float:
+    from viz3d.scene.schema import positive
+
+    return flag_type(positive)(text)
+
+
+def _positive_list(flag: str):
+    """``type=`` of a comma-separated list of positive numbers (``--dt 1e-3,5e-4``)."""
+    from viz3d.scene.schema import positive
+
+    check = flag_type(positive)
+
+    def convert(text: str) -> list[float]:
+        return [check(x.strip()) for x in text.split(",") if x.strip()] or check("")
+
+    return convert
+
+
+def _mesh_dir_arg(p) -> None:
+    p.add_argument("--mesh-dir", dest="mesh_dirs", action="append", default=[], type=Path, metavar="DIR",
+                   help="also allow mesh files from this folder (scenes may only read files below their own folder)")
+
+
 def _set_arg(p, help="override a scene value, e.g. --set chain.n=20 --set sim.integrator=heun") -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE", help=help)
 
 
 def _report_args(p, kind: str) -> None:
     """Options shared by ``bench`` and ``stability``."""
-    p.add_argument("--t-end", type=float, help="simulated duration [s] (default: the scene's)")
+    from viz3d.scene.schema import positive
+
+    p.add_argument("--t-end", type=flag_type(positive), help="simulated duration [s] (default: the scene's)")
     p.add_argument("--out", type=Path, help=f"output directory (default out/{kind}/<scene>)")
     _set_arg(p, "scene overrides applied to every run")
-
-
-def _floats(text: str | None) -> list[float] | None:
-    return None if not text else [float(x) for x in text.split(",")]
 
 
 def cmd_bench(args) -> int:
     from viz3d.bench import bench, save
 
     methods = [m.strip() for m in args.methods.split(",")]
-    return _report(lambda: bench(args.scene, methods, _floats(args.dt), _floats(args.tol), args.t_end,
-                                 overrides=args.overrides),
-                   save, args.out or Path("out") / "bench" / args.scene.stem)
+    out = _writable_dir(args.out or Path("out") / "bench" / args.scene.stem, "bench")
+    return _report(lambda: bench(args.scene, methods, args.dt, args.tol, args.t_end, overrides=args.overrides),
+                   save, out)
 
 
 def cmd_stability(args) -> int:
     from viz3d.stability import save, stability
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    out = _writable_dir(args.out or Path("out") / "stability" / args.scene.stem, "stability")
     return _report(lambda: stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides),
-                   save, args.out or Path("out") / "stability" / args.scene.stem)
+                   save, out)
 
 
 def _report(make, save, out: Path) -> int:
-    """Run ``make()`` (a bench or stability report), print its table and save it into ``out``."""
+    """Run ``make()`` (a bench or stability report), print its table and save it into ``out``
+    (into a temporary folder if ``out`` cannot be written: a computed report is never lost)."""
     from viz3d.methods import MethodError
 
     try:
@@ -149,32 +217,85 @@ def _report(make, save, out: Path) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(report.markdown())
-    for path in save(report, out):
+    try:
+        paths = save(report, out)
+    except OSError as exc:
+        fallback = Path(tempfile.mkdtemp(prefix="viz3d-report-"))
+        print(f"error: cannot write the report into {out} ({exc}); writing it into {fallback} instead", file=sys.stderr)
+        paths = save(report, fallback)
+    for path in paths:
         print(f"wrote {path}")
     return 0
 
 
+def _writable_dir(out: Path, kind: str) -> Path:
+    """``out`` if a file can be created in it, else a new temporary folder (said at once, before
+    any computing, so nothing computed is lost to an unwritable path)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+        return out
+    except OSError as exc:
+        fallback = Path(tempfile.mkdtemp(prefix=f"viz3d-{kind}-"))
+        print(f"error: cannot write into {out} ({exc}); the {kind} report will be written into {fallback}",
+              file=sys.stderr)
+        return fallback
+
+
+def _writable_file(path: Path, suffix: str) -> Path:
+    """``path`` if it can be created, else a new temporary file with ``suffix`` (said at once)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        existed = path.exists()
+        with open(path, "ab"):
+            pass
+        if not existed:
+            path.unlink()
+        return path
+    except OSError as exc:
+        fd, name = tempfile.mkstemp(prefix=f"{path.stem}-", suffix=suffix)
+        os.close(fd)
+        print(f"error: cannot write {path} ({exc}); writing {name} instead", file=sys.stderr)
+        return Path(name)
+
+
 def _viewer_args(p) -> None:
+    from viz3d.scene.schema import positive
+
     p.add_argument("--host", default="127.0.0.1", help="interface to serve on (default: loopback only)")
-    p.add_argument("--port", type=int, default=8080, help="port (0 picks a free one; the real URL is printed)")
-    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
-    p.add_argument("--paused", action="store_true", help="start paused")
-    p.add_argument("--duration", type=float, help="quit after this many wall-clock seconds (scripted use)")
+    p.add_argument("--port", type=flag_type(port_number), default=8080,
+                   help="port (0 picks a free one; a busy one is replaced by the next free one; the real URL is printed)")
+    p.add_argument("--speed", type=flag_type(positive),
+                   help="simulated seconds per wall-clock second (default: the scene's [display] speed, else 1)")
+    p.add_argument("--paused", action="store_true", help="stay paused when the browser connects")
+    p.add_argument("--duration", type=flag_type(positive), help="quit after this many wall-clock seconds (scripted use)")
+
+
+def port_number(x):
+    """Scene-checker style (``viz3d.scene.schema``) check of a TCP port: an integer 0..65535."""
+    from viz3d.scene.schema import Invalid
+
+    if isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 65535:
+        raise Invalid("an integer 0..65535")
+    return x
 
 
 def cmd_run(args) -> int:
-    from viz3d.scene.load import load_scene
-    from viz3d.simulate import simulate, with_sim
+    from viz3d.scene.load import load_scene, with_sim
+    from viz3d.simulate import simulate
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = with_sim(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), t_end=args.t_end, dt=args.dt)
     if args.view:
-        return _view(with_sim(scene, t_end=args.t_end, dt=args.dt), args)
-    sinks = [_recorder(args.record)] if args.record else []
+        return _view(scene, args)
+    record = _writable_file(args.record, ".rrd") if args.record else None
+    print(run_header(scene), flush=True)
+    sinks = [_recorder(record)] if record else []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        traj = simulate(scene, t_end=args.t_end, dt=args.dt, progress=not args.no_progress, sinks=sinks)
-    if args.record:
-        print(f"recorded    {args.record}  (replay: viz3d replay {args.record})")
+        traj = simulate(scene, progress=not args.no_progress, sinks=sinks)
+    if record:
+        print(f"recorded    {record}  (replay: viz3d replay {record})")
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     out = save_or_fallback(traj, args.out or Path("out") / f"{scene.name}.npz", scene.name)
@@ -205,29 +326,38 @@ def _recorder(path: Path):
 def cmd_view(args) -> int:
     from viz3d.scene.load import load_scene
 
-    return _view(load_scene(args.scene, args.overrides), args)
+    return _view(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), args)
 
 
 def _view(scene, args) -> int:
-    import time
-
+    """Serve ``scene`` live; the run starts when the first browser connects. An address that
+    cannot be served is refused before anything starts (exit code 2, nothing left running)."""
     from viz3d.realtime import SimRunner
-    from viz3d.viz.viewer_viser import Viewer
+    from viz3d.viz.viewer_viser import ServeError, Viewer, check_address
 
-    sinks = [_recorder(args.record)] if args.record else []
-    runner = SimRunner(scene, speed=args.speed, playing=not args.paused, sinks=sinks)
-    viewer = Viewer(runner, host=args.host, port=args.port)
-    url = viewer.start()
-    print(f"viz3d viewer: open {url} in a browser  (scene {scene.name}; Ctrl-C to stop)", flush=True)
     try:
-        if args.duration is not None:
-            time.sleep(args.duration)
-        else:
-            viewer.wait()
+        check_address(args.host, args.port)
+    except ServeError as exc:
+        print(f"error: argument --host/--port: {exc}", file=sys.stderr)
+        return 2
+    record = _writable_file(args.record, ".rrd") if args.record else None
+    runner = SimRunner(scene, speed=args.speed, playing=not args.paused, sinks=[_recorder(record)] if record else [])
+    try:
+        viewer = Viewer(runner, host=args.host, port=args.port)
+    except ServeError as exc:  # lost a race for the address since the check
+        runner.stop()
+        print(f"error: argument --host/--port: {exc}", file=sys.stderr)
+        return 2
+    url = viewer.start()
+    busy = f"; port {args.port} is busy" if args.port and viewer.port != args.port else ""
+    print(f"viz3d viewer: open {url} in a browser{busy}  (scene {scene.name}, speed {runner.speed:g}x; "
+          f"the run starts when a browser connects; Ctrl-C to stop)", flush=True)
+    try:
+        viewer.wait(args.duration)
     finally:
         viewer.stop()
-        if args.record:
-            print(f"recorded {args.record}  (replay: viz3d replay {args.record})")
+        if record:
+            print(f"recorded {record}  (replay: viz3d replay {record})")
     return 0
 
 
@@ -259,6 +389,20 @@ def _rerun_version() -> str:
     return version("rerun-sdk")
 
 
+def run_header(scene) -> str:
+    """The line ``viz3d run`` prints before it builds and runs (so a long run says what it does)."""
+    sim = scene.data["sim"]
+    if scene.kind == "impact":
+        how = f"adaptive dopri5 with event location, rtol = {sim['rtol']:g}, output every {sim['output_dt']:g} s"
+    elif "rtol" in sim:
+        how = f"adaptive {sim['integrator']}, rtol = {sim['rtol']:g}, output every {sim['dt']:g} s"
+    else:
+        import math
+
+        how = f"{math.ceil(sim['t_end'] / sim['dt'] - 1e-9)} steps of {sim['integrator']}, dt = {sim['dt']:g} s"
+    return f"running     {scene.name} to t = {sim['t_end']:g} s: {how}"
+
+
 def summary(traj, out: Path) -> str:
     """The run summary printed by ``viz3d run``."""
     meta = traj.scene["run"]
@@ -283,26 +427,46 @@ def summary(traj, out: Path) -> str:
 
 
 def impact_summary(traj, out: Path) -> str:
-    """Summary of an impact run: model, events, restitution, peak force, energy ledger."""
+    """Summary of an impact run: model, contacts as the physics defines them (with what the model
+    cannot resolve), the bodies' restitution, peak force, energy ledger."""
     import numpy as np
 
     meta, x = traj.scene["run"], traj.extras
     e_req = float(x["restitution_requested"])
     req = f"; requested {e_req:g}" if np.isfinite(e_req) else ""
     per = x["contact_restitution"]
-    per_txt = ", ".join(f"{e:.4f}" for e in per[:6]) + (", ..." if len(per) > 6 else "")
+    per_txt = ", ".join(f"{e if abs(e) >= 5e-5 else 0.0:.4f}" for e in per[:6]) + (", ..." if len(per) > 6 else "")
     scale = float(max(np.max(np.abs(traj.energy_total), initial=0.0), np.max(traj.energy_kinetic, initial=0.0)))
     balance = float(np.max(np.abs(x["energy_balance_error"]))) if traj.t.size else 0.0
     sim_time = float(traj.t[-1]) if traj.t.size else 0.0
+    tau = float(x.get("contact_resolution", 0.0))
+    breaks, touches = int(np.sum(x.get("contact_breaks_unresolved", 0))), len(x.get("contact_touches_unresolved", ()))
+    unresolved = (f" ({breaks} breaks and {touches} touches shorter than {tau * 1e6:.3g} us, the period of the model's "
+                  f"highest mode, which it cannot resolve: Gibbs ringing of the truncated modes, merged or left out)"
+                  if breaks or touches else "")
+    dv, de = float(x.get("impactor_velocity_uncertainty", 0.0)), float(x.get("restitution_uncertainty", np.nan))
+    v_end = float(x["impactor_velocity"][-1])
+    v_txt = f"{v_end:.4g}" + (f" +- {dv:.2g}" if dv > 0 else "") + " m/s along the normal"
+    if dv > 0:
+        v_txt += (" (+-: velocity jumps of instantaneous impulses on the modal bar, shorter than it can resolve"
+                  + ("; the sign of the final motion is not resolved)" if abs(v_end) < dv else ")"))
+    e_txt = f"{float(x['restitution']):.4f}" + (f" +- {de:.2g}" if np.isfinite(de) and de > 0 else "")
+    speeds = np.asarray(x.get("impact_speeds", np.zeros((0, 2))), float).reshape(-1, 2)
+    if len(speeds):
+        e_txt += (f" of the bodies' rigid motion (impact 1 of {len(speeds)}: approaching at {speeds[0, 0]:.4g} m/s "
+                  f"before its first contact, {-speeds[0, 1]:.4g} m/s apart after its last)")
+    else:
+        e_txt += " (no contact)"
     lines = [
         f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
         f"method      {meta['integrator']}, rtol = {meta['rtol']:g}; bar: {x['model_choice']}",
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
         f"wall time   {traj.wall_time:.3f} s",
-        f"contacts    {int(x['contact_count'])}; peak force {float(np.max(x['contact_force'], initial=0.0)):.4g} N, "
+        f"contacts    {int(x['contact_count'])}{unresolved}; peak force "
+        f"{float(np.max(x['contact_force'], initial=0.0)):.4g} N, "
         f"peak indentation {float(np.max(x['penetration'], initial=0.0)):.4g} m",
-        f"impactor    {float(x['impactor_velocity'][0]):.4g} -> {float(x['impactor_velocity'][-1]):.4g} m/s along the normal",
-        f"restitution {float(x['restitution']):.4f} of the bodies' rigid motion; per contact {per_txt}{req}",
+        f"impactor    {float(x['impactor_velocity'][0]):.4g} -> {v_txt}",
+        f"restitution {e_txt}; per contact {per_txt}{req}",
         f"energy      dissipated {float(x['energy_dissipated'][-1]):.4g} J; balance error {balance:.3g} J "
         f"({balance / scale if scale else 0.0:.2g} of the largest energy, {scale:.4g} J)",
         f"status      {traj.status}",
@@ -327,13 +491,13 @@ def cmd_check(args) -> int:
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                scene = load_scene(path, args.overrides)
+                scene = load_scene(path, args.overrides, mesh_dirs=args.mesh_dirs)
                 what = _check_impact(scene) if scene.kind == "impact" else _check_rigid(build(scene)[0])
             extra = "".join(f"\n  warning: {w.message}" for w in caught)
             print(f"ok     {path}: {what}{extra}")
         except SceneError as exc:
             bad += 1
-            print(f"error  {exc}", file=sys.stderr)
+            print(f"error: {exc}", file=sys.stderr)
     return 2 if bad else 0
 
 
@@ -362,13 +526,27 @@ def cmd_list(args) -> int:
     if args.format:
         print(describe(spec.SCENE_FILE))
         return 0
-    print("scenes:")
-    for path in sorted(SCENES_DIR.glob("*.toml")):
-        print(f"  {path}  {_description(path)}")
+    folder = scenes_folder(args.scenes)
+    if folder is None:
+        print(f"scenes: none in {SCENES_DIR.resolve()} (run from the repository root, or pass --scenes DIR: the "
+              f"repository's scenes/ folder)")
+    else:
+        print(f"scenes ({folder}):")
+        for path in sorted(folder.glob("*.toml")):
+            print(f"  {path.stem:<28} {_description(path)}")
     for title, names in (("integrators", INTEGRATORS), ("formulations", FORMULATIONS), ("rotations", ROTATIONS),
                          ("joints", JOINTS), ("forces", FORCES), ("time functions", TIME_FUNCTIONS)):
         print(f"{title}: {', '.join(names)}")
     return 0
+
+
+def scenes_folder(given: Path | None) -> Path | None:
+    """The folder ``viz3d list`` shows: ``given``, else ./scenes, else the repository's (an
+    editable install), else None."""
+    for folder in ([given] if given is not None else [SCENES_DIR, REPOSITORY_SCENES]):
+        if folder.is_dir() and any(folder.glob("*.toml")):
+            return folder
+    return None
 
 
 def _description(path: Path) -> str:

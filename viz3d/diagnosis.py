@@ -44,12 +44,24 @@ def check_state(system: System, state: State, blowup_speed: float, dt: float) ->
         raise SimulationFailure(_singular(system, state, int(bad[0]), theta, turn))
 
 
+def check_chart(system: System, state: State) -> None:
+    """Raise ``SimulationFailure`` if a body's orientation coordinates are singular at ``state``
+    (plain Euler angles at nutation 0 or pi: a step from there would divide by sin(theta)).
+    Checked before every step, so a body that starts or lands exactly on the pole is diagnosed
+    instead of producing infinities."""
+    _, theta = system.split_q(state.q)
+    bad = np.flatnonzero(system.rotation.singular_bodies(theta))
+    if bad.size:
+        raise SimulationFailure(_singular(system, state, int(bad[0]), theta, None))
+
+
 def _singular(system: System, state: State, b: int, theta, turn) -> str:
     name = system.bodies.names[b]
-    if system.rotation.near_singular(theta)[b]:
-        return (f"t = {state.t:.6g} s: body {name!r}: nutation theta = {theta[b, 1]:.3e} rad at the gimbal lock of "
-                f"{system.rotation.name}: singular Euler-angle rate map (coordinates turn {turn[b]:.3g} rad per step); "
-                f"use sim.rotation = 'euler_switching'")
+    if turn is None or system.rotation.near_singular(theta)[b]:
+        turning = "" if turn is None else f" (coordinates turn {turn[b]:.3g} rad per step)"
+        return (f"t = {state.t:.6g} s: body {name!r}: singular Euler chart: nutation theta = {theta[b, 1]:.3e} rad at "
+                f"the gimbal lock of {system.rotation.name}, where the Euler-angle rate map divides by sin(theta)"
+                f"{turning}; use sim.rotation = 'euler_switching' or 'quaternion'")
     return (f"t = {state.t:.6g} s: body {name!r}: orientation coordinates turn {turn[b]:.3g} rad per step "
             f"(> {MAX_COORDINATE_TURN} rad): the step cannot resolve the rotation; try a smaller sim.dt")
 

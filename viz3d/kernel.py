@@ -9,6 +9,10 @@ Euler angles (plain or chart-switching), the index-1 or Baumgarte formulations a
 Runge-Kutta tableau; ``kernel_for`` returns None for anything else, and the caller then uses the
 NumPy path. tests/numerics/test_kernel.py checks the two against each other to round-off.
 
+Compiled with ``error_model="numpy"``: a division by zero (the Euler-angle rate map at a gimbal
+lock) gives inf or nan, which the step's health check reports, as in the NumPy path; numba's
+default would raise ZeroDivisionError out of the run and lose its frames.
+
 Data layout: everything is packed by ``pack`` into flat float and int arrays once per system
 (``KernelData``); the compiled functions take those arrays and the state ``y = [q, v]`` with
 ``chart`` (nb, 3, 3), exactly as the NumPy path (docs/notation.md).
@@ -154,7 +158,7 @@ def args_of(d: KernelData) -> tuple:
 # ---------------------------------------------------------------------------- compiled pieces
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rot(chart, a, out):
     """out = chart @ Rz(a0) Rx(a1) Rz(a2)."""
     c1, s1 = math.cos(a[0]), math.sin(a[0])
@@ -175,26 +179,26 @@ def _rot(chart, a, out):
             out[i, j] = chart[i, 0] * r[0, j] + chart[i, 1] * r[1, j] + chart[i, 2] * r[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _mv(A, x, out):
     for i in range(3):
         out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _mtv(A, x, out):
     for i in range(3):
         out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _shape(kind, t, f):
     tau = t - f[8]
     if kind == 0:
@@ -210,7 +214,7 @@ def _shape(kind, t, f):
     return 1.0 if (tau >= 0.0 and tau < f[9]) else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _banded_cholesky_solve(ab, n, kd, b):
     """Solve A x = b in place (b), A SPD in upper band storage ab[kd + i - j, j]; False if not SPD."""
     for j in range(n):
@@ -240,7 +244,7 @@ def _banded_cholesky_solve(ab, n, kd, b):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rhs(t, y, chart, mass, inertia, inertia_inv, gravity, joint_body, joint_s, spring_body, spring_s, spring_k,
         load_body, load_info, load_s, load_f, contact_body, contact_f, perm, pair, kd, baumgarte, ydot, ws):
     """``ydot = f(t, y)``; returns False when the constraint matrix is not positive definite.
@@ -448,7 +452,7 @@ def workspace(nb: int, n_c: int, kd: int) -> tuple:
             np.zeros(max(n_c, 1)), np.zeros(max(n_c, 1)), np.zeros((nb + 1, 6)), np.zeros((6, 3)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, switching, max_speed, mass, inertia, inertia_inv,
             gravity, joint_body, joint_s, spring_body, spring_s, spring_k, load_body, load_info, load_s, load_f,
             contact_body, contact_f, perm, pair, kd, baumgarte, centre, centre_R, ws):

@@ -7,7 +7,6 @@ far are kept. Ctrl-C likewise ends the run with status "interrupted ..." and kee
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import sys
@@ -18,7 +17,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from viz3d.constraints import SingularConstraintError, constraint_rows
-from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_state, check_violation, redundant_joints
+from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_chart, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
@@ -26,7 +25,7 @@ from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_s
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
-from viz3d.scene.load import Scene, load_scene
+from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
@@ -109,6 +108,7 @@ class Simulation:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
         cannot go on."""
         target = self.t0 + (self.n_samples + 1) * self.dt
+        check_chart(self.system, self._inner if self.controller is not None else self.state)
         try:
             if self.formulation.integrator is not None:
                 new = self._own_step(target)
@@ -334,16 +334,6 @@ class FrameRecorder:
             chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json, **cost)
 
 
-def with_sim(scene: Scene, **changes) -> Scene:
-    """A copy of ``scene`` with ``sim`` keys changed (``None`` values ignored), recorded as overrides."""
-    changes = {k: v for k, v in changes.items() if v is not None}
-    if not changes:
-        return scene
-    data = json.loads(json.dumps(scene.data))
-    data["sim"].update(changes)
-    return dataclasses.replace(scene, data=data, overrides=scene.overrides + tuple(f"sim.{k}={v}" for k, v in changes.items()))
-
-
 def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None = None, dt: float | None = None,
              progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Run a scene headless and return its ``Trajectory``.
@@ -353,7 +343,8 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     scene : Scene, or a path to a scene file
     overrides : "key.path=value" strings or mapping (only with a path)
     t_end, dt : float, optional
-        Override ``sim.t_end`` and ``sim.dt`` [s].
+        Override ``sim.t_end`` and ``sim.dt`` [s] (on impact scenes ``dt`` is the output interval
+        ``sim.output_dt``), validated as the scene keys are (``SceneError`` otherwise).
     progress : bool
         Draw a progress bar on stderr when the run is projected to take over 2 s.
     sinks : sequence of Sink
@@ -363,11 +354,11 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
         scene = load_scene(scene, overrides)
     elif overrides:
         raise ValueError("overrides apply when loading: use load_scene(path, overrides)")
+    scene = with_sim(scene, t_end=t_end, dt=dt)
     if scene.kind == "impact":
         from viz3d.impact.run import simulate_impact
 
-        return simulate_impact(scene, t_end=t_end, sinks=sinks, progress=progress)
-    scene = with_sim(scene, t_end=t_end, dt=dt)
+        return simulate_impact(scene, sinks=sinks, progress=progress)
     system, state = build(scene)
     sim_cfg = scene.data["sim"]
     formulation = make_formulation(sim_cfg)
@@ -408,6 +399,11 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
         status = str(exc)
     except KeyboardInterrupt:
         status = f"interrupted at t = {sim.state.t:.6g} s"
+    except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly
+        import traceback
+
+        traceback.print_exc()
+        status = f"stopped by an internal error at t = {sim.state.t:.6g} s: {type(exc).__name__}: {exc}"
     finally:
         if bar is not None:
             bar.close()

@@ -23,11 +23,14 @@ from viz3d.scene.schema import (
     nonzero_vec3,
     number,
     one_of,
+    poisson_ratio,
     positive,
     positive_int,
     string,
+    unit_fraction,
     vec3,
 )
+from viz3d.scene.budget import LIMITS
 from viz3d.scene.spec import SCENE
 
 #: Contact models besides the continuous laws of ``NORMAL_LAWS``.
@@ -51,7 +54,7 @@ def vector(x):
 MATERIAL = Table({
     "E": Field(positive, doc="Young's modulus [Pa]"),
     "rho": Field(positive, OPTIONAL, "density [kg/m^3]"),
-    "nu": Field(nonnegative, 0.3, "Poisson's ratio"),
+    "nu": Field(poisson_ratio, 0.3, "Poisson's ratio, in (-1, 0.5)"),
 }, "elastic material")
 
 SECTIONS = {
@@ -62,7 +65,8 @@ SECTIONS = {
                       "depth": Field(positive, doc="extreme-fibre distance x 2 [m]")}, "any section"),
 }
 SECTION = Table({"type": Field(one_of(*SECTIONS), doc=f"one of {list(SECTIONS)}"),
-                 "shear_coefficient": Field(positive, OPTIONAL, "Timoshenko k (default 5/6 rectangle, 9/10 circle)")},
+                 "shear_coefficient": Field(unit_fraction, OPTIONAL,
+                                            "Timoshenko k in (0, 1] (default 5/6 rectangle, 9/10 circle)")},
                 "cross-section", tag="type", variants=SECTIONS)
 
 IMPACT_SIM = Table({
@@ -159,6 +163,7 @@ IMPACT_FILE = Table({
     "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on the bar"),
     "display": Field(DISPLAY, dict, "drawing"),
     "checks": Field(IMPACT_CHECKS, dict, "headless test checks"),
+    "limits": Field(LIMITS, dict, "size limits checked before building"),
 })
 
 __all__ = ["IMPACT_FILE", "CONTACT_MODELS", "string"]

@@ -7,6 +7,8 @@ Order: read TOML -> apply ``--set`` overrides to the raw tables -> expand genera
 from __future__ import annotations
 
 import copy
+import dataclasses
+import json
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +18,8 @@ import numpy as np
 
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene import spec
-from viz3d.scene.schema import SceneError, validate
+from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
+from viz3d.scene.schema import Invalid, SceneError, validate
 
 
 @dataclass(frozen=True)
@@ -31,11 +34,14 @@ class Scene:
         Resolved tables (defaults filled in, generators expanded) after overrides.
     overrides : tuple of str
         The ``key.path=value`` overrides applied, in order.
+    mesh_dirs : tuple of Path
+        Folders besides the scene's own folder tree that mesh files may come from.
     """
 
     path: Path
     data: dict
     overrides: tuple[str, ...] = ()
+    mesh_dirs: tuple[Path, ...] = ()
 
     @property
     def name(self) -> str:
@@ -57,7 +63,8 @@ class Scene:
         return f"{self.path} (with --set {' --set '.join(self.overrides)})"
 
 
-def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | None = None) -> Scene:
+def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | None = None, *,
+               mesh_dirs: Iterable[str | Path] = ()) -> Scene:
     """Read, override, expand and validate a scene file.
 
     Parameters
@@ -67,6 +74,9 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
         List elements are addressed by index or by their ``name`` (``bodies.rod.mass=2``).
         String values are parsed as TOML values (``1e-3``, ``[0, 0, 1]``, ``true``), falling back
         to a plain string (``sim.integrator=rk4``).
+    mesh_dirs : iterable of paths
+        Folders outside the scene's own folder tree that mesh files may be read from (a scene may
+        only name files below its own folder unless the user allows another one explicitly).
 
     Raises
     ------
@@ -75,19 +85,93 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
     """
     path = Path(path)
     pairs = _override_pairs(overrides)
-    texts = tuple(f"{k}={v}" if not isinstance(v, str) else f"{k}={v}" for k, v in pairs)
-    source = str(path) if not texts else f"{path} (with --set {' --set '.join(texts)})"
+    texts = tuple(f"{k}={v}" for k, v in pairs)
+    source = _source(path, texts)
     raw = _read_toml(path)
     for key, value in pairs:
         _set_path(raw, key, value, source)
+    allowed = tuple(Path(d) for d in mesh_dirs)
     if "impactor" in raw:
         from viz3d.impact.spec import IMPACT_FILE
 
-        return Scene(path, validate(raw, IMPACT_FILE, source), texts)
-    raw = expand_generators(raw, source)
-    data = validate(raw, spec.SCENE_FILE, source)
-    _cross_check(data, source)
-    return Scene(path, data, texts)
+        data = validate(raw, IMPACT_FILE, source)
+    else:
+        if "chain" in raw:
+            check_chain_size(raw["chain"] if isinstance(raw["chain"], dict) else {},
+                             validate(raw.get("limits", {}), LIMITS, source, "limits"), source)
+        data = validate(expand_generators(raw, source), spec.SCENE_FILE, source)
+        _cross_check(data, source)
+        _check_mesh_files(data, path, allowed, source)
+    check_consistency(data, source)
+    return Scene(path, data, texts, allowed)
+
+
+def check_consistency(data: dict, source: str) -> None:
+    """Checks across keys of a validated scene: durations and steps that fit together, and the
+    estimated size and cost against ``[limits]`` (``viz3d.scene.budget``)."""
+    sim = data["sim"]
+    step_key = "output_dt" if "impactor" in data else "dt"
+    if sim[step_key] > sim["t_end"]:
+        raise SceneError(source, f"sim.{step_key}", f"at most sim.t_end = {sim['t_end']:g} s", sim[step_key])
+    check_budget(data, source)
+
+
+def with_sim(scene: Scene, **changes) -> Scene:
+    """A copy of ``scene`` with ``sim`` keys changed (``None`` values ignored), validated like the
+    same keys in the file (``--t-end``, ``--dt`` and ``sim.*`` overrides share one validation)
+    and recorded as overrides. On impact scenes ``dt`` is the output interval ``sim.output_dt``
+    (their steps are adaptive, and ``sim.dt`` of an adaptive multibody run means the same).
+
+    Raises
+    ------
+    SceneError
+        Naming the ``sim`` key and what was expected.
+    """
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if "impactor" in scene.data and "dt" in changes:
+        changes["output_dt"] = changes.pop("dt")
+    if not changes:
+        return scene
+    texts = tuple(f"sim.{k}={v!r}" for k, v in changes.items())
+    source = _source(scene.path, scene.overrides + texts)
+    fields = _sim_table(scene).fields
+    data = json.loads(json.dumps(scene.data))
+    for key, value in changes.items():
+        if key not in fields:
+            raise SceneError(source, f"sim.{key}", f"one of the known keys {sorted(fields)} (unknown key)")
+        try:
+            data["sim"][key] = fields[key].check(value)
+        except Invalid as exc:
+            raise SceneError(source, f"sim.{key}", exc.expected, value) from None
+    check_consistency(data, source)
+    return dataclasses.replace(scene, data=data, overrides=scene.overrides + texts)
+
+
+def _sim_table(scene: Scene):
+    if "impactor" in scene.data:
+        from viz3d.impact.spec import IMPACT_FILE
+
+        return IMPACT_FILE.fields["sim"].check
+    return spec.SIM
+
+
+def _source(path: Path, texts: tuple[str, ...]) -> str:
+    return str(path) if not texts else f"{path} (with --set {' --set '.join(texts)})"
+
+
+def _check_mesh_files(data: dict, path: Path, allowed: tuple[Path, ...], source: str) -> None:
+    """Mesh files must lie in the scene's folder tree or in a folder the user allowed."""
+    roots = [path.parent.resolve(), *(d.resolve() for d in allowed)]
+    for i, body in enumerate(data["bodies"]):
+        shape = body.get("shape", {})
+        if shape.get("type") != "mesh":
+            continue
+        target = (path.parent / shape["file"]).resolve()
+        if not any(target.is_relative_to(root) for root in roots):
+            where = " or ".join(str(r) for r in roots)
+            raise SceneError(source, f"bodies[{i}].shape.file",
+                             f"a mesh file inside {where} (allow another folder explicitly with --mesh-dir DIR)",
+                             shape["file"])
 
 
 def _read_toml(path: Path) -> dict:

@@ -75,7 +75,7 @@ def validate(value: Any, spec: Table | ArrayOf, source: str, path: str = "") -> 
     fields = dict(spec.fields)
     if spec.tag is not None:
         tag = value.get(spec.tag, fields[spec.tag].default)
-        if tag not in spec.variants:
+        if not isinstance(tag, str) or tag not in spec.variants:
             raise SceneError(source, _join(path, spec.tag), f"one of {sorted(spec.variants)}", tag)
         fields.update(spec.variants[tag].fields)
     unknown = sorted(set(value) - set(fields))
@@ -130,6 +130,23 @@ def nonnegative(x):
     x = _num(x, "a number >= 0")
     if x < 0:
         raise Invalid("a number >= 0")
+    return x
+
+
+def poisson_ratio(x):
+    """Poisson's ratio of an isotropic elastic material: -1 < nu < 0.5 (positive definite
+    elasticity: E > 0 with a positive shear modulus E / (2 (1 + nu)) and bulk modulus E / (3 (1 - 2 nu)))."""
+    x = _num(x, "a Poisson's ratio in (-1, 0.5)")
+    if not -1.0 < x < 0.5:
+        raise Invalid("a Poisson's ratio in (-1, 0.5)")
+    return x
+
+
+def unit_fraction(x):
+    """A number in (0, 1] (a Timoshenko shear coefficient)."""
+    x = _num(x, "a number in (0, 1]")
+    if not 0.0 < x <= 1.0:
+        raise Invalid("a number in (0, 1]")
     return x
 
 

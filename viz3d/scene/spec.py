@@ -8,6 +8,7 @@ from __future__ import annotations
 from viz3d.coordinates import ROTATIONS
 from viz3d.formulation import FORMULATIONS
 from viz3d.integrators import INTEGRATORS
+from viz3d.scene.budget import LIMITS
 from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
@@ -184,4 +185,5 @@ SCENE_FILE = Table({
     "forces": Field(ArrayOf(FORCE), list, "force elements"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),
     "checks": Field(CHECKS, dict, "headless test checks"),
+    "limits": Field(LIMITS, dict, "size limits checked before building"),
 })

@@ -1,0 +1,125 @@
+"""Size and cost of a scene, estimated from its tables before anything is built.
+
+A scene that would build or run far beyond what a workstation can do (a million chain links, a
+hundred thousand modes, 1e300 steps) is refused at load time with a ``SceneError`` that names the
+key driving the cost and the limit to raise (``--set limits.max_steps=...``), instead of going
+silent for minutes and running out of memory. The limits are the ``[limits]`` table of every
+scene (``LIMITS``, documented in docs/scene_format.md); the estimates are cheap functions of the
+resolved tables, so checking costs nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from viz3d.scene.schema import Field, SceneError, Table, positive_int
+
+LIMITS = Table({
+    "max_bodies": Field(positive_int, 10_000, "rigid bodies after generators are expanded (chain.n counts)"),
+    "max_modes": Field(positive_int, 400, "analytic modes of a flexible bar (400 modes: about 10 s and 0.6 GB to build; "
+                       "the cost grows like n^2.5)"),
+    "max_flexible_coordinates": Field(positive_int, 4_000,
+                                      "finite-element dofs of a flexible bar (4000: about 10 s to build and reduce)"),
+    "max_steps": Field(positive_int, 100_000_000, "integration steps of a fixed-step run, t_end / dt"),
+    "max_frames": Field(positive_int, 2_000_000, "stored output frames, t_end / output_dt"),
+    "max_memory_mb": Field(positive_int, 4_000, "estimated memory of the stored frames [MB]"),
+}, "size limits checked before a scene is built (raise one with --set limits.<key>=<integer>)")
+
+#: Stored bytes per frame (Python objects and small arrays), per rigid body (position, rotation,
+#: Euler angles, velocities: 21 doubles, twice over for the frame and the trajectory) and per joint.
+BYTES_PER_FRAME = 2048
+BYTES_PER_BODY_FRAME = 400
+BYTES_PER_JOINT_FRAME = 100
+#: Stored bytes per coordinate of an impact sample (z, z_dot of both bodies).
+BYTES_PER_COORDINATE_SAMPLE = 32
+#: Default output interval of multibody scenes [s] (viz3d.simulate.DEFAULT_OUTPUT_DT).
+DEFAULT_OUTPUT_DT = 0.01
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What a scene will cost, from its tables.
+
+    Attributes
+    ----------
+    steps : float
+        Fixed integration steps (0 for adaptive runs, whose count the tables do not fix).
+    frames : float
+        Stored output frames.
+    bytes : float
+        Memory of the stored frames [B].
+    """
+
+    steps: float
+    frames: float
+    bytes: float
+
+
+def check_chain_size(raw_chain: dict, limits: dict, source: str) -> None:
+    """Refuse a chain generator longer than ``limits.max_bodies`` before it is expanded."""
+    n = raw_chain.get("n")
+    if isinstance(n, int) and not isinstance(n, bool) and n > limits["max_bodies"]:
+        raise _over(source, "chain.n", f"at most {limits['max_bodies']} links", n, "max_bodies")
+
+
+def check_budget(data: dict, source: str) -> Estimate:
+    """Estimate a validated scene's cost; raise ``SceneError`` on the key that breaks a limit."""
+    limits = data["limits"]
+    sim = data["sim"]
+    t_end = sim["t_end"]
+    if "impactor" in data:
+        return _impact_budget(data, limits, source)
+    n_bodies, n_joints = len(data["bodies"]), len(data["joints"])
+    if n_bodies > limits["max_bodies"]:
+        raise _over(source, "bodies", f"at most {limits['max_bodies']} bodies", n_bodies, "max_bodies")
+    dt = sim["dt"]
+    steps = 0.0 if "rtol" in sim else math.ceil(t_end / dt - 1e-9)
+    if steps > limits["max_steps"]:
+        raise _over(source, "sim.dt", f"a step giving at most {limits['max_steps']} steps over sim.t_end = {t_end:g} s "
+                    f"(t_end / dt = {t_end / dt:.3g})", dt, "max_steps")
+    output_dt = sim.get("output_dt", max(DEFAULT_OUTPUT_DT, dt))
+    frames = t_end / max(output_dt, dt) + 1
+    per_frame = BYTES_PER_FRAME + BYTES_PER_BODY_FRAME * n_bodies + BYTES_PER_JOINT_FRAME * n_joints
+    return _memory_checked(Estimate(steps, frames, frames * per_frame), limits, source,
+                           "sim.output_dt" if "output_dt" in sim else "sim.t_end")
+
+
+def _impact_budget(data: dict, limits: dict, source: str) -> Estimate:
+    bar = data.get("bar")
+    n = 1
+    if bar is not None:
+        key, n = _bar_coordinates(bar)
+        limit = "max_modes" if key == "bar.modes" else "max_flexible_coordinates"
+        what = "analytic modes" if key == "bar.modes" else "finite-element dofs"
+        if n > limits[limit]:
+            raise _over(source, key, f"at most {limits[limit]} {what}", n, limit)
+    frames = data["sim"]["t_end"] / data["sim"]["output_dt"] + 1
+    est = Estimate(0.0, frames, frames * (BYTES_PER_FRAME + BYTES_PER_COORDINATE_SAMPLE * (n + 1)))
+    return _memory_checked(est, limits, source, "sim.output_dt")
+
+
+def _bar_coordinates(bar: dict) -> tuple[str, int]:
+    """The key that sets a bar's size and its number of coordinates (an upper bound)."""
+    if bar.get("model", "modal") == "fe" and "elements" in bar:
+        dofs_per_node = 1 if bar["theory"] == "rod" else 2
+        return "bar.elements", (bar["elements"] + 1) * dofs_per_node
+    if "modes" in bar and bar.get("model", "modal") == "modal":
+        return "bar.modes", bar["modes"]
+    return "bar.tolerance", 0  # chosen from the physics, bounded by the selection itself
+
+
+def _memory_checked(est: Estimate, limits: dict, source: str, key: str) -> Estimate:
+    if est.frames > limits["max_frames"]:
+        raise _over(source, key, f"at most {limits['max_frames']} stored frames (got t_end / output_dt = "
+                    f"{est.frames - 1:.3g})", None, "max_frames")
+    megabytes = est.bytes / 1e6
+    if megabytes > limits["max_memory_mb"]:
+        raise _over(source, key, f"stored frames within {limits['max_memory_mb']} MB (estimated {megabytes:.3g} MB)",
+                    None, "max_memory_mb")
+    return est
+
+
+def _over(source: str, key: str, expected: str, got, limit: str) -> SceneError:
+    hint = f"{expected}; raise the limit with --set limits.{limit}=<integer> if this machine can afford it"
+    return SceneError(source, key, hint) if got is None else SceneError(source, key, hint, got)
