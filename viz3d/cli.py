@@ -338,7 +338,7 @@ def _view(scene, args) -> int:
     try:
         check_address(args.host, args.port)
     except ServeError as exc:
-        print(f"error: argument --host/--port: {exc}", file=sys.stderr)
+        print(f"error: argument {exc.flag}: {exc}", file=sys.stderr)
         return 2
     record = _writable_file(args.record, ".rrd") if args.record else None
     runner = SimRunner(scene, speed=args.speed, playing=not args.paused, sinks=[_recorder(record)] if record else [])
@@ -346,12 +346,13 @@ def _view(scene, args) -> int:
         viewer = Viewer(runner, host=args.host, port=args.port)
     except ServeError as exc:  # lost a race for the address since the check
         runner.stop()
-        print(f"error: argument --host/--port: {exc}", file=sys.stderr)
+        print(f"error: argument {exc.flag}: {exc}", file=sys.stderr)
         return 2
     url = viewer.start()
     busy = f"; port {args.port} is busy" if args.port and viewer.port != args.port else ""
-    print(f"viz3d viewer: open {url} in a browser{busy}  (scene {scene.name}, speed {runner.speed:g}x; "
-          f"the run starts when a browser connects; Ctrl-C to stop)", flush=True)
+    start = "it stays paused until Play" if args.paused else "the run starts when a browser connects"
+    print(f"viz3d viewer: open {url} in a browser{busy}  (scene {scene.name}, speed {runner.speed:g}x; {start}; "
+          f"Ctrl-C to stop)", flush=True)
     try:
         viewer.wait(args.duration)
     finally:

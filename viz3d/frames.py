@@ -59,6 +59,26 @@ class DeformableVisual:
 
 
 @dataclass(frozen=True)
+class StaticVisual:
+    """Fixed geometry drawn with the scene, in world coordinates (e.g. the posts that hold the
+    ground ends of springs).
+
+    Attributes
+    ----------
+    name : str
+    vertices : ndarray, shape (V, 3), float32
+        World positions [m].
+    faces : ndarray, shape (F, 3), int32
+    color : ndarray, shape (3,), uint8
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    color: np.ndarray
+
+
+@dataclass(frozen=True)
 class SceneVisuals:
     """Everything static a viewer or recorder draws.
 
@@ -75,7 +95,7 @@ class SceneVisuals:
     force_scale : float
         Force drawn as an arrow of length ``length_scale`` [N] (the total weight, or 1 N).
     bounds : ndarray, shape (2, 3)
-        Lower and upper corners of the initial scene [m].
+        Lower and upper corners of the initial scene [m] (bodies and static geometry).
     deformables : tuple of DeformableVisual
     plots : tuple of (str, str)
         (title, entity prefix under /plots) of the time-series panels recorders lay out.
@@ -83,6 +103,12 @@ class SceneVisuals:
         Simulated time between drawn frames in recordings [s].
     kind : str
         "rigid" or "impact".
+    statics : tuple of StaticVisual
+        Fixed world geometry (posts under the ground ends of springs).
+    reach : ndarray, shape (k, 4)
+        Spheres ``[x, y, z, radius]`` [m] that bodies held by ground joints cannot leave (one per
+        ground joint: its point and the farthest reach of the bodies hanging from it); with
+        ``bounds``, what a camera must keep in view.
     """
 
     name: str
@@ -98,6 +124,8 @@ class SceneVisuals:
                                           ("Joint reaction force [N]", "reaction_force"))
     display_dt: float = 1.0 / 30.0
     kind: str = "rigid"
+    statics: tuple[StaticVisual, ...] = ()
+    reach: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ queue, and publishes the latest ``Frame``. The runner never waits for the displa
 until simulated time catches up with ``speed x`` wall time (or a frame's worth of wall time is
 spent), publishes a frame at most at the display rate, and measures the real-time factor it
 actually achieves. When it cannot keep up, it drops the backlog instead of stalling, and the
-achieved factor shows it.
+achieved factor shows it. A viewer can hold the run until someone watches (``wait``, then
+``connected``): nothing is simulated and the wall clock does not start before that.
 
 Two drivers share one interface: ``RigidDriver`` (multibody scenes, fixed steps of a
 ``Simulation``) and ``ImpactDriver`` (impact scenes, the event-driven ``ImpactStepper``).
@@ -208,13 +209,16 @@ class Snapshot:
     kind: str = "rigid"
     plots: tuple = ()
     history: np.ndarray = field(default_factory=lambda: np.zeros((0, 1)))  # t, then the plot series
+    waiting: bool = False                # held until a client connects (``wait`` / ``connected``)
 
 
 class SimRunner(threading.Thread):
     """Background thread owning the simulation. Use ``command(name, value)`` from any thread.
 
     Commands: ``play``, ``pause``, ``toggle``, ``step``, ``reset``, ``speed`` (float),
-    ``integrator`` (name), ``dt`` (float), ``formulation`` (name), ``scene`` (path), ``stop``.
+    ``integrator`` (name), ``dt`` (float), ``formulation`` (name), ``scene`` (path), ``stop``;
+    ``wait`` holds the run (no stepping, wall clock not started) until ``connected`` (a viewer
+    sends it when its first client connects; ``playing`` then decides whether it runs).
     """
 
     #: Names the GUI may offer, per setting.
@@ -226,6 +230,7 @@ class SimRunner(threading.Thread):
         self.pause_at_end = pause_at_end
         self.commands: queue.Queue = queue.Queue()
         self.playing, self.display_rate = playing, display_rate
+        self.waiting = False
         self.sinks = list(sinks)
         self.generation = 0
         self.snapshot: Snapshot | None = None
@@ -249,13 +254,19 @@ class SimRunner(threading.Thread):
         self.commands.put((name, value))
 
     def stop(self, timeout: float = 5.0) -> None:
+        """Stop the thread; a runner that was never started closes its sinks here."""
+        if self.ident is None:
+            if not self._stopped.is_set():
+                self._close_sinks()
+                self._stopped.set()
+            return
         self.command("stop")
         self._stopped.wait(timeout)
 
     def run(self) -> None:
         try:
             while self._drain():
-                if self.playing:
+                if self.playing and not self.waiting:
                     self._advance()
                 else:
                     time.sleep(1.0 / self.display_rate)
@@ -314,7 +325,13 @@ class SimRunner(threading.Thread):
             self._publish(force=True)
 
     def _apply(self, name: str, value) -> None:
-        if name in ("play", "pause", "toggle"):
+        if name == "wait":
+            self.waiting = True
+        elif name == "connected":
+            if self.waiting:
+                self.waiting = False
+                self._rebase()  # the wall clock starts now
+        elif name in ("play", "pause", "toggle"):
             self.playing = {"play": True, "pause": False, "toggle": not self.playing}[name]
             self._rebase()
         elif name == "step":
@@ -388,4 +405,4 @@ class SimRunner(threading.Thread):
         if not self._history or frame.t > self._history[-1][0]:
             self._history.append((frame.t, *d.plot_values(frame)))
         self.snapshot = Snapshot(self.generation, d.visuals, frame, self.playing, self.speed, self._rtf(), self.status,
-                                 dict(d.settings), d.kind, d.plots, np.array(self._history))
+                                 dict(d.settings), d.kind, d.plots, np.array(self._history), self.waiting)

@@ -11,8 +11,11 @@ Three maps, each run ending with a reason:
   with their histories charted (e.g. plain Euler angles against charts and quaternions through
   theta = 0; constraint drift without stabilization);
 * **model size on an impact** (impact scene with ``--sweep bar.modes=...``): each run against the
-  finest one: a contact interval of the finest model that the run does not have is missed (one the
-  finest model does not have is spurious); then the restitution.
+  finest one: a contact of the finest model that the run does not have is missed (one the finest
+  model does not have is spurious); then the restitution. Contacts are the runs' own, as the
+  physics defines them at each model's time resolution (``viz3d.contact.intervals``: breaks and
+  touches shorter than the period of the highest mode are not contacts), so ``viz3d run`` and
+  this map count the same.
 
 Reasons: ``ok``, ``diverged`` (non-finite, runaway speed or energy growth), ``singular``
 (gimbal lock, singular matrix), ``no convergence`` (an implicit method's iteration), ``constraint
@@ -29,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from viz3d.bench import body_point_error, common_grid, reference_run, write_report
+from viz3d.contact.intervals import physical_contacts
 from viz3d.methods import method_overrides
 from viz3d.scene.load import load_scene
 from viz3d.simulate import simulate
@@ -40,7 +44,9 @@ DT_MIN, DT_MAX, DESCENT, BISECTIONS = 1e-7, 1e-1, 4.0, 8
 STEPS_MIN = 10
 #: Constraint drift above this [m] makes a run unstable.
 CONSTRAINT_TOL = 1e-2
-#: Contacts closer than this fraction of the finest model's contact span are one contact.
+#: Contacts of two runs closer than this fraction of the finest model's contact span are the same
+#: contact (matching tolerance between models; each run's contacts are already merged at its own
+#: time resolution).
 GAP_FRACTION = 0.01
 #: A restitution differing from the finest model's by more than this counts as an error.
 RESTITUTION_TOL = 0.02
@@ -223,13 +229,15 @@ def _impact_map(path, key, values, t_end, base_over) -> StabilityReport:
     finest = runs[-1]
     ref = finest.extras["contacts"]
     gap = GAP_FRACTION * (np.nanmax(ref[:, [0, 2]]) - ref[0, 0]) if len(ref) else 0.0
-    ref_windows, e_ref = contact_windows(ref, gap), float(finest.extras["restitution"])
+    ref_windows, e_ref = contact_windows(ref, 0.0), float(finest.extras["restitution"])
+    ref_any = ref_windows + _touch_windows(finest)
     rows = []
     for v, tr in zip(values, runs):
         x = tr.extras
-        windows, e = contact_windows(x["contacts"], gap), float(x["restitution"])
-        missed = [w for w in ref_windows if not _overlaps(w, windows, gap)]
-        spurious = [w for w in windows if not _overlaps(w, ref_windows, gap)]
+        windows, e = contact_windows(x["contacts"], 0.0), float(x["restitution"])
+        # an unresolved touch (shorter than the model resolves) neither misses nor adds a contact
+        missed = [w for w in ref_windows if not _overlaps(w, windows + _touch_windows(tr), gap)]
+        spurious = [w for w in windows if not _overlaps(w, ref_any, gap)]
         if not tr.ok:
             reason, detail = "failed", tr.status
         elif missed:
@@ -241,24 +249,25 @@ def _impact_map(path, key, values, t_end, base_over) -> StabilityReport:
         else:
             reason, detail = "ok", f"contacts match and restitution within {RESTITUTION_TOL} of the finest model"
         rows.append(StabilityRow("", v, float("nan"), reason, detail,
-                                 extra={"contacts": len(windows), "restitution": e,
+                                 extra={"contacts": int(x["contact_count"]), "restitution": e,
                                         "peak_force": float(np.max(x["contact_force"]))}))
     return StabilityReport(Path(path).stem, "impact", key, rows)
 
 
 def contact_windows(contacts, gap: float) -> list[tuple[float, float]]:
     """Contact intervals ``(start, end)`` [s] from an impact run's ``contacts`` rows (start, approach
-    speed, end, separation speed), merging those separated by less than ``gap`` [s]: a truncated
-    modal series opens and closes the contact for a few samples (Gibbs oscillation of the contact
-    point's velocity) where the exact solution stays closed."""
-    out: list[list[float]] = []
-    for start, _, end, _ in np.asarray(contacts, float).reshape(-1, 4):
-        end = start if np.isnan(end) else end
-        if out and start - out[-1][1] < gap:
-            out[-1][1] = max(out[-1][1], end)
-        else:
-            out.append([start, end])
-    return [tuple(w) for w in out]
+    speed, end, separation speed), merged at the resolution ``gap`` [s] by the one definition of a
+    contact, ``viz3d.contact.intervals.physical_contacts`` (0: the rows as they are; a run's
+    ``contacts`` are already merged at its model's time resolution). Unfinished contacts end at
+    their start."""
+    rows = physical_contacts(contacts, gap).rows
+    return [(float(s), float(s if np.isnan(e) else e)) for s, _, e, _ in rows]
+
+
+def _touch_windows(traj) -> list[tuple[float, float]]:
+    """Unresolved touches of an impact run (recontacts shorter than its model resolves)."""
+    touches = np.asarray(traj.extras.get("contact_touches_unresolved", np.zeros((0, 4))), float).reshape(-1, 4)
+    return [(float(a), float(b)) for a, _, b, _ in touches]
 
 
 def _overlaps(w, windows, gap) -> bool:

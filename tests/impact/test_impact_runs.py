@@ -147,11 +147,16 @@ def test_model_c_event_driven_balances():
 def test_transverse_tip_impact_on_cantilever_rigid_contact():
     """Digest V14 (thesis 5.5, N7): std cantilever, 2.133 kg at 1 m/s on the tip."""
     traj = viz3d.simulate(SCENES / "impact_cantilever_tip.toml", {"contact.law": "rigid"})
-    c = traj.extras["contacts"]
+    c = traj.extras["contact_events"]  # every interval the model located (the thesis's rigid-contact events)
     assert c[0, 2] == pytest.approx(67e-6, rel=V14_TIME_TOL)          # first contact ends [66.7 us]
     assert c[1, 0] == pytest.approx(77.8e-6, rel=V14_TIME_TOL)        # recontact [75.7 us]
     assert c[-1, 2] - c[0, 0] == pytest.approx(4.07e-3, rel=V14_LOOSE_TOL)  # apparent contact [4.24 ms]
     assert len(c) >= 20                                                # dozens of contacts [48; thesis 66]
+    # contacts as the physics defines them: the 9 us break above is shorter than the period of
+    # the 10th mode (14.2 us), which the model cannot resolve [20 contacts, 18 breaks, 10 touches]
+    x = traj.extras
+    assert x["contacts"][0, 2] > c[1, 0] and int(x["contact_count"]) < len(c)
+    assert int(x["contact_count"]) + len(x["contact_touches_unresolved"]) + int(np.sum(x["contact_breaks_unresolved"])) <= len(c)
     deflection = -(traj.position[:, 0, 2] - traj.position[0, 0, 2])
     assert deflection.max() == pytest.approx(1.164e-3, rel=V14_LOOSE_TOL)  # quasi-static y_L [1.01 mm]
 

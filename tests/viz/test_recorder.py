@@ -112,3 +112,9 @@ def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
     assert len(t) > 100
     traj = viz3d.Trajectory.load(tmp_path / "c.npz")
     assert traj.t[-1] == pytest.approx(t[-1], abs=0.011)
+
+
+def test_posts_are_recorded_as_static_geometry(tmp_path):
+    path = tmp_path / "arm.rrd"
+    viz3d.simulate(SCENES / "robot_arm.toml", t_end=0.01, sinks=[RerunRecorder(path)])
+    assert ("/world/posts", True) in entities(path)

@@ -2,6 +2,7 @@
 meshes and changing poses arriving; the real-time runner obeying its commands."""
 
 import asyncio
+import threading
 import time
 import urllib.request
 
@@ -46,12 +47,22 @@ def _resolve(obj, buffers):
     return obj
 
 
-async def _collect(port: int, seconds: float) -> list[dict]:
+#: What a browser reports once its 3D view is up (viser counts a client as connected from it).
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 3.0, 3.0], "fov": 1.3,
+          "near": 0.01, "far": 1000.0, "image_height": 800, "image_width": 1280, "look_at": [0.0, 0.0, 0.0],
+          "up_direction": [0.0, 0.0, 1.0]}
+
+
+async def _collect(port: int, seconds: float, camera: bool = False, until=None) -> list[dict]:
+    """Messages a websocket client receives in ``seconds`` (or until ``until(messages)``); with
+    ``camera``, it first reports a camera as a browser does."""
     out = []
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[f"viser-v{viser.__version__}"],
                                   max_size=None) as ws:
+        if camera:
+            await ws.send(msgspec.msgpack.encode(CAMERA))
         end = time.monotonic() + seconds
-        while time.monotonic() < end:
+        while time.monotonic() < end and not (until and until(out)):
             try:
                 out.extend(_decode(await asyncio.wait_for(ws.recv(), timeout=0.1))["messages"])
             except asyncio.TimeoutError:
@@ -201,3 +212,160 @@ def test_switch_between_multibody_and_impact_scenes():
         assert wait_for(lambda: runner.snapshot.kind == "rigid" and runner.snapshot.generation == 3)
     finally:
         runner.stop()
+
+
+# ---------------------------------------------------------------- issue 8: start, camera, plots, speed
+
+
+def _last(messages, kind, key, initial=None):
+    """The value ``key`` of the last message of type ``kind`` (optionally with that ``initial`` flag)."""
+    found = [m[key] for m in messages if m["type"] == kind and (initial is None or m.get("initial") == initial)]
+    assert found, f"no {kind} received"
+    return np.asarray(found[-1], float)
+
+
+def test_run_waits_for_the_first_client_then_starts():
+    runner = SimRunner(viz3d.load_scene(SCENES / "chain.toml", ["chain.n=5"]))
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        assert wait_for(lambda: runner.snapshot.waiting), "the runner does not say it waits for a client"
+        time.sleep(0.5)
+        assert runner.snapshot.frame.t == 0.0 and runner.snapshot.waiting   # nothing simulated unseen
+        assert wait_for(lambda: "waiting for a browser" in viewer.status.content), viewer.status.content
+        asyncio.run(_collect(viewer.server.get_port(), 0.5))                # a plain websocket client counts
+        assert wait_for(lambda: runner.snapshot.frame.t > 0.0) and not runner.snapshot.waiting
+    finally:
+        viewer.stop()
+
+
+def test_paused_viewer_stays_paused_when_a_client_connects():
+    runner = SimRunner(viz3d.load_scene(SCENES / "double_pendulum.toml"), playing=False)
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        asyncio.run(_collect(viewer.server.get_port(), 0.5))
+        assert wait_for(lambda: not runner.snapshot.waiting)
+        time.sleep(0.3)
+        assert runner.snapshot.frame.t == 0.0 and not runner.snapshot.playing
+    finally:
+        viewer.stop()
+
+
+def _sphere_in_view(position, look_at, fov, centre, radius):
+    """(angle of the sphere's far edge from the view axis, its angular radius) [rad]."""
+    axis, to_centre = look_at - position, centre - position
+    off_axis = np.arccos(np.clip(axis @ to_centre / np.linalg.norm(axis) / np.linalg.norm(to_centre), -1, 1))
+    half = np.arcsin(min(1.0, radius / np.linalg.norm(to_centre)))
+    return off_axis + half, half
+
+
+def test_camera_frames_the_whole_reach_of_a_hanging_chain():
+    n, link = 50, 0.1
+    viewer = Viewer(SimRunner(viz3d.load_scene(SCENES / "chain.toml", [f"chain.n={n}"])), port=0)
+    try:
+        viewer.start()
+        assert wait_for(lambda: viewer.frames_shown > 0)
+        messages = asyncio.run(_collect(viewer.server.get_port(), 0.5))
+    finally:
+        viewer.stop()
+    position = _last(messages, "SetCameraPositionMessage", "position")
+    look_at = _last(messages, "SetCameraLookAtMessage", "look_at")
+    fov = float(_last(messages, "SetCameraFovMessage", "fov"))
+    anchor, reach = np.array([0.0, 0.0, 1.2]), n * link          # the chain can hang straight down
+    edge, half = _sphere_in_view(position, look_at, fov, anchor, reach)
+    assert edge <= 0.5 * fov + 1e-6, "part of the chain's reach is out of view"
+    assert half >= 0.8 * 0.5 * fov, f"the chain's reach fills only {half / (0.5 * fov):.0%} of the view"
+
+
+def test_scene_change_reframes_connected_browsers():
+    from viz3d.scene.build import build
+    from viz3d.scene.visuals import scene_visuals
+    from viz3d.viz.viewer_viser import CAMERA_FOV, camera_framing
+
+    chain = viz3d.load_scene(SCENES / "chain.toml")
+    position, look_at = camera_framing(scene_visuals(chain, build(chain)[0]), CAMERA_FOV)
+    runner = SimRunner(viz3d.load_scene(SCENES / "double_pendulum.toml"))
+    viewer = Viewer(runner, port=0)
+
+    def moved(out):  # this client's own camera (not the initial one) now looks at the chain
+        looks = [m["look_at"] for m in out if m["type"] == "SetCameraLookAtMessage" and not m.get("initial")]
+        return bool(looks) and np.allclose(looks[-1], look_at, atol=1e-6)
+
+    try:
+        viewer.start()
+        switch = threading.Timer(0.8, lambda: runner.command("scene", str(chain.path)))
+        switch.start()
+        messages = asyncio.run(_collect(viewer.server.get_port(), 30.0, camera=True, until=moved))
+        switch.join()
+    finally:
+        viewer.stop()
+    assert moved(messages), "the connected client's camera was not moved to the new scene"
+    np.testing.assert_allclose(_last(messages, "SetCameraPositionMessage", "position", initial=False), position,
+                               atol=1e-6)
+
+
+def test_plot_values_get_a_unit_prefix_so_axis_labels_stay_short():
+    runner = SimRunner(viz3d.load_scene(SCENES / "impact_clamped_bar.toml"), speed=2e-4)
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        asyncio.run(_collect(viewer.server.get_port(), 0.2))
+        assert wait_for(lambda: runner.snapshot.history[:, 1].max() > 2e3, timeout=30)   # force above 2 kN
+        assert wait_for(lambda: viewer.plots[0].title == "Contact force [kN]"), viewer.plots[0].title
+        force = viewer.plots[0].data[1]
+        assert 1.0 < np.max(np.abs(force)) < 1000.0
+        assert viewer.plots[0].series[0]["label"] in ("t [µs]", "t [ms]")
+        assert np.max(viewer.plots[0].data[0]) < 1000.0
+    finally:
+        viewer.stop()
+
+
+def test_plot_scale_picks_an_engineering_prefix():
+    from viz3d.viz.viewer_viser import unit_scale, with_prefix
+
+    assert unit_scale(39157.0) == (1e-3, "k")
+    assert unit_scale(5.0) == (1.0, "") and unit_scale(0.0) == (1.0, "")
+    assert unit_scale(2.0e-8) == (1e9, "n") and unit_scale(4e-4) == (1e6, "µ")
+    assert with_prefix("Contact force [N]", "k") == "Contact force [kN]"
+    assert with_prefix("Gauge strain [-]", "µ") == "Gauge strain [1e-6]"
+    assert with_prefix("Energy [J]", "") == "Energy [J]" and with_prefix("Count", "k") == "Count [x 1e3]"
+
+
+def test_scene_switch_keeps_the_new_scene_speed_exactly():
+    runner = SimRunner(viz3d.load_scene(SCENES / "double_pendulum.toml"))
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        runner.command("scene", str(SCENES / "impact_bronze_ball.toml"))
+        assert wait_for(lambda: viewer._generation == 2, timeout=60)   # building the bar takes seconds
+        time.sleep(0.3)
+        assert runner.speed == 5e-5 and runner.snapshot.speed == 5e-5   # not 10 ** -4.3 from the slider
+    finally:
+        viewer.stop()
+
+
+@pytest.mark.parametrize("speed", [10.0, 1e-9])
+def test_any_positive_speed_is_accepted_by_the_speed_control(speed):
+    runner = SimRunner(viz3d.load_scene(SCENES / "double_pendulum.toml"), speed=speed)
+    viewer = Viewer(runner, port=0)   # the log10-speed slider used to refuse values outside [-6, 0.6]
+    try:
+        viewer.start()
+        assert wait_for(lambda: viewer.frames_shown > 0)
+        assert runner.speed == speed and viewer.speed.min <= np.log10(speed) <= viewer.speed.max
+    finally:
+        viewer.stop()
+
+
+def test_posts_are_streamed_as_static_meshes():
+    viewer = Viewer(SimRunner(viz3d.load_scene(SCENES / "robot_arm.toml")), port=0)
+    try:
+        viewer.start()
+        assert wait_for(lambda: viewer.frames_shown > 0)
+        messages = asyncio.run(_collect(viewer.server.get_port(), 0.5))
+    finally:
+        viewer.stop()
+    posts = [m for m in messages if m["type"] == "MeshMessage" and m["name"] == "/statics/posts"]
+    assert posts, "no post drawn"
+    z = np.asarray(posts[-1]["props"]["vertices"]).reshape(-1, 3)[:, 2]
+    assert z.min() == pytest.approx(0.0, abs=1e-6) and z.max() >= 1.8

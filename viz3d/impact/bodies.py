@@ -58,6 +58,25 @@ def point_row(model: BarModel, reference: str, x: float) -> FloatArray:
     return np.concatenate([frame, model.displacement([x])[0]])
 
 
+def centre_of_mass_row(model: BarModel, reference: str) -> FloatArray:
+    """Displacement of the bar's centre of mass along the deformation direction per unit ``z``, (n_z,).
+
+    ``(1/m) int rho A (frame motion + u(x)) dx``: the frame's translation (1 per unit), its small
+    rotation about x = 0 (the static moment over the mass per radian) and the elastic mean
+    displacement ``S1 q / m``. The velocity of the centre of mass is the same row times ``zd``.
+    """
+    frame = {"fixed": [], "free": [model.mass] if model.kind == "axial" else [model.mass, model.static_moment],
+             "pinned": [model.static_moment]}[reference]
+    return np.concatenate([frame, model.S1]) / model.mass
+
+
+def modal_time_resolution(model: BarModel) -> float:
+    """Period of the highest mode the model retains [s] (``T/N`` for N axial modes of a bar):
+    nothing shorter is resolved. 0 for a model without elastic frequencies (nothing rings)."""
+    omega = model.frequencies()
+    return 2.0 * np.pi / omega.max() if omega.max() > 0.0 else 0.0
+
+
 def bar_body(name: str, model: BarModel, reference: str, x_contact: float, sign: float,
              frame_velocity: FloatArray | None = None, modal_damping: float = 0.0) -> LinearBody:
     """A bar hit at ``x_contact`` whose contact normal is ``sign`` times its deformation direction.

@@ -15,7 +15,7 @@ from viz3d.contact import laws as L
 from viz3d.contact.parameters import effective_modulus, hertz_stiffness
 from viz3d.flexible import BarModel, Material, Section, analytic_modes, contact_band, fe_model, reduce, select_modes
 from viz3d.flexible.bar import rigid_mode_count
-from viz3d.impact.bodies import bar_body, frame_columns
+from viz3d.impact.bodies import bar_body, frame_columns, modal_time_resolution
 from viz3d.impact.engine import Contact, ImpactProblem, fixed_body, rigid_mass
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
@@ -43,6 +43,8 @@ class ImpactSetup:
     requested_restitution : float or None
     model_choice : str
         How the bar was discretized and why (mode count, truncation estimate).
+    time_resolution : float
+        Period of the bar model's highest mode [s]: nothing shorter is resolved (0 for a wall).
     """
 
     problem: ImpactProblem
@@ -54,6 +56,7 @@ class ImpactSetup:
     gauge_x: np.ndarray
     requested_restitution: float | None
     model_choice: str
+    time_resolution: float = 0.0
 
 
 def build_impact(scene: Scene) -> ImpactSetup:
@@ -84,7 +87,8 @@ def build_impact(scene: Scene) -> ImpactSetup:
     problem = ImpactProblem(impactor, target, Contact(contact_model.model, contact_model.law, contact_model.restitution,
                                                       d["impactor"]["gap"], contact_model.hypothesis))
     return ImpactSetup(problem, model, reference, x_c, side, tuple(g["name"] for g in gauges),
-                       np.array([g["x"] for g in gauges], float), requested, choice)
+                       np.array([g["x"] for g in gauges], float), requested, choice,
+                       modal_time_resolution(model) if model is not None else 0.0)
 
 
 def impactor_motion(imp: dict, src: str) -> tuple[float, float]:

@@ -2,7 +2,8 @@
 
 The bar is a tube of ``SECTIONS`` cross-sections along its axis; each frame moves every section
 by the frame motion plus ``amplification`` times the elastic displacement (axial u or deflection
-w). The impactor is drawn at its true position (its centre moves along the contact normal).
+w). The impactor is drawn at its true position (its centre moves along the contact normal): a
+sphere, or for ``shape = "flat"`` a short cylinder whose flat face is the contact face.
 """
 
 from __future__ import annotations
@@ -108,13 +109,28 @@ def _bar_drawing(setup: ImpactSetup) -> BarDrawing:
     return BarDrawing(x, bar.displacement(x), _ring(setup), gauges)
 
 
+def impactor_mesh(shape: str, radius: float, n: FloatArray):
+    """The impactor about its centre: a sphere of ``radius``, or for "flat" a cylinder of that
+    radius and length whose face at ``+radius`` along the contact normal ``n`` is the contact face
+    (where a sphere would touch: the contact point is ``centre + radius n`` for both)."""
+    import trimesh
+
+    if shape != "flat":
+        return trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    body = trimesh.creation.cylinder(radius=radius, height=radius, sections=32)   # axis z, centred
+    body.apply_translation((0.0, 0.0, 0.5 * radius))                            # face at z = +radius
+    body.apply_transform(trimesh.geometry.align_vectors((0.0, 0.0, 1.0), n))
+    return body
+
+
 def impact_visuals(scene: Scene, setup: ImpactSetup, geo: ImpactGeometry) -> SceneVisuals:
     import trimesh
 
     d = scene.data
-    sphere = trimesh.creation.icosphere(subdivisions=3, radius=geo.radius)
-    bodies = [BodyVisual("impactor", sphere.vertices.astype(np.float32), sphere.faces.astype(np.int32),
-                         np.asarray(d["impactor"]["color"], np.uint8), "impactor", geo.radius)]
+    mesh = impactor_mesh(d["impactor"]["shape"], geo.radius, geo.n)
+    bodies = [BodyVisual("impactor", mesh.vertices.astype(np.float32), mesh.faces.astype(np.int32),
+                         np.asarray(d["impactor"]["color"], np.uint8), "impactor",
+                         float(np.linalg.norm(mesh.vertices, axis=1).max()))]
     deformables = []
     if setup.bar is None:
         size = 20 * geo.radius

@@ -3,6 +3,7 @@
 Layout of the recording (timeline ``sim_time``, a duration in seconds; no ``log_time``):
 
 * ``/world`` (static): view coordinates, z up; ``/world/bodies/<name>/mesh`` (static meshes);
+  ``/world/<static>`` (static world geometry, e.g. ``/world/posts`` under springs' ground ends);
 * ``/world/bodies/<name>``: pose (``Transform3D``), at display rate; ``/world/<deformable>``
   (``Mesh3D`` with the current vertices, e.g. the deformed bar), at display rate;
 * ``/world/joints`` (points), ``/world/springs`` (line strips), ``/world/reactions`` (arrows),
@@ -127,6 +128,9 @@ class RerunRecorder:
             rec.log(f"/world/bodies/{b.name}/mesh", rr.Mesh3D(
                 vertex_positions=b.vertices, triangle_indices=b.faces,
                 albedo_factor=[*b.color.tolist(), 255]), static=True)
+        for st in visuals.statics:
+            rec.log(f"/world/{st.name}", rr.Mesh3D(vertex_positions=st.vertices, triangle_indices=st.faces,
+                                                  albedo_factor=[*st.color.tolist(), 255]), static=True)
         if visuals.kind == "rigid":
             for name, color in (("kinetic", [220, 60, 60]), ("potential", [60, 90, 220]), ("total", [30, 30, 30])):
                 rec.log(f"/plots/energy/{name}", rr.SeriesLines(colors=color, names=name), static=True)

@@ -4,10 +4,19 @@ Bodies with the same geometry are drawn as one batched mesh (one array update pe
 whole batch), so a 50-link chain costs a handful of messages per frame. GUI callbacks run on
 viser's thread pool; they only enqueue commands for the simulation thread (``SimRunner``) and
 never touch the simulation. viser's ``wxyz`` quaternion order is produced here only.
+
+The run is held until the first client connects (what nobody watched is not simulated). Every
+client's camera is pointed at the scene's box and the reach of what hangs from ground joints,
+from a distance where that fits the field of view, when it connects and when the scene changes.
+Plots are drawn in a unit with an SI prefix chosen so tick labels stay short (uPlot prints
+"40,000" or rounds 2e-8 to "0" otherwise).
 """
 
 from __future__ import annotations
 
+import errno
+import math
+import socket
 import threading
 import time
 from pathlib import Path
@@ -24,6 +33,93 @@ PLOT_WINDOW = 10.0
 AXIS_COLORS = np.array([[220, 50, 50], [50, 170, 50], [50, 90, 220]], dtype=np.uint8)
 #: GUI labels of the formulations (names from the runner's ``options``).
 STABILIZATION_LABELS = {"index1": "none (index-1)", "baumgarte": "Baumgarte", "projection": "projection"}
+#: Camera: vertical field of view [rad], direction from the scene towards it, and the margin on
+#: the distance at which the scene's bounding sphere exactly fills the field of view.
+CAMERA_FOV = math.radians(60.0)
+VIEW_DIRECTION = np.array([0.9, -1.3, 0.7]) / np.linalg.norm([0.9, -1.3, 0.7])
+FRAME_MARGIN = 1.1
+#: Range of the log10-speed control (widened to hold any requested speed).
+SPEED_RANGE = (-6.0, 0.6)
+#: SI prefixes of plot units, by power of ten.
+PREFIXES = {-12: "p", -9: "n", -6: "µ", -3: "m", 0: "", 3: "k", 6: "M", 9: "G", 12: "T"}
+#: Width of the plots' y axis [CSS px]: room for a label such as "-1,000".
+Y_AXIS_SIZE = 60
+
+
+class ServeError(OSError):
+    """The viewer cannot serve on the requested address: the message names it and the OS reason,
+    ``flag`` the command-line flag at fault ("--host" or "--port")."""
+
+    def __init__(self, message: str, flag: str = "--host"):
+        super().__init__(message)
+        self.flag = flag
+
+
+def check_address(host: str, port: int) -> None:
+    """Raise ``ServeError`` unless a server socket can be bound on ``host``.
+
+    viser's constructor retries the next port on any ``OSError`` and never returns when every
+    attempt fails (a host that is not an address of this machine), so this is checked first. A
+    busy ``port`` is accepted: viser then serves on the next free one (``Viewer.port``).
+    """
+    try:
+        infos = socket.getaddrinfo(host or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise ServeError(f"cannot serve on host {host!r}: {getattr(exc, 'strerror', None) or exc}") from None
+    except OverflowError:
+        raise ServeError(f"port {port} is not a port number (0..65535)", "--port") from None
+    for family, kind, proto, _, address in infos:
+        with socket.socket(family, kind, proto) as sock:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as asyncio's server does
+            try:
+                sock.bind(address)
+            except OSError as exc:
+                if exc.errno == errno.EADDRINUSE and port < 65535:
+                    continue
+                flag = "--port" if exc.errno in (errno.EACCES, errno.EADDRINUSE) else "--host"
+                raise ServeError(f"cannot serve on host {host!r}, port {port}: {exc.strerror or exc}", flag) from None
+
+
+def view_sphere(visuals: SceneVisuals) -> tuple[np.ndarray, float]:
+    """Centre [m] and radius [m] of a sphere holding the scene's box and every reach sphere."""
+    lo, hi = np.asarray(visuals.bounds, float)
+    reach = np.asarray(visuals.reach, float).reshape(-1, 4)
+    box_lo = np.minimum(lo, (reach[:, :3] - reach[:, 3:]).min(axis=0, initial=np.inf))
+    box_hi = np.maximum(hi, (reach[:, :3] + reach[:, 3:]).max(axis=0, initial=-np.inf))
+    centre = 0.5 * (box_lo + box_hi)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    radius = max(np.max(np.linalg.norm(corners - centre, axis=1)),
+                 np.max(np.linalg.norm(reach[:, :3] - centre, axis=1) + reach[:, 3], initial=0.0))
+    return centre, float(max(radius, 1e-3))
+
+
+def camera_framing(visuals: SceneVisuals, fov: float = CAMERA_FOV) -> tuple[np.ndarray, np.ndarray]:
+    """Camera ``(position, look_at)`` [m] from which ``view_sphere`` fills a vertical field of view
+    ``fov`` [rad] (with ``FRAME_MARGIN``), seen from ``VIEW_DIRECTION``."""
+    centre, radius = view_sphere(visuals)
+    distance = FRAME_MARGIN * radius / math.sin(0.5 * fov)
+    return centre + distance * VIEW_DIRECTION, centre
+
+
+def unit_scale(peak: float) -> tuple[float, str]:
+    """``(factor, prefix)``: values up to ``peak`` (>= 0) times ``factor`` lie in [1, 1000)."""
+    if not (math.isfinite(peak) and peak > 0):
+        return 1.0, ""
+    power = int(min(12, max(-12, 3 * math.floor(math.log10(peak) / 3))))
+    return 10.0 ** -power, PREFIXES[power]
+
+
+def with_prefix(title: str, prefix: str) -> str:
+    """``title`` ("Contact force [N]") with its unit prefixed ("Contact force [kN]"); a unitless
+    quantity ("[-]") gets the power of ten instead ("[1e-6]")."""
+    if not prefix:
+        return title
+    power = next(k for k, v in PREFIXES.items() if v == prefix)
+    head, bracket, unit = title.rpartition(" [")
+    if not (bracket and unit.endswith("]")):
+        return f"{title} [x 1e{power}]"
+    unit = unit[:-1]
+    return f"{head} [{prefix}{unit}]" if unit not in ("-", "") else f"{head} [1e{power}]"
 
 
 class SceneNodes:
@@ -34,10 +130,13 @@ class SceneNodes:
         scene = server.scene
         scene.reset()
         lo, hi = visuals.bounds
-        size = float(max(2.0, 2.5 * np.max(hi - lo)))
+        centre, radius = view_sphere(visuals)
+        size = float(max(2.0, 2.5 * np.max(hi - lo), 3.0 * radius))
         scene.add_grid("/ground", width=size, height=size, plane="xy", cell_size=_nice(size / 20),
-                       section_size=_nice(size / 4), position=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), min(0.0, lo[2])))
+                       section_size=_nice(size / 4), position=(centre[0], centre[1], min(0.0, lo[2])))
         self.groups = self._add_bodies(visuals)
+        for st in visuals.statics:
+            scene.add_mesh_simple(f"/statics/{st.name}", st.vertices, st.faces, color=tuple(int(c) for c in st.color))
         s, w = visuals.length_scale, visuals.thickness
         nj = len(visuals.joint_names)
         self.frames = scene.add_line_segments("/frames", np.zeros((3 * len(visuals.bodies), 2, 3), np.float32),
@@ -55,9 +154,21 @@ class SceneNodes:
         self.contacts = scene.add_arrows("/contacts", np.zeros((1, 2, 3), np.float32), colors=(220, 30, 30),
                                          shaft_radius=0.3 * w, head_radius=0.7 * w, head_length=0.2 * s, visible=False)
         self.peak_force = 0.0
-        extent = float(max(0.3, np.max(hi - lo)))
-        server.initial_camera.position = tuple(0.5 * (lo + hi) + np.array([0.9, -1.3, 0.7]) * extent)
-        server.initial_camera.look_at = tuple(0.5 * (lo + hi))
+        self.camera = camera_framing(visuals, CAMERA_FOV)
+        server.initial_camera.fov = CAMERA_FOV              # for clients that connect later
+        server.initial_camera.position = tuple(self.camera[0])
+        server.initial_camera.look_at = tuple(self.camera[1])
+        far = 4.0 * float(np.linalg.norm(self.camera[0] - self.camera[1]))
+        if far > server.initial_camera.far:
+            server.initial_camera.far = far
+
+    def frame_client(self, client) -> None:
+        """Point a connected client's camera at the scene (viser lists a client, and calls its
+        connect callbacks, once the client has reported its camera)."""
+        position, look_at = self.camera
+        client.camera.fov = CAMERA_FOV
+        client.camera.position = position   # moves look_at along: set look_at after it
+        client.camera.look_at = look_at
 
     def _add_bodies(self, visuals: SceneVisuals) -> list[tuple[object, np.ndarray]]:
         groups: dict[str, list[int]] = {}
@@ -133,25 +244,41 @@ class Viewer:
     ----------
     runner : SimRunner
     host, port : str, int
-        Where to serve (port 0 picks a free port; the real one is in ``url``).
+        Where to serve (port 0 picks a free port, a busy one the next free one; the real one is
+        ``port`` and in ``url``). ``ServeError`` if ``host`` cannot be served on.
     scenes_dir : Path
         Directory listed by the scene picker.
+    wait_for_client : bool
+        Hold the run until the first client (a browser, or any websocket client of viser's
+        protocol) connects; ``runner.playing`` then decides whether it plays.
     """
 
     def __init__(self, runner: SimRunner, host: str = "127.0.0.1", port: int = 8080, scenes_dir: Path | None = None,
-                 display_rate: float = DISPLAY_RATE):
+                 display_rate: float = DISPLAY_RATE, wait_for_client: bool = True):
         import viser
 
+        check_address(host, port)
         self.runner, self.display_rate = runner, display_rate
+        if wait_for_client:
+            runner.command("wait")
         self.server = viser.ViserServer(host=host, port=port, label="viz3d", verbose=False)
-        self.url = f"http://{host}:{self.server.get_port()}"
-        self.scenes_dir = scenes_dir or runner.scene.path.parent
-        self.flags = {"frames": False, "joints": True, "springs": True, "forces": False}
-        self.frames_shown = 0
-        self._stop = threading.Event()
-        self._nodes: SceneNodes | None = None
-        self._generation = -1
-        self._build_gui()
+        try:
+            self.port = self.server.get_port()
+            self.url = f"http://{f'[{host}]' if ':' in host else host}:{self.port}"
+            self.scenes_dir = scenes_dir or runner.scene.path.parent
+            self.flags = {"frames": False, "joints": True, "springs": True, "forces": False}
+            self.frames_shown = 0
+            self._stop = threading.Event()
+            self._nodes: SceneNodes | None = None
+            self._generation = -1
+            self._echo = False      # True while the display sets controls itself (not a user's change)
+            self._plot_units: list[tuple[str, str]] = []
+            self._build_gui()
+            _on_any_connection(self.server, lambda: runner.command("connected"))
+            self.server.on_client_connect(self._frame_client)
+        except BaseException:
+            self.server.stop()
+            raise
         self._thread = threading.Thread(target=self._loop, name="viz3d-display", daemon=True)
 
     # ------------------------------------------------------------------ lifecycle
@@ -164,17 +291,26 @@ class Viewer:
 
     def stop(self) -> None:
         self._stop.set()
-        self._thread.join(timeout=5.0)
+        if self._thread.ident is not None:
+            self._thread.join(timeout=5.0)
         self.runner.stop()
         self.server.stop()
 
-    def wait(self) -> None:
-        """Block until Ctrl-C (or ``stop`` from another thread)."""
+    def wait(self, timeout: float | None = None) -> None:
+        """Block until ``timeout`` [s] has passed (None: forever), Ctrl-C, or ``stop`` from another thread."""
+        end = time.monotonic() + (math.inf if timeout is None else timeout)
         try:
-            while not self._stop.is_set():
-                time.sleep(0.2)
+            while not self._stop.is_set() and time.monotonic() < end:
+                time.sleep(min(0.2, max(0.0, end - time.monotonic())))
         except KeyboardInterrupt:
             pass
+
+    # ------------------------------------------------------------------ clients
+
+    def _frame_client(self, client) -> None:
+        nodes = self._nodes
+        if nodes is not None:
+            nodes.frame_client(client)
 
     # ------------------------------------------------------------------ GUI
 
@@ -186,8 +322,9 @@ class Viewer:
             self.play = gui.add_button("Play / Pause", icon=None)
             step = gui.add_button("Step")
             reset = gui.add_button("Reset")
-            self.speed = gui.add_slider("log10 speed", min=-6.0, max=0.6, step=0.1,
-                                        initial_value=round(float(np.log10(self.runner.speed)), 1),
+            log_speed = _log_speed(self.runner.speed)
+            self.speed = gui.add_slider("log10 speed", min=min(SPEED_RANGE[0], log_speed),
+                                        max=max(SPEED_RANGE[1], log_speed), step=0.1, initial_value=log_speed,
                                         hint="simulated seconds per wall-clock second, as a power of ten")
             settings = {"integrator": "rk4", "dt": 1e-3, "formulation": "index1", **snap.settings}  # impact: none
             self.integrator = gui.add_dropdown("Integrator", self.runner.options["integrator"],
@@ -203,14 +340,19 @@ class Viewer:
             boxes = {key: gui.add_checkbox(key.capitalize(), initial_value=val) for key, val in self.flags.items()}
         self.plots: list = []
 
+        def user(fn):
+            """A control callback that ignores the display's own settings of the control (viser
+            calls callbacks on programmatic changes too: a rounded echo would change the run)."""
+            return lambda _: None if self._echo else fn()
+
         self.play.on_click(lambda _: cmd("toggle"))
         step.on_click(lambda _: cmd("step"))
         reset.on_click(lambda _: cmd("reset"))
-        self.speed.on_update(lambda _: cmd("speed", 10.0 ** self.speed.value))
-        self.integrator.on_update(lambda _: cmd("integrator", self.integrator.value))
-        self.dt.on_update(lambda _: cmd("dt", self.dt.value))
-        self.stabilization.on_update(lambda _: cmd("formulation", self._stab[self.stabilization.value]))
-        self.scene.on_update(lambda _: self._pick_scene(self.scene.value))
+        self.speed.on_update(user(lambda: cmd("speed", 10.0 ** self.speed.value)))
+        self.integrator.on_update(user(lambda: cmd("integrator", self.integrator.value)))
+        self.dt.on_update(user(lambda: cmd("dt", self.dt.value)))
+        self.stabilization.on_update(user(lambda: cmd("formulation", self._stab[self.stabilization.value])))
+        self.scene.on_update(user(lambda: self._pick_scene(self.scene.value)))
         for key, box in boxes.items():
             box.on_update(lambda _, key=key, box=box: self.flags.__setitem__(key, box.value))
 
@@ -236,6 +378,8 @@ class Viewer:
     def _show(self, snap: Snapshot) -> None:
         if snap.generation != self._generation:
             self._nodes = SceneNodes(self.server, snap.visuals)
+            for client in self.server.get_clients().values():
+                self._nodes.frame_client(client)
             self._generation = snap.generation
             self._sync_controls(snap)
         self._nodes.show(snap.frame, self.flags)
@@ -243,14 +387,20 @@ class Viewer:
 
     def _sync_controls(self, snap: Snapshot) -> None:
         """Match the controls to a newly loaded scene: its plots, its speed, what can be changed."""
-        if self.scene.value != self.runner.scene.path.stem and self.runner.scene.path.stem in self.scene.options:
-            self.scene.value = self.runner.scene.path.stem
-        rigid = snap.kind == "rigid"
-        for handle in (self.integrator, self.dt, self.stabilization):
-            handle.disabled = not rigid
-        if rigid:
-            self.integrator.value, self.dt.value = snap.settings["integrator"], float(snap.settings["dt"])
-        self.speed.value = round(float(np.log10(snap.speed)), 1)
+        self._echo = True
+        try:
+            if self.scene.value != self.runner.scene.path.stem and self.runner.scene.path.stem in self.scene.options:
+                self.scene.value = self.runner.scene.path.stem
+            rigid = snap.kind == "rigid"
+            for handle in (self.integrator, self.dt, self.stabilization):
+                handle.disabled = not rigid
+            if rigid:
+                self.integrator.value, self.dt.value = snap.settings["integrator"], float(snap.settings["dt"])
+            log_speed = _log_speed(snap.speed)
+            self.speed.min, self.speed.max = min(SPEED_RANGE[0], log_speed), max(SPEED_RANGE[1], log_speed)
+            self.speed.value = log_speed
+        finally:
+            self._echo = False
         self._build_plots(snap.plots)
 
     def _build_plots(self, spec) -> None:
@@ -259,13 +409,14 @@ class Viewer:
         for handle in self.plots:
             handle.remove()
         colors = ("red", "blue", "black", "green", "purple", "orange")
-        self.plots = []
+        self.plots, self._plot_units = [], []
         for title, labels in spec:
             series = (up.Series(label="t [s]"),) + tuple(
                 up.Series(label=lab, stroke=colors[i % len(colors)], width=2) for i, lab in enumerate(labels))
             self.plots.append(self.server.gui.add_uplot(
                 data=tuple(np.zeros(1) for _ in series), series=series, title=title,
-                scales={"x": {"time": False}}, aspect=1.6))
+                scales={"x": {"time": False}}, axes=({}, {"size": Y_AXIS_SIZE}), aspect=1.6))
+            self._plot_units.append(("", ""))
 
     def _plots(self, snap: Snapshot) -> None:
         h = snap.history
@@ -273,12 +424,42 @@ class Viewer:
             return
         window = PLOT_WINDOW if snap.kind == "rigid" else np.inf
         h = h[h[:, 0] >= h[-1, 0] - window]
+        # time in s for multibody scenes; an impact's microseconds get a prefix (uPlot shows 2e-4 as "0")
+        t_scale, t_prefix = unit_scale(float(np.max(np.abs(h[:, 0])))) if snap.kind == "impact" else (1.0, "")
         col = 1
-        for handle, (_, labels) in zip(self.plots, snap.plots):
-            handle.data = (h[:, 0], *(h[:, col + i] for i in range(len(labels))))
+        for k, (handle, (title, labels)) in enumerate(zip(self.plots, snap.plots)):
+            values = h[:, col:col + len(labels)]
+            scale, prefix = unit_scale(float(np.max(np.abs(values))))
+            if self._plot_units[k] != (t_prefix, prefix):   # a new unit: relabel before new data
+                self._plot_units[k] = (t_prefix, prefix)
+                handle.title = with_prefix(title, prefix)
+                handle.series = ({**handle.series[0], "label": f"t [{t_prefix}s]"}, *handle.series[1:])
+            handle.data = (h[:, 0] * t_scale, *(values[:, i] * scale for i in range(len(labels))))
             col += len(labels)
-        state = "playing" if snap.playing else "paused"
-        status = "" if snap.status == "ok" else f"  \n**{snap.status}**"
-        t_txt = f"{snap.frame.t:.3f} s" if snap.kind == "rigid" else f"{1e6 * snap.frame.t:.1f} us"
-        self.status.content = (f"**{snap.visuals.name}** &nbsp; t = {t_txt} &nbsp; ({state}, speed {snap.speed:.3g}x)"
-                               f"  \nreal-time factor achieved: **{snap.rtf:.2f}**{status}")
+        self.status.content = _status(snap)
+
+
+def _status(snap: Snapshot) -> str:
+    """The panel's status lines."""
+    state = ("waiting for a browser to connect" if snap.waiting else "playing" if snap.playing else "paused")
+    status = "" if snap.status == "ok" else f"  \n**{snap.status}**"
+    t_txt = f"{snap.frame.t:.3f} s" if snap.kind == "rigid" else f"{1e6 * snap.frame.t:.1f} µs"
+    return (f"**{snap.visuals.name}** &nbsp; t = {t_txt} &nbsp; ({state}, speed {snap.speed:.3g}x)"
+            f"  \nreal-time factor achieved: **{snap.rtf:.2f}**{status}")
+
+
+def _log_speed(speed: float) -> float:
+    """The speed control's value: log10 of ``speed``, to its 0.1 step."""
+    return round(math.log10(speed), 1)
+
+
+def _on_any_connection(server, callback) -> None:
+    """Call ``callback()`` when any websocket client of viser's protocol connects, a browser or
+    a script. viser's own ``on_client_connect`` waits for the client's first camera report
+    (0.5-1 s after a browser connects here; never, for a script), so this hooks the websocket
+    server's connection callback instead (viser 1.1.1: ``ViserServer._websock_server``)."""
+    websock = getattr(server, "_websock_server", None)
+    if websock is None:  # a viser without it: its client connection is the next best moment
+        server.on_client_connect(lambda _client: callback())
+        return
+    websock.on_client_connect(lambda _connection: callback())
