@@ -60,7 +60,7 @@ def test_force_is_continuous_at_yield(name):
     a = law.alpha_Y
     fresh = law.onset(V0)
     F_Y = law.K_h * a**1.5
-    assert law.force(a, V0, fresh) == pytest.approx(F_Y, rel=FORMULA_RTOL)
+    assert law.force(a, V0, fresh) == pytest.approx(F_Y, rel=FORMULA_RTOL, abs=0)
     _assert_continuous(lambda h: law.force(a * (1 + h), V0, fresh), F_Y, "above yield")
     _assert_continuous(lambda h: law.force(a * (1 - h), V0, fresh), F_Y, "below yield")
 
@@ -71,7 +71,7 @@ def test_force_is_continuous_at_the_maximum_indentation(name, depth):
     """Unloading starts from the loading force at alpha_m; the memory update does not change the force."""
     law, alpha_m, before, after = _loaded_to_depth(name, depth)
     F_m = law.force(alpha_m, 0.0, before)
-    assert law.force(alpha_m, 0.0, after) == pytest.approx(F_m, rel=FORMULA_RTOL)
+    assert law.force(alpha_m, 0.0, after) == pytest.approx(F_m, rel=FORMULA_RTOL, abs=0)
     _assert_continuous(lambda h: law.force(alpha_m * (1 - h), -V0, after), F_m, "unloading from alpha_m")
     assert law.force(after.alpha_residual, -V0, after) == pytest.approx(0.0, abs=FORMULA_RTOL * F_m)
 
@@ -80,16 +80,16 @@ def test_yigit_christoforou_formulas():
     """(7.6)-(7.10); residual indentation from F_de = 0 (the printed 7.12 is garbled)."""
     law = EXAMPLES["yigit_christoforou"]
     Ep = plane_strain_modulus(E, NU)
-    assert law.K_h == pytest.approx(2.0 / 3.0 * Ep * np.sqrt(R), rel=FORMULA_RTOL)
-    assert law.alpha_Y == pytest.approx(2.72 * np.pi**2 * SIGMA_Y**2 * R / Ep**2, rel=FORMULA_RTOL)
+    assert law.K_h == pytest.approx(2.0 / 3.0 * Ep * np.sqrt(R), rel=FORMULA_RTOL, abs=0)
+    assert law.alpha_Y == pytest.approx(2.72 * np.pi**2 * SIGMA_Y**2 * R / Ep**2, rel=FORMULA_RTOL, abs=0)
     K_Y = 1.5 * law.K_h * law.alpha_Y**0.5
     a_Y, a_m = law.alpha_Y, 30.0 * law.alpha_Y
     mem = _loaded(law, a_m)
     a_r = (a_m**1.5 - a_Y**1.5 - K_Y / law.K_h * (a_m - a_Y)) ** (2.0 / 3.0)
-    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL)
+    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL, abs=0)
     alpha = 0.5 * (a_r + a_m)
     F_de = law.K_h * (alpha**1.5 - a_m**1.5 + a_Y**1.5) + K_Y * (a_m - a_Y)
-    assert law.force(alpha, -V0, mem) == pytest.approx(F_de, rel=FORMULA_RTOL)
+    assert law.force(alpha, -V0, mem) == pytest.approx(F_de, rel=FORMULA_RTOL, abs=0)
     assert law.force(0.99 * a_r, -V0, mem) == 0.0
 
 
@@ -100,9 +100,9 @@ def test_linear_plastic_residual_indentation():
     K_Y = 1.5 * law.K_h * a_Y**0.5
     a_r = a_m - (a_Y**1.5 + K_Y / law.K_h * (a_m - a_Y)) ** (2.0 / 3.0)
     mem = _loaded(law, a_m)
-    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL)
+    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL, abs=0)
     alpha = 0.5 * (a_r + a_m)
-    assert law.force(alpha, -V0, mem) == pytest.approx(law.K_h * (alpha - a_r) ** 1.5, rel=FORMULA_RTOL)
+    assert law.force(alpha, -V0, mem) == pytest.approx(law.K_h * (alpha - a_r) ** 1.5, rel=FORMULA_RTOL, abs=0)
 
 
 def test_power_plastic_unloading_constant_and_residual_indentation():
@@ -116,10 +116,10 @@ def test_power_plastic_unloading_constant_and_residual_indentation():
     K_h2 = 2.0 / 3.0 * Ep * np.sqrt(2.0 * Ep * a2**1.5 / (3.0 * F_m))
     a_r = a_m - (F_m / K_h2) ** (2.0 / 3.0)
     mem = _loaded(law, a_m)
-    assert law.force(a_m, 0.0, law.onset(V0)) == pytest.approx(F_m, rel=FORMULA_RTOL)
-    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL)
+    assert law.force(a_m, 0.0, law.onset(V0)) == pytest.approx(F_m, rel=FORMULA_RTOL, abs=0)
+    assert mem.alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL, abs=0)
     alpha = 0.5 * (a_r + a_m)
-    assert law.force(alpha, -V0, mem) == pytest.approx(K_h2 * (alpha - a_r) ** 1.5, rel=FORMULA_RTOL)
+    assert law.force(alpha, -V0, mem) == pytest.approx(K_h2 * (alpha - a_r) ** 1.5, rel=FORMULA_RTOL, abs=0)
 
 
 @pytest.mark.parametrize("name", PLASTIC)
@@ -127,7 +127,7 @@ def test_no_crater_without_yield(name):
     law = EXAMPLES[name]
     mem = _loaded(law, 0.5 * law.alpha_Y)
     assert mem.alpha_residual == 0.0
-    assert law.force(0.3 * law.alpha_Y, -V0, mem) == pytest.approx(law.K_h * (0.3 * law.alpha_Y) ** 1.5, rel=FORMULA_RTOL)
+    assert law.force(0.3 * law.alpha_Y, -V0, mem) == pytest.approx(law.K_h * (0.3 * law.alpha_Y) ** 1.5, rel=FORMULA_RTOL, abs=0)
 
 
 @pytest.mark.parametrize("name", PLASTIC)
@@ -163,6 +163,6 @@ def test_linear_plastic_with_its_own_unloading_constant_is_eq_7_14():
     a_Y, a_m = law.alpha_Y, 50.0 * law.alpha_Y
     K_Y = 1.5 * law.K_h * a_Y**0.5
     a_r = a_m - ((law.K_h * a_Y**1.5 + K_Y * (a_m - a_Y)) / K_h2) ** (2.0 / 3.0)
-    assert _loaded(law, a_m).alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL)
+    assert _loaded(law, a_m).alpha_residual == pytest.approx(a_r, rel=FORMULA_RTOL, abs=0)
     with pytest.raises(ValueError, match="negative crater"):
         type(base)(base.K_h, base.alpha_Y, 0.5 * base.K_h)

@@ -125,3 +125,73 @@ def przemieniecki_timoshenko_mass(rhoA, rhoI, h, phi):
     r12, r22, r24 = (1 / 10 - f / 2) * h, (2 / 15 + f / 6 + f * f / 3) * h * h, (-1 / 30 - f / 6 + f * f / 6) * h * h
     R = np.array([[6 / 5, r12, -6 / 5, r12], [r12, r22, -r12, r24], [-6 / 5, -r12, 6 / 5, -r12], [r12, r24, -r12, r22]])
     return rhoA * h / (1 + f) ** 2 * T + rhoI / (h * (1 + f) ** 2) * R
+
+
+# ---- round-off of the symmetric-definite eigenproblem ----------------------------------------------
+EPS = float(np.finfo(float).eps)
+
+
+def eigenvalue_roundoff(K, M):
+    """Approximate error bound of the computed eigenvalues of ``K v = lam M v``, relative to each |lam_i| (n,).
+
+    LAPACK Users' Guide (3rd ed., 1999), sec. 4.7.1: a symmetric eigensolver returns eigenvalues within
+    about EPSMCH ||A||_2 of the exact ones (EERRBD) and eigenvector angles within EPSMCH ||A||_2 / gap_i
+    (ZERRBD). The symmetric-definite drivers solve A = L^-1 K L^-T (M = L L^T), whose norm is lam_max,
+    so the relative bound of lam_i is eps lam_max / |lam_i|: eps times the eigenvalue's condition number.
+    (Exact zeros - rigid modes - give inf; their absolute bound is eps lam_max.)
+    """
+    from scipy.linalg import eigh
+
+    lam = eigh(K, M, eigvals_only=True)
+    with np.errstate(divide="ignore"):
+        return EPS * np.abs(lam).max() / np.abs(lam)
+
+
+# ---- uniform meshes of linear rod elements: exact discrete dispersion ------------------------------
+def rod_chain_omega(k, h, c, lumped=False):
+    """omega_h(k) of a uniform chain of 2-node rod elements (element length h, wave speed c) for u_j = sin(k x_j).
+
+    Consistent mass: omega^2 = (6 c^2 / h^2) (1 - cos kh) / (2 + cos kh); lumped: omega = (2 c / h) sin(kh / 2).
+    On a clamped-free uniform mesh with k = (2 i - 1) pi / (2 L) these are the FE eigenvalues exactly:
+    sin(k x) is symmetric about x = L, so the half-element equation of the free end is half an interior
+    one (mirror image). Series: omega_h / omega - 1 = (kh)^2 / 24 + O(h^4) (consistent), -(kh)^2 / 24 (lumped).
+    """
+    k = np.asarray(k, dtype=float)
+    if lumped:
+        return 2 * c / h * np.sin(k * h / 2)
+    return c / h * np.sqrt(6 * (1 - np.cos(k * h)) / (2 + np.cos(k * h)))
+
+
+def rod_end_mass_chain_omegas(L, c, rhoA, n_elements, end_mass, n_roots):
+    """First ``n_roots`` omega of a clamped rod of ``n_elements`` consistent linear elements with a mass at x = L.
+
+    Inside the mesh u_j = sin(k x_j) with omega = rod_chain_omega(k); k is fixed by the equation of the end
+    node, (EA / h)(u_N - u_N-1) = omega^2 [(rho A h / 6)(2 u_N + u_N-1) + m u_N] (the discrete form of
+    k L tan k L = rho A L / m); one root per interval (i pi, i pi + pi / 2) of k L.
+    """
+    from scipy.optimize import brentq
+
+    h = L / n_elements
+
+    def end_equation(kL):
+        k = kL / L
+        w2 = rod_chain_omega(k, h, c) ** 2
+        u_N, u_N1 = np.sin(kL), np.sin(kL - k * h)
+        return rhoA * c**2 / h * (u_N - u_N1) - w2 * (rhoA * h / 6 * (2 * u_N + u_N1) + end_mass * u_N)
+
+    tiny = 1e-9
+    kL = [brentq(end_equation, i * np.pi + tiny, i * np.pi + np.pi / 2 - tiny, xtol=1e-15, rtol=4 * EPS)
+          for i in range(n_roots)]
+    return rod_chain_omega(np.array(kL) / L, h, c)
+
+
+# ---- uniform meshes of Hermite cubic beam elements -----------------------------------------------
+def hermite_chain_error(kh):
+    """Leading relative frequency error omega_h / omega - 1 = (kh)^4 / 1440 of Hermite cubic beam elements.
+
+    Bloch waves on a uniform chain of consistent-mass Hermite elements: omega_h^2 / omega^2 =
+    1 + (kh)^4 / 720 - (kh)^6 / 25200 + O(h^8) (the 2x2 determinant of the element's stiffness and mass
+    matrices, expanded with sympy). Supports add a relative correction of the same order (kh)^2 as the
+    next chain term.
+    """
+    return np.asarray(kh, dtype=float) ** 4 / 1440

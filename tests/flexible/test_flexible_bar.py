@@ -28,10 +28,13 @@ def test_material_derived_quantities():
 
 def test_section_constructors():
     rect = Section.rectangle(0.02, 0.05)
-    assert rect.area == pytest.approx(1e-3) and rect.second_moment == pytest.approx(0.02 * 0.05**3 / 12)
+    # abs=0: pytest.approx adds abs=1e-12 otherwise, 1e-4 of these second moments [m^4]
+    assert rect.area == pytest.approx(1e-3, rel=ROUNDOFF, abs=0)
+    assert rect.second_moment == pytest.approx(0.02 * 0.05**3 / 12, rel=ROUNDOFF, abs=0)
     assert rect.depth == 0.05 and rect.shear_coefficient == pytest.approx(5 / 6)
     circ = Section.circle(0.02)
-    assert circ.area == pytest.approx(np.pi * 1e-4) and circ.second_moment == pytest.approx(np.pi * 0.02**4 / 64)
+    assert circ.area == pytest.approx(np.pi * 1e-4, rel=ROUNDOFF, abs=0)
+    assert circ.second_moment == pytest.approx(np.pi * 0.02**4 / 64, rel=ROUNDOFF, abs=0)
     assert circ.radius_of_gyration == pytest.approx(0.02 / 4)
     with pytest.raises(ValueError):
         Section(1e-4, -1.0, 0.01)

@@ -4,18 +4,28 @@ RK4 step against the closed-form stability limit of RK4 on the linearized stiff 
 reasons reproduced deterministically (divergence, gimbal lock, missed contact) and located where
 the physics puts them."""
 
+import math
+
 import numpy as np
 import pytest
 
 import viz3d
-from viz3d.bench import bench, reference_run
-from viz3d.stability import GAP_FRACTION, contact_windows, largest_stable_step, reason_of, stability
+from viz3d.bench import REFERENCE_RTOL, bench, reference_run
+from viz3d.stability import BISECTIONS, DESCENT, GAP_FRACTION, contact_windows, largest_stable_step, reason_of, stability
 
 from conftest import SCENES
 from references import fixed_point_body
 
 #: RK4's stability interval on the imaginary axis: |h omega| <= 2 sqrt(2).
 RK4_LIMIT = 2.0 * np.sqrt(2.0)
+#: largest_stable_step brackets the limit within this factor (its docstring: 0.5 %).
+SEARCH_RESOLUTION = DESCENT ** (1 / 2**BISECTIONS)
+#: Hertz contact: the linear limit holds at the deepest indentation only, where the tangent stiffness
+#: peaks for a small part of the contact, so the nonlinear run's limit differs from it by an amount the
+#: linearisation does not give; we accept 10 % (a deterministic property of the scene: 0.97-0.98 seen).
+HERTZ_LINEARISATION_TOL = 0.1
+#: ALI3-P and projection iterate until max |C| <= sim.projection_tol = 1e-12 m: 100x that.
+PROJECTED_MAX_C = 1e-10
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +42,11 @@ def test_bench_reference_agrees_with_scipy_dop853_on_the_torque_free_body(torque
     ref, R, W_omega = torque_free_scipy
     assert ref.ok, ref.status
     w = np.linalg.norm(ref.omega[0, 0])
-    assert np.abs(ref.rotation[:, 0] - R).max() < 1e-9  # [measured 6.8e-11; omega 3.2e-11 relative]
-    assert np.abs(ref.omega[:, 0] - W_omega).max() < 1e-9 * w
+    # both DOP853 at rtol 1e-12 keep each step's local error below rtol |y|: without growth along the flow,
+    # each is within n_steps rtol of the solution (scipy assumed to take as many steps)
+    tol = 2 * ref.n_steps * REFERENCE_RTOL
+    assert np.abs(ref.rotation[:, 0] - R).max() < tol
+    assert np.abs(ref.omega[:, 0] - W_omega).max() < tol * w
     # the body does flip within the run (the reference is not a trivial steady spin)
     B_omega = np.einsum("nji,nj->ni", R, W_omega)
     assert np.ptp(B_omega, axis=0).max() > w
@@ -42,7 +55,7 @@ def test_bench_reference_agrees_with_scipy_dop853_on_the_torque_free_body(torque
 def test_bench_errors_are_distances_to_that_reference(torque_free_scipy):
     ref, R, _ = torque_free_scipy
     report = bench(SCENES / "torque_free.toml", ["rk4"], dts=[4e-3, 2e-3], t_end=2.0, progress=False)
-    assert report.reference_self < 1e-9
+    assert report.reference_self < 2 * ref.n_steps * 10 * REFERENCE_RTOL  # rtol 1e-12 against 1e-11, as above
     errors = [row.error for row in report.rows]
     assert all(row.status == "ok" for row in report.rows)
     # the same runs measured against scipy's solution instead
@@ -71,7 +84,8 @@ def test_rk4_stable_step_on_stiff_hertz_contact_is_its_linear_stability_limit(K)
     m = 7850.0 * 4.0 / 3.0 * np.pi * 0.02**3
     v = np.sqrt(2 * 9.81 * 0.005)  # dropped 5 mm
     limit = _hertz_rk4_limit(K, m, v)
-    assert 0.9 * limit < dt < 1.1 * limit, (dt, limit)  # [measured 0.97-0.98 of the limit]
+    assert (1 - HERTZ_LINEARISATION_TOL) / SEARCH_RESOLUTION * limit < dt < (1 + HERTZ_LINEARISATION_TOL) * limit, \
+        (dt, limit)
     assert reason == "diverged" and "energy grew" in detail and "'ball'" in detail, detail
 
 
@@ -87,15 +101,30 @@ def test_rk4_beyond_its_limit_on_a_stiff_contact_is_reported_diverged_and_implic
         assert traj.ok, traj.status
 
 
+def _rk4_damped_limit(omega, zeta):
+    """Largest h with |R(h lam)| <= 1, R the RK4 polynomial, lam = omega (-zeta + i sqrt(1 - zeta^2))."""
+    from scipy.optimize import brentq
+
+    lam = omega * complex(-zeta, np.sqrt(1 - zeta**2))
+    growth = lambda h: abs(sum((h * lam) ** k / math.factorial(k) for k in range(5))) - 1  # noqa: E731
+    return brentq(growth, 2.0 / omega, 3.0 / omega, xtol=1e-16)
+
+
 def test_implicit_methods_lift_rk4s_limit_on_a_stiff_spring():
-    """Spring 1e8 N/m on 1 kg: omega = 1e4 rad/s (damping ratio 1e-4), RK4 stable below 2.83e-4 s."""
+    """Spring 1e8 N/m on 1 kg: omega = 1e4 rad/s (damping ratio 1e-4), RK4 stable below 2.83e-4 s.
+
+    The swing (1 Hz) shifts omega^2 by (2 pi)^2 / 1e8 ~ 4e-7 relative; the search brackets the limit
+    within SEARCH_RESOLUTION below; above it, d|R|/d(h omega) = 2.5 at the limit, so 1 % too large a step
+    grows 7 % per step and diverges within the run's ~1800 steps: we allow 1 % above."""
     scene = SCENES / "stiff_spring.toml"
     dt, reason, _ = largest_stable_step(scene, ["sim.integrator=rk4", "forces.spring.stiffness=1e8"], 0.5)
-    assert 0.97 * RK4_LIMIT / 1e4 < dt < 1.03 * RK4_LIMIT / 1e4, dt  # [measured 2.82e-4]
+    limit = _rk4_damped_limit(1e4, 1e-4)
+    assert limit / SEARCH_RESOLUTION < dt < 1.01 * limit, (dt, limit)
     assert reason in ("diverged", "unresolved rotation")
     for method in ("trapezoidal", "gen_alpha"):
         dt_implicit, *_ = largest_stable_step(scene, [f"sim.integrator={method}", "forces.spring.stiffness=1e8"], 0.5)
-        assert dt_implicit > 10 * dt, (method, dt_implicit)  # [measured 36x trapezoidal, 45x gen_alpha]
+        # A-stable: no linear limit at all; 10x RK4's says the implicit step is not limited by the spring
+        assert dt_implicit > 10 * dt, (method, dt_implicit)  # [36x trapezoidal, 45x gen_alpha]
 
 
 def test_methods_map_through_theta_zero_finds_the_gimbal_lock_where_the_axis_is_vertical():
@@ -108,10 +137,13 @@ def test_methods_map_through_theta_zero_finds_the_gimbal_lock_where_the_axis_is_
     ref = reference_run(SCENES / "top_through_vertical.toml", ["sim.rotation=quaternion"], 5e-4, 0.3)
     theta = np.arccos(np.clip(ref.rotation[:, 0, 2, 2], -1.0, 1.0))
     first_pass = ref.t[np.argmin(np.where(ref.t < 0.2, theta, np.inf))]
+    # the axis stays within NEAR_SINGULAR_SIN = 0.1 of the pole for 0.0985-0.118 s: +-0.01 s around the pass
     assert abs(zxz.t_fail - first_pass) < 0.01, (zxz.t_fail, first_pass)
     for method in ("rk4+euler_switching", "rk4+quaternion"):
         assert rows[method].reason == "ok", rows[method].detail
-        assert rows[method].error < 1e-5  # [5.6e-7 and 4.3e-7 m]
+        # RK4 truncation at dt = 5e-4 over 0.3 s [5.6e-7 and 4.3e-7 m]: deterministic (falls 16x per halving);
+        # 1e-5 m only separates "follows the reference" from a wrong or singular run (~1e-2 m)
+        assert rows[method].error < 1e-5
 
 
 def test_constraint_drift_grows_without_stabilization_and_not_with_it():
@@ -119,8 +151,8 @@ def test_constraint_drift_grows_without_stabilization_and_not_with_it():
                        overrides=["chain.n=5"])
     C = {r.method: r.constraint for r in report.rows}
     assert all(r.reason == "ok" for r in report.rows), [(r.method, r.detail) for r in report.rows]
-    # [measured: rk4 4.5e-5 m, baumgarte 2.2e-6 m, projection 2.2e-13 m, ali3p ~1e-14 m]
-    assert C["rk4+projection"] < 1e-10 and C["ali3p"] < 1e-10
+    # [2026-11-21: rk4 4.5e-5 m, baumgarte 2.2e-6 m, projection 2.2e-13 m, ali3p ~1e-14 m]
+    assert C["rk4+projection"] < PROJECTED_MAX_C and C["ali3p"] < PROJECTED_MAX_C
     assert C["rk4"] > 10 * C["rk4+baumgarte"] and C["rk4"] > 1e4 * max(C["rk4+projection"], C["ali3p"])
     t, drift, _ = report.histories["rk4"]
     assert drift[-1] > drift[len(t) // 4]  # it grows along the run
@@ -140,4 +172,5 @@ def test_impact_map_misses_the_second_contact_with_too_few_modes():
     windows = contact_windows(c, GAP_FRACTION * (np.nanmax(c[:, [0, 2]]) - c[0, 0]))
     T = 2 * 0.3 / np.sqrt(210e9 / 7900)  # L = 0.3 m, steel
     assert len(windows) == 2
+    # 60 modes resolve times to about the period of the last one, T / 59.5 = 0.017 T: two of them
     np.testing.assert_allclose(np.array(windows) / T, [[0.0, 1.534], [2.125, 2.163]], atol=0.03)

@@ -9,8 +9,12 @@ from viz3d.kinematics import twist_from
 
 from systems import moved_pose, pose_along, pose_twist, random_state, random_system
 
+#: Central differences of step h err by h^2 |f'''| / 6 (truncation) + eps |f| / h (round-off). Jacobian:
+#: h = 1e-6 m or rad on O(1) residuals: ~1e-12 + 2e-10; JAC_TOL [m] is 50x the round-off.
 EPS = 1e-6
 JAC_TOL = 1e-8
+#: gamma (second derivative of C along a motion, via a difference of C_dot): h = 1e-4 s balances the two,
+#: ~1e-9 + 2e-12 relative to the largest term; GAMMA_TOL is 500x that.
 GAMMA_EPS = 1e-4
 GAMMA_TOL = 1e-6
 
