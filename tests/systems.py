@@ -1,18 +1,30 @@
-"""Random multibody systems and states for derivative and solver tests (seeded)."""
+"""Random multibody systems and states for derivative and solver tests (seeded).
+
+``random_system(flexible=True)`` adds flexible bars (two on floating frames with bending and axial
+fields, one clamped in the world) joined to the rigid chain at sections of the bars, so every
+derivative test also exercises points on flexible bodies.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from viz3d.bodies import Bodies
+from viz3d.bodies import Bodies, FlexibleBody
 from viz3d.constraints import build_layout
 from viz3d.coordinates import EulerSwitching
+from viz3d.dynamics import body_state, retract
+from viz3d.flexible import Material, Section, analytic_modes, fe_model, reduce
+from viz3d.flexible.floating import floating_bar
 from viz3d.forces import Gravity, SpringDamper
 from viz3d.joints import BallJoint
-from viz3d.kinematics import pose_from, twist_from
-from viz3d.rotations import matrix_from_rotation_vector
+from viz3d.points import body_points
 from viz3d.system import State, System
+
+#: A steel-like bar for the flexible bodies: soft enough that deflections are visible in the tests.
+BAR_LENGTH = 0.8
+BAR_MATERIAL = Material(2e9, 2000.0, 0.3)
+BAR_SECTION = Section.rectangle(0.03, 0.02)
 
 
 def random_inertia(rng, n):
@@ -29,48 +41,111 @@ def ball_joints(rng, pairs, names=None):
     return BallJoint(tuple(names), pairs, rng.normal(scale=0.3, size=(len(pairs), 2, 3)))
 
 
-def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True):
-    """A chain 0-1-...-(nb-1) hung from ground plus ``extra_pairs`` joints, random inertia."""
+def flexible_bars(rng):
+    """Three bars: a free-free bending + axial bar and a pinned-free bending bar on floating frames,
+    and a clamped-free FE bar on a fixed frame (modal units differ: both kinds are exercised)."""
+    bend = analytic_modes("euler_bernoulli", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 3, ("free", "free"))
+    axial = analytic_modes("rod", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 2, ("free", "free"))
+    pinned = analytic_modes("timoshenko", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 2, ("pinned", "free"))
+    clamped = reduce(fe_model("euler_bernoulli", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 6, ("clamped", "free")), 3)
+    bars = [floating_bar(bend, np.array([0.0, 0.0, 1.0]), second=(np.array([1.0, 0.0, 0.0]), axial)),
+            floating_bar(pinned, np.array([0.0, 1.0, 0.0])),
+            floating_bar(clamped, np.array([0.0, 0.6, 0.8]))]
+    return bars, (True, True, False)
+
+
+def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False):
+    """A chain 0-1-...-(nb-1) hung from ground plus ``extra_pairs`` joints, random inertia; with
+    ``flexible``, three flexible bars after the rigid bodies, joined to the chain (and to each other)
+    at random sections."""
     rng = np.random.default_rng(seed)
     names = tuple(f"b{i}" for i in range(nb))
-    bodies = Bodies(names, rng.uniform(0.5, 2.0, nb), random_inertia(rng, nb))
-    pairs = [(0, nb)] + [(i, i - 1) for i in range(1, nb)] + list(extra_pairs)
-    joints = (ball_joints(rng, pairs),)
-    forces = [Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]))]
+    mass, inertia, flex = rng.uniform(0.5, 2.0, nb), random_inertia(rng, nb), ()
+    if flexible:
+        bars, floats = flexible_bars(rng)
+        names += ("f0", "f1", "f2")
+        R0 = Rotation.random(3, random_state=seed + 7).as_matrix()
+        flex = tuple(FlexibleBody(nb + i, bar, fl, rng.normal(size=3), R0[i]) for i, (bar, fl) in enumerate(zip(bars, floats)))
+        mass = np.concatenate([mass, [b.mass for b in bars]])
+        inertia = np.concatenate([inertia, [b.J0 for b in bars]])
+    n_all = len(names)
+    bodies = Bodies(names, mass, inertia, flex)
+    pairs = [(0, n_all)] + [(i, i - 1) for i in range(1, nb)] + list(extra_pairs)
+    if flexible:
+        pairs += [(nb, nb - 1), (nb + 1, nb), (nb + 2, nb + 1), (nb + 1, 0)]
+    joints = (_joints(rng, bodies, pairs),)
+    forces = [Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), flex, sum(fb.n for fb in flex))]
     if springs:
-        sp = np.array([[0, nb], [nb - 1, 0], [1, 2 % nb]])
-        forces.append(SpringDamper(("s0", "s1", "s2"), sp, rng.normal(scale=0.2, size=(3, 2, 3)),
-                                   rng.uniform(10, 100, 3), np.zeros(3), rng.uniform(0.1, 0.5, 3)))
-    return System(bodies, build_layout(joints, nb), tuple(forces), EulerSwitching())
+        sp = [[0, n_all], [nb - 1, 0], [1, 2 % nb]] + ([[nb, n_all], [nb + 2, 1]] if flexible else [])
+        forces.append(_springs(rng, bodies, np.array(sp)))
+    return System(bodies, build_layout(joints, bodies), tuple(forces), EulerSwitching())
+
+
+def _sides(rng, bodies, pairs):
+    """Random attachment points of both sides: offsets on rigid bodies, sections (and small section
+    offsets) on flexible ones."""
+    k = len(pairs)
+    B_s = rng.normal(scale=0.3, size=(k, 2, 3))
+    x = rng.uniform(0.0, BAR_LENGTH, size=(k, 2))
+    for fb in bodies.flexible:
+        on = pairs == fb.index
+        B_s[on] = rng.normal(scale=0.005, size=(int(on.sum()), 3)) * [0.0, 1.0, 1.0]  # in the section plane
+    return B_s, tuple(body_points(bodies, pairs[:, s], B_s[:, s], x[:, s]) for s in (0, 1))
+
+
+def _joints(rng, bodies, pairs):
+    pairs = np.asarray(pairs, dtype=int)
+    B_s, sides = _sides(rng, bodies, pairs)
+    return BallJoint(tuple(f"j{i}" for i in range(len(pairs))), pairs, B_s, sides)
+
+
+def _springs(rng, bodies, pairs):
+    B_s, sides = _sides(rng, bodies, pairs)
+    k = len(pairs)
+    return SpringDamper(tuple(f"s{i}" for i in range(k)), pairs, B_s, rng.uniform(10, 100, k), np.zeros(k),
+                        rng.uniform(0.1, 0.5, k), sides)
 
 
 def random_state(system, seed=1):
-    """Random positions, orientations (through a random chart) and velocities."""
+    """Random positions, orientations (through a random chart), elastic coordinates and velocities."""
     rng = np.random.default_rng(seed)
-    nb = system.n_bodies
-    chart = Rotation.random(nb, random_state=seed).as_matrix()
-    theta = np.column_stack([rng.uniform(-3, 3, nb), rng.uniform(0.7, 2.4, nb), rng.uniform(-3, 3, nb)])
-    q = system.join_q(rng.normal(size=(nb, 3)), theta)
-    return State(0.0, q, rng.normal(size=6 * nb), chart)
+    nf = system.n_frames
+    chart = Rotation.random(nf, random_state=seed).as_matrix()
+    theta = np.column_stack([rng.uniform(-3, 3, nf), rng.uniform(0.7, 2.4, nf), rng.uniform(-3, 3, nf)])
+    eta = _elastic_amplitudes(system, rng)
+    q = system.join_q(rng.normal(size=(nf, 3)), theta, eta)
+    v = rng.normal(size=system.n_v)
+    v[6 * nf:] *= np.concatenate([_mode_scale(fb) for fb in system.bodies.flexible] or [np.zeros(0)]) * 20.0
+    return State(0.0, q, v, chart)
+
+
+def _mode_scale(fb):
+    """Elastic coordinates of about 1 cm deflection for each coordinate (modal units vary)."""
+    return 0.01 / np.sqrt(np.diag(fb.bar.M_ee) / fb.bar.mass)
+
+
+def _elastic_amplitudes(system, rng):
+    parts = [rng.normal(size=fb.n) * _mode_scale(fb) for fb in system.bodies.flexible]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def configuration(system, state):
+    """The ``Configuration`` of ``state``."""
+    return body_state(system, state.q, state.v, state.chart, state.t)
 
 
 def pose_twist(system, state):
-    W_r, theta = system.split_q(state.q)
-    pose = pose_from(W_r, system.rotation.matrix(theta, state.chart))
-    W_v, B_omega = system.split_v(state.v)
-    return pose, twist_from(W_v, B_omega, pose)
+    cfg = configuration(system, state)
+    return cfg.pose, cfg.twist
 
 
-def moved_pose(pose, dx, eps):
-    """Pose displaced by ``eps * dx`` (dx per body [dW_r, B_dphi], shape (nb, 6))."""
-    W_r = pose.W_r[:-1] + eps * dx[:, :3]
-    R = pose.R_WB[:-1] @ matrix_from_rotation_vector(eps * dx[:, 3:])
-    return pose_from(W_r, R)
+def moved(system, state, dx, eps):
+    """``state``'s configuration with positions moved by the velocity-space increment ``eps * dx`` (n_v,)."""
+    return body_state(system, retract(system, state.q, eps * dx, state.chart), state.v, state.chart, state.t)
 
 
-def pose_along(pose, twist, acc, t):
-    """Pose at time ``t`` under constant accelerations ``acc`` (nb, 6), to second order."""
-    v = np.concatenate([twist.W_v[:-1], twist.B_omega[:-1]], axis=1)
-    W_r = pose.W_r[:-1] + t * v[:, :3] + 0.5 * t * t * acc[:, :3]
-    R = pose.R_WB[:-1] @ matrix_from_rotation_vector(t * v[:, 3:] + 0.5 * t * t * acc[:, 3:])
-    return pose_from(W_r, R)
+def along(system, state, acc, t):
+    """Configuration at time ``t`` under constant velocity-space accelerations ``acc`` (n_v,), to
+    second order: positions ``retract(q, t v + t^2 / 2 acc)``, velocities ``v + t acc``."""
+    q = retract(system, state.q, t * state.v + 0.5 * t * t * acc, state.chart)
+    return body_state(system, q, state.v + t * acc, state.chart, state.t + t)

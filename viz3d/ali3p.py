@@ -33,9 +33,10 @@ from scipy.linalg import lu_factor, lu_solve
 
 from viz3d._typing import FloatArray
 from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian
-from viz3d.dynamics import accelerations, body_state, generalized_forces, retract
+from viz3d.dynamics import accelerations, body_state, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import fd_jacobian
+from viz3d.mass import dense_mass_matrix
 from viz3d.system import State, System
 
 #: Iterations of the augmented-Lagrangian Newton loop per attempt.
@@ -84,6 +85,7 @@ class _Point:
     C: FloatArray
     Cv: FloatArray
     Q: FloatArray
+    M: FloatArray
 
 
 def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
@@ -118,13 +120,13 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
     result a reason string if it fails. With ``exact_ok``, an iteration that would not converge
     within ``MAX_ITER`` at its present rate switches to the exact tangent."""
     alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
-    M = mass_matrix(system)
+    M = mass_matrix(system, state)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = memory.lam.copy()
     dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
     lu, step, prev, exact, evals = None, np.inf, np.inf, False, 0
     for it in range(MAX_ITER):
-        p = _evaluate(system, state, memory.v_dot, dx, h, t1)
+        p = _with_mass(_evaluate(system, state, memory.v_dot, dx, h, t1), M)
         evals += 1
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
             return "non-finite state", evals
@@ -140,7 +142,7 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
             if small and np.max(np.abs(p.C), initial=0.0) <= tol:
                 return _finish(system, state, p, W, alpha, h, t1, lam, memory, evals), evals
         prev = step
-        residual = _residual(p, M, alpha, lam, h)
+        residual = _residual(p, alpha, lam, h)
         if lu is None:
             lu = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
         elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
@@ -158,10 +160,11 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     q1 = retract(system, state.q, dx, state.chart)
     v1 = 2.0 / h * dx - state.v
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
-    pose, twist = body_state(system, q1, v1, state.chart)
-    C_v = dense_jacobian(system.joints, constraint_jacobian(system.joints, pose), system.n_bodies)
-    Q = generalized_forces(system, t1, pose, twist)[:-1].reshape(-1)
-    return _Point(q1, v1, a1, constraint_residual(system.joints, pose), C_v, Q)
+    cfg = body_state(system, q1, v1, state.chart, t1)
+    C_v = dense_jacobian(system, *constraint_jacobian(system.joints, cfg))
+    Q = flat_velocity(system, *generalized_forces(system, cfg))
+    M = dense_mass_matrix(system, cfg) if system.n_elastic else None
+    return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
 
 
 def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
@@ -170,8 +173,7 @@ def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) 
     that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent for the next."""
     T = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
     v = lu_solve(T, W @ p.v)
-    pose, twist = body_state(system, p.q, v, state.chart)
-    gamma = constraint_rows(system.joints, pose, twist).gamma
+    gamma = constraint_rows(system.joints, body_state(system, p.q, v, state.chart, t1)).gamma
     a = lu_solve(T, W @ p.a + 0.25 * h * h * alpha * p.Cv.T @ gamma)
     keep = evals <= REFRESH_ITER
     return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
@@ -183,26 +185,27 @@ def _too_slow(step: float, rate: float, tol: float, left: int) -> bool:
     return rate >= 1.0 or step * rate**left > tol
 
 
-def _residual(p: _Point, M, alpha, lam, h) -> FloatArray:
+def _residual(p: _Point, alpha, lam, h) -> FloatArray:
     """Equations of motion at ``t1`` scaled by ``h^2 / 4`` (eq. 3.23), shape (n_v,) [N s^2]."""
-    return 0.25 * h * h * (M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
+    return 0.25 * h * h * (p.M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
 
 
 def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0) -> FloatArray:
     """``d residual / d dx`` at fixed multipliers by forward differences, shape (n_v, n_v):
     everything the seed's tangent (eq. 3.26) leaves out (the geometric stiffness of the constraint
     forces, the rotation kinematics, gyroscopic terms at the iterate) is in it."""
-    return fd_jacobian(lambda x: _residual(_evaluate(system, state, a0, x, h, t1), M, alpha, lam, h), dx, r0)
+    return fd_jacobian(lambda x: _residual(_with_mass(_evaluate(system, state, a0, x, h, t1), M), alpha, lam, h), dx, r0)
 
 
-def mass_matrix(system: System) -> FloatArray:
-    """Dense block-diagonal ``M = diag(m I3, I)`` per body, shape (n_v, n_v) [kg, kg m^2]."""
-    nb = system.n_bodies
-    M = np.zeros((nb, 6, nb, 6))
-    idx = np.arange(nb)
-    M[idx, :3, idx, :3] = system.bodies.mass[:, None, None] * np.eye(3)
-    M[idx, 3:, idx, 3:] = system.bodies.inertia
-    return M.reshape(6 * nb, 6 * nb)
+def _with_mass(p: _Point, M: FloatArray) -> _Point:
+    """``p`` with the constant mass matrix of a rigid system (flexible ones carry their own)."""
+    return p if p.M is not None else _Point(p.q, p.v, p.a, p.C, p.Cv, p.Q, M)
+
+
+def mass_matrix(system: System, state: State) -> FloatArray:
+    """Dense ``M`` (n_v, n_v) at ``state`` [kg, kg m^2, ...]: ``diag(m I3, I)`` per rigid body, the
+    flexible bodies' blocks at their configuration."""
+    return dense_mass_matrix(system, body_state(system, state.q, state.v, state.chart, state.t))
 
 
 def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray
@@ -211,8 +214,7 @@ def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart:
     and gyroscopic forces (``dx``: velocity-space displacement of the positions)."""
 
     def forces(q_, v_):
-        pose, twist = body_state(system, q_, v_, chart)
-        return generalized_forces(system, t, pose, twist)[:-1].reshape(-1)
+        return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t)))
 
     Q0 = forces(q, v)
     K = -fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), np.zeros(system.n_v), Q0)

@@ -1,7 +1,7 @@
 """Constraint rows of all joints and the structured solve of the augmented system.
 
 The augmented system ``[M C_v^T; C_v 0] [v_dot; lam] = [Q; gamma]`` is solved through its Schur
-complement: with the constant block-diagonal ``M^-1``,
+complement: with ``M^-1`` applied block by block (``viz3d.mass``),
 
     A lam = C_v M^-1 Q - gamma,   A = C_v M^-1 C_v^T,   v_dot = M^-1 (Q - C_v^T lam).
 
@@ -9,7 +9,13 @@ complement: with the constant block-diagonal ``M^-1``,
 at most two bodies, so ``A`` is sparse: two rows couple only through a shared body. At build time
 ``ConstraintLayout`` lists those couplings, orders the rows by reverse Cuthill-McKee to shrink the
 bandwidth, and picks a dense (LAPACK ``dposv``) or banded (LAPACK ``dpbsv``, O(n kd^2)) Cholesky
-solve. A chain of N ball joints gives a block-tridiagonal ``A`` with half-bandwidth 5.
+solve. A chain of N ball joints gives a block-tridiagonal ``A`` with half-bandwidth 5. Couplings
+through a rigid body use its constant 6 x 6 inverse; the rows touching a flexible body are coupled
+through its whole block (frame and elastic velocities), factorized once per evaluation.
+
+Row Jacobians are kept split like every generalized vector: a frame part ``J`` (n_c, 2, 6) on the
+twists of the row's two bodies and an elastic part ``Je`` (n_c, 2, n_e) on the stacked elastic
+velocities.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.joints import Joint
-from viz3d.kinematics import Pose, Twist
+from viz3d.kinematics import Configuration
 
 #: Use the banded solver when there are at least this many rows ...
 BANDED_MIN_ROWS = 24
@@ -44,14 +50,41 @@ class ConstraintRows:
     C : ndarray, shape (n_c,)
         Residuals [m].
     J : ndarray, shape (n_c, 2, 6)
-        Velocity-Jacobian blocks of each row on its two bodies.
+        Velocity-Jacobian blocks of each row on its two bodies' twists.
     gamma : ndarray, shape (n_c,)
         Acceleration right-hand side [m/s^2].
+    Je : ndarray, shape (n_c, 2, n_e)
+        Elastic part of each side's Jacobian (zero unless the side is on a flexible body).
     """
 
     C: FloatArray
     J: FloatArray
     gamma: FloatArray
+    Je: FloatArray
+
+
+@dataclass(frozen=True)
+class FlexGroup:
+    """The constraint rows touching one flexible body (build time).
+
+    Attributes
+    ----------
+    flex : int
+        Index of the body among ``Bodies.flexible``.
+    row, side : ndarray of int, shape (m,)
+        The (row, side) entries on the body.
+    pair_a, pair_b : ndarray of int, shape (n_pairs,)
+        Members coupled through the body, upper triangle in solve order (diagonal included).
+    pair_slot : ndarray of int, shape (n_pairs,)
+        Their slots in the dense or banded storage of ``A``.
+    """
+
+    flex: int
+    row: IntArray
+    side: IntArray
+    pair_a: IntArray
+    pair_b: IntArray
+    pair_slot: IntArray
 
 
 @dataclass(frozen=True)
@@ -65,13 +98,17 @@ class ConstraintLayout:
     perm : ndarray of int, shape (n_c,)
         Solve order of the rows (reverse Cuthill-McKee).
     pair_row, pair_side, pair_col, pair_colside : ndarray of int, shape (n_pairs,)
-        Couplings ``A[r, k] += W[r, s] . J[k, l]`` through a shared body, upper triangle in solve
-        order only.
+        Couplings ``A[r, k] += W[r, s] . J[k, l]`` through a shared rigid body, upper triangle in
+        solve order only.
     pair_slot : ndarray of int, shape (n_pairs,)
         Flat index of each coupling in the dense (n_c, n_c) or banded (kd + 1, n_c) storage.
     kd : int
         Half-bandwidth in solve order.
     banded : bool
+    flex_groups : tuple of FlexGroup
+        Couplings through flexible bodies.
+    n_elastic : int
+        Columns of the elastic Jacobian part.
     """
 
     joints: tuple[Joint, ...]
@@ -84,6 +121,8 @@ class ConstraintLayout:
     pair_slot: IntArray
     kd: int
     banded: bool
+    flex_groups: tuple[FlexGroup, ...] = ()
+    n_elastic: int = 0
 
     @property
     def n_rows(self) -> int:
@@ -103,9 +142,17 @@ class ConstraintLayout:
             start = stop
         return out
 
+    def slot(self, i: IntArray, j: IntArray) -> IntArray:
+        """Storage slots of entries ``(i, j)`` given in solve order with ``i <= j``."""
+        n = self.n_rows
+        return (self.kd + i - j) * n + j if self.banded else i * n + j
 
-def build_layout(joints: tuple[Joint, ...], n_bodies: int) -> ConstraintLayout:
-    """Precompute row couplings, ordering and solver choice for ``joints`` on ``n_bodies`` bodies."""
+
+def build_layout(joints: tuple[Joint, ...], bodies, n_elastic: int | None = None) -> ConstraintLayout:
+    """Precompute row couplings, ordering and solver choice for ``joints`` on ``bodies`` (a ``Bodies``,
+    or the number of rigid bodies)."""
+    n_bodies = bodies if isinstance(bodies, (int, np.integer)) else bodies.n_bodies
+    flexible = () if isinstance(bodies, (int, np.integer)) else bodies.flexible
     row_body = np.concatenate(
         [np.repeat(js.body, js.n_eq, axis=0) for js in joints] or [np.zeros((0, 2), int)]
     ).astype(int)
@@ -120,7 +167,26 @@ def build_layout(joints: tuple[Joint, ...], n_bodies: int) -> ConstraintLayout:
     kd = int(np.max(j - i)) if n_c else 0
     banded = n_c >= BANDED_MIN_ROWS and kd <= BANDED_MAX_FRACTION * n_c
     slot = (kd + i - j) * n_c + j if banded else i * n_c + j
-    return ConstraintLayout(tuple(joints), row_body, perm, r_idx, s_idx, k_idx, l_idx, slot, kd, banded)
+    flex_body = np.array([fb.index for fb in flexible], dtype=int)
+    rigid_pair = ~np.isin(row_body[r_idx, s_idx], flex_body)
+    groups = tuple(_flex_group(k, fb.index, row_body, pos, kd, banded) for k, fb in enumerate(flexible)
+                   if np.any(row_body == fb.index))
+    if n_elastic is None:
+        n_elastic = sum(fb.n for fb in flexible)
+    return ConstraintLayout(tuple(joints), row_body, perm, r_idx[rigid_pair], s_idx[rigid_pair], k_idx[rigid_pair],
+                            l_idx[rigid_pair], slot[rigid_pair], kd, banded, groups, n_elastic)
+
+
+def _flex_group(k: int, body: int, row_body: IntArray, pos: IntArray, kd: int, banded: bool) -> FlexGroup:
+    row, side = np.nonzero(row_body == body)
+    a, b = np.meshgrid(np.arange(len(row)), np.arange(len(row)), indexing="ij")
+    a, b = a.ravel(), b.ravel()
+    upper = pos[row[a]] <= pos[row[b]]  # a row with both sides on the body keeps both cross terms
+    a, b = a[upper], b[upper]
+    i, j = pos[row[a]], pos[row[b]]
+    n_c = row_body.shape[0]
+    slot = (kd + i - j) * n_c + j if banded else i * n_c + j
+    return FlexGroup(k, row, side, a, b, slot)
 
 
 def _shared_body_pairs(row_body: IntArray, n_bodies: int):
@@ -147,58 +213,74 @@ def _bandwidth_order(r_idx: IntArray, k_idx: IntArray, n_c: int) -> IntArray:
     return np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=int)
 
 
-def constraint_rows(layout: ConstraintLayout, pose: Pose, twist: Twist) -> ConstraintRows:
+def constraint_rows(layout: ConstraintLayout, cfg: Configuration) -> ConstraintRows:
     """Residuals, Jacobian blocks and gamma of every joint, stacked (see ``ConstraintRows``)."""
-    C, J, gamma = [], [], []
+    if not layout.joints:
+        return ConstraintRows(np.zeros(0), np.zeros((0, 2, 6)), np.zeros(0), np.zeros((0, 2, layout.n_elastic)))
+    C, J, Je, gamma = [], [], [], []
     for js in layout.joints:
-        C.append(js.residual(pose).reshape(-1))
-        J.append(js.jacobian(pose).reshape(-1, 2, 6))
-        gamma.append(js.gamma(pose, twist).reshape(-1))
+        C.append(js.residual(cfg).reshape(-1))
+        Jf, Jel = js.jacobian(cfg)
+        J.append(Jf.reshape(-1, 2, 6))
+        Je.append(Jel.reshape(js.n_joints * js.n_eq, 2, layout.n_elastic))
+        gamma.append(js.gamma(cfg).reshape(-1))
+    return ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je))
+
+
+def constraint_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+    """Jacobian blocks of every joint, stacked: frame (n_c, 2, 6) and elastic (n_c, 2, n_e)."""
     if not layout.joints:
-        return ConstraintRows(np.zeros(0), np.zeros((0, 2, 6)), np.zeros(0))
-    return ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma))
+        return np.zeros((0, 2, 6)), np.zeros((0, 2, layout.n_elastic))
+    parts = [js.jacobian(cfg) for js in layout.joints]
+    return (np.concatenate([J.reshape(-1, 2, 6) for J, _ in parts]),
+            np.concatenate([Je.reshape(js.n_joints * js.n_eq, 2, layout.n_elastic)
+                            for js, (_, Je) in zip(layout.joints, parts)]))
 
 
-def constraint_jacobian(layout: ConstraintLayout, pose: Pose) -> FloatArray:
-    """Jacobian blocks of every joint, stacked, shape (n_c, 2, 6) (see ``ConstraintRows``)."""
-    if not layout.joints:
-        return np.zeros((0, 2, 6))
-    return np.concatenate([js.jacobian(pose).reshape(-1, 2, 6) for js in layout.joints])
-
-
-def dense_jacobian(layout: ConstraintLayout, J: FloatArray, n_bodies: int) -> FloatArray:
-    """``C_v`` as a dense matrix, shape (n_c, 6 n_bodies), from its row blocks ``J`` (n_c, 2, 6)."""
-    n_c = J.shape[0]
-    dense = np.zeros((n_c, 6 * (n_bodies + 1)))
+def dense_jacobian(system, J: FloatArray, Je: FloatArray) -> FloatArray:
+    """``C_v`` as a dense matrix, shape (n_c, n_v) in the order of ``v``, from its blocks."""
+    layout = system.joints
+    n_c, nb = J.shape[0], system.n_bodies
+    per_body = np.zeros((n_c, 6 * (nb + 1)))
     cols = layout.row_body[:, :, None] * 6 + np.arange(6)
-    np.put_along_axis(dense, cols.reshape(n_c, 12), J.reshape(n_c, 12), axis=1)
-    return dense[:, : 6 * n_bodies]
+    np.add.at(per_body, (np.arange(n_c)[:, None], cols.reshape(n_c, 12)), J.reshape(n_c, 12))
+    frames = per_body[:, :6 * nb].reshape(n_c, nb, 6)[:, system.frame_body].reshape(n_c, 6 * system.n_frames)
+    return np.concatenate([frames, Je.sum(axis=1)], axis=1)
 
 
-def constraint_residual(layout: ConstraintLayout, pose: Pose) -> FloatArray:
+def constraint_residual(layout: ConstraintLayout, cfg: Configuration) -> FloatArray:
     """Stacked residuals ``C`` only, shape (n_c,) [m]."""
     if not layout.joints:
         return np.zeros(0)
-    return np.concatenate([js.residual(pose).reshape(-1) for js in layout.joints])
+    return np.concatenate([js.residual(cfg).reshape(-1) for js in layout.joints])
 
 
-def apply_jacobian(layout: ConstraintLayout, J: FloatArray, x: FloatArray) -> FloatArray:
-    """``C_v @ x`` for per-body vectors ``x`` (nb + 1, 6): shape (n_c,)."""
-    return np.einsum("rsi,rsi->r", J, x[layout.row_body])
-
-
-def apply_jacobian_transpose(layout: ConstraintLayout, J: FloatArray, lam: FloatArray, n_rows: int) -> FloatArray:
-    """``C_v^T @ lam`` as per-body vectors, shape (n_rows, 6), with ``n_rows = nb + 1``."""
-    out = np.zeros((n_rows, 6))
-    np.add.at(out, layout.row_body.ravel(), (J * lam[:, None, None]).reshape(-1, 6))
+def apply_jacobian(layout: ConstraintLayout, J: FloatArray, x: FloatArray, Je: FloatArray | None = None,
+                   x_e: FloatArray | None = None) -> FloatArray:
+    """``C_v @ x`` for per-body vectors ``x`` (nb + 1, 6) and the elastic part ``x_e`` (n_e,): shape (n_c,)."""
+    out = np.einsum("rsi,rsi->r", J, x[layout.row_body])
+    if Je is not None and Je.shape[2]:
+        out = out + np.einsum("rsi,i->r", Je, x_e)
     return out
 
 
-def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: FloatArray,
-                shift: float = 0.0) -> FloatArray:
+def apply_jacobian_transpose(layout: ConstraintLayout, J: FloatArray, lam: FloatArray, n_rows: int,
+                             Je: FloatArray | None = None) -> tuple[FloatArray, FloatArray] | FloatArray:
+    """``C_v^T @ lam`` as per-body vectors, shape (n_rows, 6), with ``n_rows = nb + 1``; with ``Je``
+    also the elastic part (n_e,), returned as a pair."""
+    out = np.zeros((n_rows, 6))
+    np.add.at(out, layout.row_body.ravel(), (J * lam[:, None, None]).reshape(-1, 6))
+    if Je is None:
+        return out
+    return out, np.einsum("rsi,r->i", Je, lam)
+
+
+def schur_solve(layout: ConstraintLayout, mass, J: FloatArray, b: FloatArray, shift: float = 0.0,
+                Je: FloatArray | None = None) -> FloatArray:
     """Solve ``(C_v M^-1 C_v^T + shift I) lam = b`` for ``lam`` (n_c,), on dense or banded storage
     (``shift > 0``: the compliance of penalty-like formulations, positive definite even for
-    redundant joints).
+    redundant joints). ``mass`` is a ``viz3d.mass.MassMatrix`` (or, for rigid bodies only, the
+    inverse blocks (nb + 1, 6, 6)).
 
     Raises
     ------
@@ -207,9 +289,14 @@ def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: F
     """
     if layout.n_rows == 0:
         return np.zeros(0)
+    M_inv = mass if isinstance(mass, np.ndarray) else mass.M_inv
     W = np.einsum("rsi,rsij->rsj", J, M_inv[layout.row_body])
     vals = np.einsum("pi,pi->p", W[layout.pair_row, layout.pair_side], J[layout.pair_col, layout.pair_colside])
     store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size)
+    for g in layout.flex_groups:
+        G = flex_rows(mass, g, J, Je)
+        A = G @ mass.solve_block(g.flex, G)
+        np.add.at(store, g.pair_slot, A[g.pair_a, g.pair_b])
     n = layout.n_rows
     if shift:
         store[layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)] += shift
@@ -224,3 +311,12 @@ def schur_solve(layout: ConstraintLayout, M_inv: FloatArray, J: FloatArray, b: F
     lam = np.empty(n)
     lam[layout.perm] = x
     return lam
+
+
+def flex_rows(mass, group: FlexGroup, J: FloatArray, Je: FloatArray) -> FloatArray:
+    """The rows of ``group`` on its flexible body's velocities ``[twist (if floating), eta_dot]``, shape (m, width)."""
+    fb = mass.flexible[group.flex]
+    elastic = Je[group.row, group.side][:, mass.v_elastic[group.flex]]
+    if not fb.floating:
+        return elastic
+    return np.concatenate([J[group.row, group.side], elastic], axis=1)

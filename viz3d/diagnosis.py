@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d.constraints import constraint_residual, dense_jacobian
-from viz3d.kinematics import pose_from
 from viz3d.system import State, System
 
 
@@ -32,16 +31,21 @@ def check_state(system: System, state: State, blowup_speed: float, dt: float) ->
         raise SimulationFailure(_nonfinite(system, state))
     W_v, B_omega = system.split_v(state.v)
     speed = np.linalg.norm(W_v, axis=1)
-    b = int(np.argmax(speed))
-    if speed[b] > blowup_speed:
+    b = int(np.argmax(speed)) if speed.size else 0
+    if speed.size and speed[b] > blowup_speed:
         raise SimulationFailure(
-            f"t = {state.t:.6g} s: body {system.bodies.names[b]!r}: speed {speed[b]:.3g} m/s exceeds sim.blowup_speed = "
+            f"t = {state.t:.6g} s: body {_frame_name(system, b)!r}: speed {speed[b]:.3g} m/s exceeds sim.blowup_speed = "
             f"{blowup_speed:.3g} m/s (diverged; try a smaller sim.dt){_worst_joint(system, state)}")
     _, theta = system.split_q(state.q)
     turn = np.max(np.abs(system.rotation.rates(theta, B_omega)), axis=1) * dt
     bad = np.flatnonzero(system.rotation.singular_bodies(theta) | (turn > MAX_COORDINATE_TURN))
     if bad.size:
         raise SimulationFailure(_singular(system, state, int(bad[0]), theta, turn))
+
+
+def _frame_name(system: System, k: int) -> str:
+    """Name of the body of floating frame ``k``."""
+    return system.bodies.names[int(system.frame_body[k])]
 
 
 def check_chart(system: System, state: State) -> None:
@@ -56,7 +60,7 @@ def check_chart(system: System, state: State) -> None:
 
 
 def _singular(system: System, state: State, b: int, theta, turn) -> str:
-    name = system.bodies.names[b]
+    name = _frame_name(system, b)
     if turn is None or system.rotation.near_singular(theta)[b]:
         turning = "" if turn is None else f" (coordinates turn {turn[b]:.3g} rad per step)"
         return (f"t = {state.t:.6g} s: body {name!r}: singular Euler chart: nutation theta = {theta[b, 1]:.3e} rad at "
@@ -111,20 +115,32 @@ class EnergyWatch:
 
 
 def _nonfinite(system: System, state: State) -> str:
-    qb = state.q.reshape(system.n_bodies, -1)
-    vb = state.v.reshape(system.n_bodies, 6)
-    bad = np.flatnonzero(~(np.all(np.isfinite(qb), axis=1) & np.all(np.isfinite(vb), axis=1)))
+    q_ok, v_ok = _finite_per_body(system, state.q, system.n_q_body), _finite_per_body(system, state.v, 6)
+    bad = np.flatnonzero(~(q_ok & v_ok))
     names = ", ".join(repr(system.bodies.names[b]) for b in bad[:5])
-    what = "position/orientation" if not np.all(np.isfinite(qb[bad[0]])) else "velocity"
+    what = "position/orientation" if not q_ok[bad[0]] else "velocity"
     return f"t = {state.t:.6g} s: non-finite {what} of body {names} (diverged; try a smaller sim.dt)"
+
+
+def _finite_per_body(system: System, x: np.ndarray, per_frame: int) -> np.ndarray:
+    """Per body (nb,): all its entries of ``x`` (a ``q``- or ``v``-like vector) are finite."""
+    ok = np.ones(system.n_bodies, dtype=bool)
+    nf = system.n_frames
+    ok[system.frame_body] = np.all(np.isfinite(x[: nf * per_frame].reshape(nf, per_frame)), axis=1)
+    offset = nf * per_frame
+    for fb in system.bodies.flexible:
+        ok[fb.index] &= bool(np.all(np.isfinite(x[offset:offset + fb.n])))
+        offset += fb.n
+    return ok
 
 
 def _worst_joint(system: System, state: State) -> str:
     if system.n_c == 0:
         return ""
-    W_r, theta = system.split_q(state.q)
+    from viz3d.dynamics import body_state
+
     with np.errstate(all="ignore"):
-        C = constraint_residual(system.joints, pose_from(W_r, system.rotation.matrix(theta, state.chart)))
+        C = constraint_residual(system.joints, body_state(system, state.q, state.v, state.chart))
     if not np.all(np.isfinite(C)):
         return ""
     per_joint = _per_joint(system, np.abs(C))
@@ -139,10 +155,12 @@ def _per_joint(system: System, row_values: np.ndarray) -> np.ndarray:
     return np.concatenate(out)
 
 
-def redundant_joints(system: System, J: np.ndarray, rel_tol: float = 1e-9) -> list[str]:
-    """Names of the joints involved in a rank deficiency of ``C_v`` (rows (n_c, 2, 6))."""
+def redundant_joints(system: System, J: np.ndarray, Je: np.ndarray | None = None, rel_tol: float = 1e-9) -> list[str]:
+    """Names of the joints involved in a rank deficiency of ``C_v`` (frame blocks (n_c, 2, 6) and
+    elastic blocks (n_c, 2, n_e))."""
     n_c = system.n_c
-    U, s, _ = np.linalg.svd(dense_jacobian(system.joints, J, system.n_bodies))
+    Je = np.zeros((n_c, 2, system.n_elastic)) if Je is None else Je
+    U, s, _ = np.linalg.svd(dense_jacobian(system, J, Je))
     null = U[:, s <= rel_tol * max(s.max(), 1e-300)] if s.size else U
     if null.shape[1] == 0 and n_c > s.size:
         null = U[:, s.size:]

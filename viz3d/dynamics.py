@@ -1,8 +1,12 @@
 """Equations of motion: from a state to accelerations, reaction multipliers and energies.
 
-The recipe (``accelerations``): body poses and twists -> applied and gyroscopic generalized
-forces -> constraint rows (residual, Jacobian, gamma) -> the formulation solves the augmented
-system ``[M C_v^T; C_v 0] [v_dot; lam] = [Q; gamma]``. Integrators see only ``vector_field``.
+The recipe (``accelerations``): body configuration (frames, twists, elastic coordinates) -> mass
+matrix blocks -> applied, gyroscopic, velocity and elastic generalized forces -> constraint rows
+(residual, Jacobian, gamma) -> the formulation solves the augmented system
+``[M C_v^T; C_v 0] [v_dot; lam] = [Q; gamma]``. Integrators see only ``vector_field``.
+
+Generalized vectors are split per body (``viz3d.mass``): a frame part (nb + 1, 6) ``[W_F, B_tau]``
+and an elastic part (n_e,).
 """
 
 from __future__ import annotations
@@ -13,35 +17,97 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.constraints import ConstraintRows, constraint_rows
-from viz3d.kinematics import Pose, Twist, pose_from, twist_from
+from viz3d.flexible import floating as ffr
+from viz3d.kinematics import Configuration, Pose, Twist, pose_from, twist_from
+from viz3d.mass import MassMatrix, mass_matrix
 from viz3d.system import State, System
 
 
-def body_state(system: System, q: FloatArray, v: FloatArray, chart: FloatArray) -> tuple[Pose, Twist]:
-    """Poses and twists of all bodies (ground appended) from ``q`` (n_q,), ``v`` (n_v,)."""
+def body_state(system: System, q: FloatArray, v: FloatArray, chart: FloatArray, t: float = 0.0) -> Configuration:
+    """The ``Configuration`` of all bodies (ground appended) from ``q`` (n_q,), ``v`` (n_v,)."""
     W_r, theta = system.split_q(q)
-    pose = pose_from(W_r, system.rotation.matrix(theta, chart))
+    R = system.rotation.matrix(theta, chart)
     W_v, B_omega = system.split_v(v)
-    return pose, twist_from(W_v, B_omega, pose)
+    if system.all_frames_float:
+        pose = pose_from(W_r, R)
+        twist = twist_from(W_v, B_omega, pose)
+    else:
+        pose, twist = _with_fixed_frames(system, W_r, R, W_v, B_omega)
+    return Configuration(t, pose, twist, system.elastic_q(q), system.elastic_v(v))
 
 
-def generalized_forces(system: System, t: float, pose: Pose, twist: Twist) -> FloatArray:
-    """``Q`` per body, shape (nb + 1, 6): ``[W_F, B_tau - B_omega x I B_omega]`` [N, N m].
+def _with_fixed_frames(system: System, W_r, R, W_v, B_omega) -> tuple[Pose, Twist]:
+    """Pose and twist rows for every body when some frames are fixed (at their initial pose, at rest)."""
+    nb = system.n_bodies
+    W_r_all, R_all = np.zeros((nb, 3)), np.broadcast_to(np.eye(3), (nb, 3, 3)).copy()
+    v_all, w_all = np.zeros((nb, 3)), np.zeros((nb, 3))
+    for fb in system.bodies.flexible:
+        W_r_all[fb.index], R_all[fb.index] = fb.W_r0, fb.R0
+    W_r_all[system.frame_body], R_all[system.frame_body] = W_r, R
+    v_all[system.frame_body], w_all[system.frame_body] = W_v, B_omega
+    pose = pose_from(W_r_all, R_all)
+    return pose, twist_from(v_all, w_all, pose)
 
-    Forces are world vectors at the centre of mass; torques are about it, in body axes.
+
+def generalized_forces(system: System, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+    """``Q``: frame part (nb + 1, 6) ``[W_F, B_tau - gyroscopic]`` [N, N m] and elastic part (n_e,).
+
+    Forces are world vectors at the frame origins; torques are about them, in body axes. Rigid
+    bodies add ``-B_omega x I B_omega``; flexible bodies their velocity forces (centrifugal,
+    Coriolis, gyroscopic) and elastic forces ``-K eta - C eta_dot``. Rows of ground and of fixed
+    frames are zero (their reactions are not unknowns).
     """
+    pose, twist = cfg.pose, cfg.twist
     W_F = np.zeros_like(pose.W_r)
     W_tau = np.zeros_like(pose.W_r)
+    Q_e = np.zeros(system.n_elastic)
     for element in system.forces:
-        F, tau = element.wrench(t, pose, twist)
+        F, tau, e = element.wrench(cfg)
         W_F += F
         W_tau += tau
+        if e is not None:
+            Q_e += e
     Q = np.zeros((W_F.shape[0], 6))
     Q[:, :3] = W_F
     Q[:, 3:] = np.einsum("bji,bj->bi", pose.R_WB, W_tau)  # R^T tau: body axes
-    Q[:-1, 3:] -= system.bodies.gyroscopic(twist.B_omega[:-1])
+    rigid = system.bodies.is_rigid
+    if system.bodies.all_rigid:
+        Q[:-1, 3:] -= system.bodies.gyroscopic(twist.B_omega[:-1])
+    else:
+        Q[:-1][rigid, 3:] -= system.bodies.gyroscopic(twist.B_omega[:-1])[rigid]
+        _flexible_forces(system, cfg, Q, Q_e)
     Q[-1] = 0.0  # ground
-    return Q
+    return Q, Q_e
+
+
+def _flexible_forces(system: System, cfg: Configuration, Q: FloatArray, Q_e: FloatArray) -> None:
+    """Add the flexible bodies' velocity and elastic forces; zero the rows of fixed frames."""
+    for i, fb in enumerate(system.bodies.flexible):
+        sl = system.v_elastic[i]
+        eta, eta_dot = cfg.eta[i], cfg.eta_dot[i]
+        Q_e[_local(system, sl)] += ffr.elastic_forces(fb.bar, eta, eta_dot)
+        if not fb.floating:
+            Q[fb.index] = 0.0
+            continue
+        Q_v = ffr.velocity_forces(fb.bar, cfg.pose.R_WB[fb.index], cfg.twist.B_omega[fb.index], eta, eta_dot)
+        Q[fb.index] += Q_v[:6]
+        Q_e[_local(system, sl)] += Q_v[6:]
+
+
+def _local(system: System, sl: slice) -> slice:
+    """A body's slice of ``v`` as a slice of the stacked elastic part."""
+    n0 = 6 * system.n_frames
+    return slice(sl.start - n0, sl.stop - n0)
+
+
+def elastic_slices(system: System) -> tuple[slice, ...]:
+    """Each flexible body's slice of the stacked elastic part (n_e,)."""
+    return tuple(_local(system, sl) for sl in system.v_elastic)
+
+
+def system_mass(system: System, cfg: Configuration) -> MassMatrix:
+    """The mass matrix blocks at ``cfg``."""
+    return mass_matrix(system.bodies, elastic_slices(system), cfg)
 
 
 @dataclass(frozen=True)
@@ -51,7 +117,7 @@ class Accelerations:
     Attributes
     ----------
     v_dot : ndarray, shape (n_v,)
-        ``[W_a, B_alpha]`` per body [m/s^2, rad/s^2].
+        ``[W_a, B_alpha]`` per floating frame, then ``eta_ddot`` [m/s^2, rad/s^2, ...].
     lam : ndarray, shape (n_c,)
         Multipliers; the constraint force on the bodies is ``-C_v^T lam`` [N].
     rows : ConstraintRows
@@ -65,29 +131,50 @@ class Accelerations:
 def accelerations(system: System, formulation, t: float, q: FloatArray, v: FloatArray,
                   chart: FloatArray) -> Accelerations:
     """Accelerations and multipliers at ``(t, q, v)`` (the physics recipe)."""
-    pose, twist = body_state(system, q, v, chart)
-    Q = generalized_forces(system, t, pose, twist)
-    rows = constraint_rows(system.joints, pose, twist)
-    a, lam = formulation.solve(system, Q, rows, twist)
-    return Accelerations(a[:-1].reshape(-1), lam, rows)
+    cfg = body_state(system, q, v, chart, t)
+    mass = system_mass(system, cfg)
+    Q = generalized_forces(system, cfg)
+    rows = constraint_rows(system.joints, cfg)
+    (a, a_e), lam = formulation.solve(system, mass, Q, rows, cfg)
+    return Accelerations(flat_velocity(system, a, a_e), lam, rows)
+
+
+def flat_velocity(system: System, frame: FloatArray, elastic: FloatArray) -> FloatArray:
+    """A split generalized vector (frame (nb + 1, 6), elastic (n_e,)) in the order of ``v`` (n_v,)."""
+    if system.all_frames_float:
+        f = frame[:-1].reshape(-1)
+    else:
+        f = frame[system.frame_body].reshape(-1)
+    return np.concatenate([f, elastic]) if elastic.size else f
+
+
+def split_velocity(system: System, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """A vector in the order of ``v`` (n_v,) as split parts (frame (nb + 1, 6), elastic (n_e,))."""
+    frame = np.zeros((system.n_bodies + 1, 6))
+    frame[system.frame_body] = x[: 6 * system.n_frames].reshape(-1, 6)
+    return frame, x[6 * system.n_frames:]
 
 
 def kinematic_rates(system: System, q: FloatArray, v: FloatArray) -> FloatArray:
-    """``q_dot`` (n_q,) from the velocities: ``W_r_dot = W_v``, ``theta_dot = f(theta, B_omega)``."""
+    """``q_dot`` (n_q,) from the velocities: ``W_r_dot = W_v``, ``theta_dot = f(theta, B_omega)``,
+    ``eta_dot`` as is."""
     _, theta = system.split_q(q)
     W_v, B_omega = system.split_v(v)
-    return system.join_q(W_v, system.rotation.rates(theta, B_omega))
+    return system.join_q(W_v, system.rotation.rates(theta, B_omega), system.elastic_part(v, 6 * system.n_frames))
 
 
 def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> FloatArray:
     """Positions moved by the velocity-space increment ``w`` (n_v,), in the same charts.
 
-    Per body ``w = [dW_r (3) [m], B_dphi (3) [rad]]``: ``W_r + dW_r`` and ``R_WB @ exp(skew(B_dphi))``
-    (the Lie-group update of ``R^3 x SO(3)`` that ``gen_alpha`` and ``ali3p`` advance positions by).
+    Per floating frame ``w = [dW_r (3) [m], B_dphi (3) [rad]]``: ``W_r + dW_r`` and ``R_WB @
+    exp(skew(B_dphi))`` (the Lie-group update of ``R^3 x SO(3)`` that ``gen_alpha`` and ``ali3p``
+    advance positions by); elastic coordinates ``eta + d_eta``.
     """
     W_r, theta = system.split_q(q)
     dW_r, B_dphi = system.split_v(w)
-    return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi))
+    n_f = system.n_frames * system.n_q_body
+    eta = system.elastic_part(q, n_f) + system.elastic_part(w, 6 * system.n_frames)
+    return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi), eta)
 
 
 class VectorField:
@@ -120,8 +207,19 @@ class VectorField:
 
 
 def energies(system: System, state: State) -> tuple[float, float]:
-    """Kinetic and potential energy [J] of a state (potential of all conservative elements)."""
-    pose, twist = body_state(system, state.q, state.v, state.chart)
-    T = system.bodies.kinetic_energy(twist.W_v[:-1], twist.B_omega[:-1])
-    V = sum(e.potential_energy(state.t, pose) for e in system.forces)
+    """Kinetic and potential energy [J] of a state (potential of all conservative elements, plus the
+    strain energy of flexible bodies)."""
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
+    V = sum(e.potential_energy(cfg) for e in system.forces)
+    for i, fb in enumerate(system.bodies.flexible):
+        T += _flexible_kinetic(fb, cfg, i)
+        V += ffr.strain_energy(fb.bar, cfg.eta[i])
     return T, float(V)
+
+
+def _flexible_kinetic(fb, cfg: Configuration, i: int) -> float:
+    if not fb.floating:
+        return 0.5 * float(cfg.eta_dot[i] @ fb.bar.M_ee @ cfg.eta_dot[i])
+    v = np.concatenate([cfg.twist.W_v[fb.index], cfg.twist.B_omega[fb.index], cfg.eta_dot[i]])
+    return ffr.kinetic_energy(fb.bar, cfg.pose.R_WB[fb.index], cfg.eta[i], v)

@@ -1,33 +1,30 @@
 """Force elements: everything that contributes applied forces and torques to the bodies.
 
 A force element is a vectorized set (all springs of a scene are one element) with one hook,
-``wrench(t, pose, twist) -> (W_F, W_tau)``: world forces at each centre of mass and world
-torques about it, shapes (nb + 1, 3) (the last row, ground, is discarded). Conservative elements
-also give ``potential_energy``. See docs/extending.md ("Add a force element").
+``wrench(cfg) -> (W_F, W_tau, Q_e)``: world forces at each frame origin and world torques about it,
+shapes (nb + 1, 3) (the last row, ground, is discarded), and the generalized forces on the stacked
+elastic coordinates (n_e,). Elements attach through material points (``viz3d.points``), so the same
+spring or load acts on a rigid body or on a section of a flexible one. Conservative elements also
+give ``potential_energy``. See docs/extending.md ("Add a force element").
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.kinematics import Pose, Twist
-from viz3d.rotations import cross
+from viz3d.kinematics import Configuration
+from viz3d.points import BodyPoints, rigid_points, scatter
 from viz3d.timefunctions import TimeFunctions
 
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
 MIN_LENGTH = 1e-12
 
-
-def scatter(n_rows: int, body: IntArray, values: FloatArray) -> FloatArray:
-    """Sum ``values`` (k, 3) into rows ``body`` (k,) of a zero (n_rows, 3) array."""
-    out = np.zeros((n_rows, 3))
-    np.add.at(out, body, values)
-    return out
+__all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity", "SpringDamper", "scatter"]
 
 
 class ForceElement(ABC):
@@ -36,10 +33,11 @@ class ForceElement(ABC):
     type_name: ClassVar[str]
 
     @abstractmethod
-    def wrench(self, t: float, pose: Pose, twist: Twist) -> tuple[FloatArray, FloatArray]:
-        """World forces and torques about the centres of mass, shapes (nb + 1, 3) [N, N m]."""
+    def wrench(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray | None]:
+        """World forces at the frame origins and world torques about them, shapes (nb + 1, 3)
+        [N, N m], and the elastic generalized forces (n_e,) (``None`` when the element has none)."""
 
-    def potential_energy(self, t: float, pose: Pose) -> float:
+    def potential_energy(self, cfg: Configuration) -> float:
         """Potential energy [J]; zero for non-conservative elements."""
         return 0.0
 
@@ -51,25 +49,44 @@ class ForceElement(ABC):
 
 @dataclass(frozen=True)
 class Gravity(ForceElement):
-    """Uniform gravity ``F = m g`` at every centre of mass; ``V = -sum m g . r``.
+    """Uniform gravity ``F = m g`` at every centre of mass; ``V = -sum m g . r``. A flexible body's
+    deflection moves its centre of mass by ``R S eta / m``: its weight then has a moment about the
+    frame origin and a consistent elastic load ``S^T R^T g`` (``viz3d.flexible.floating``).
 
     Attributes
     ----------
     mass : ndarray, shape (nb,) [kg]
     g : ndarray, shape (3,) [m/s^2]
+    flexible : tuple of FlexibleBody
+    n_elastic : int
     """
 
     type_name = "gravity"
     mass: FloatArray
     g: FloatArray
+    flexible: tuple = ()
+    n_elastic: int = 0
 
-    def wrench(self, t, pose, twist):
-        F = np.zeros_like(pose.W_r)
+    def wrench(self, cfg):
+        F = np.zeros_like(cfg.pose.W_r)
         F[:-1] = self.mass[:, None] * self.g
-        return F, np.zeros_like(F)
+        tau = np.zeros_like(F)
+        if not self.flexible:
+            return F, tau, None
+        Qe = np.zeros(self.n_elastic)
+        offset = 0
+        for i, fb in enumerate(self.flexible):
+            R = cfg.pose.R_WB[fb.index]
+            tau[fb.index] = np.cross(R @ (fb.bar.S @ cfg.eta[i]), self.g)
+            Qe[offset:offset + fb.n] = fb.bar.S.T @ (R.T @ self.g)
+            offset += fb.n
+        return F, tau, Qe
 
-    def potential_energy(self, t, pose):
-        return -float(self.mass @ (pose.W_r[:-1] @ self.g))
+    def potential_energy(self, cfg):
+        V = -float(self.mass @ (cfg.pose.W_r[:-1] @ self.g))
+        for i, fb in enumerate(self.flexible):
+            V -= float(self.g @ (cfg.pose.R_WB[fb.index] @ (fb.bar.S @ cfg.eta[i])))
+        return V
 
     @property
     def conservative(self) -> bool:
@@ -93,6 +110,8 @@ class SpringDamper(ForceElement):
     stiffness : ndarray, shape (k,) [N/m]
     damping : ndarray, shape (k,) [N s/m]
     rest_length : ndarray, shape (k,) [m]
+    sides : tuple of BodyPoints, optional
+        The two ends' material points (default: rigid points at ``B_s``).
     """
 
     type_name = "spring_damper"
@@ -102,38 +121,40 @@ class SpringDamper(ForceElement):
     stiffness: FloatArray
     damping: FloatArray
     rest_length: FloatArray
+    sides: tuple[BodyPoints, BodyPoints] | None = field(default=None)
 
-    def endpoints(self, pose: Pose) -> tuple[FloatArray, FloatArray]:
-        """World attachment points (k, 2, 3) and levers from the centres of mass (k, 2, 3)."""
-        rho = np.einsum("ksab,ksb->ksa", pose.R_WB[self.body], self.B_s)
-        return pose.W_r[self.body] + rho, rho
+    def __post_init__(self):
+        if self.sides is None:
+            object.__setattr__(self, "sides", tuple(rigid_points(self.body[:, k], self.B_s[:, k]) for k in (0, 1)))
 
-    def _geometry(self, pose: Pose):
-        p, rho = self.endpoints(pose)
+    def endpoints(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """World attachment points (k, 2, 3) and levers from the frame origins (k, 2, 3)."""
+        rho = np.stack([side.levers(cfg) for side in self.sides], axis=1)
+        return cfg.pose.W_r[self.body] + rho, rho
+
+    def _geometry(self, cfg: Configuration):
+        p, rho = self.endpoints(cfg)
         d = p[:, 1] - p[:, 0]
         length = np.linalg.norm(d, axis=1)
         u = d / np.maximum(length, MIN_LENGTH)[:, None]
         return rho, d, length, u
 
-    def wrench(self, t, pose, twist):
-        rho, d, length, u = self._geometry(pose)
-        v = twist.W_v[self.body] + cross(twist.W_omega[self.body], rho)
-        length_d = np.einsum("ki,ki->k", u, v[:, 1] - v[:, 0])
+    def wrench(self, cfg):
+        rho, d, length, u = self._geometry(cfg)
+        v = [side.velocities(cfg, rho[:, k]) for k, side in enumerate(self.sides)]
+        length_d = np.einsum("ki,ki->k", u, v[1] - v[0])
         # k (l - l0) u written as k (d - l0 u): exact for l0 = 0 even when the points coincide.
         f = self.stiffness[:, None] * (d - self.rest_length[:, None] * u) + (self.damping * length_d)[:, None] * u
-        F_pts = np.stack([f, -f], axis=1)
-        n = pose.W_r.shape[0]
-        flat_b = self.body.ravel()
-        F = scatter(n, flat_b, F_pts.reshape(-1, 3))
-        tau = scatter(n, flat_b, cross(rho, F_pts).reshape(-1, 3))
-        return F, tau
+        F1, tau1, Qe1 = self.sides[0].wrench(cfg, f, rho[:, 0])
+        F2, tau2, Qe2 = self.sides[1].wrench(cfg, -f, rho[:, 1])
+        return F1 + F2, tau1 + tau2, (Qe1 + Qe2) if Qe1.size else None
 
     @property
     def conservative(self) -> bool:
         return not np.any(self.damping > 0)
 
-    def potential_energy(self, t, pose):
-        _, _, length, _ = self._geometry(pose)
+    def potential_energy(self, cfg):
+        _, _, length, _ = self._geometry(cfg)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
 
 
@@ -146,11 +167,13 @@ class AppliedForce(ForceElement):
     names : tuple of str, length k
     body : ndarray of int, shape (k,)
     B_s : ndarray, shape (k, 3)
-        Point of application from the centre of mass, body axes [m].
+        Point of application from the frame origin, body axes [m].
     in_body_frame : ndarray of bool, shape (k,)
         Value given in body axes (follows the body) instead of world axes.
     value : TimeFunctions
         ``k`` functions of time [N].
+    points : BodyPoints, optional
+        The points of application (default: rigid points at ``B_s``).
     """
 
     type_name = "force"
@@ -159,29 +182,32 @@ class AppliedForce(ForceElement):
     B_s: FloatArray
     in_body_frame: np.ndarray
     value: TimeFunctions
+    points: BodyPoints | None = field(default=None)
 
-    def world_value(self, t: float, pose: Pose) -> FloatArray:
+    def __post_init__(self):
+        if self.points is None:
+            object.__setattr__(self, "points", rigid_points(self.body, self.B_s))
+
+    def world_value(self, cfg: Configuration) -> FloatArray:
         """The prescribed vectors in world axes, shape (k, 3)."""
-        val = self.value(t)
-        in_body = np.einsum("kij,kj->ki", pose.R_WB[self.body], val)
+        val = self.value(cfg.t)
+        in_body = np.einsum("kij,kj->ki", cfg.pose.R_WB[self.body], val)
         return np.where(self.in_body_frame[:, None], in_body, val)
 
-    def wrench(self, t, pose, twist):
-        F_k = self.world_value(t, pose)
-        n = pose.W_r.shape[0]
-        tau_k = cross(pose.lever(self.body, self.B_s), F_k)
-        return scatter(n, self.body, F_k), scatter(n, self.body, tau_k)
+    def wrench(self, cfg):
+        F, tau, Qe = self.points.wrench(cfg, self.world_value(cfg))
+        return F, tau, Qe if Qe.size else None
 
 
 @dataclass(frozen=True)
 class AppliedTorque(AppliedForce):
-    """Prescribed torques (couples) on bodies, world or body axes; ``B_s`` is unused (zero)."""
+    """Prescribed torques (couples) on bodies' frames, world or body axes; ``B_s`` is unused (zero)."""
 
     type_name = "torque"
 
-    def wrench(self, t, pose, twist):
-        tau_k = self.world_value(t, pose)
-        return np.zeros_like(pose.W_r), scatter(pose.W_r.shape[0], self.body, tau_k)
+    def wrench(self, cfg):
+        tau_k = self.world_value(cfg)
+        return np.zeros_like(cfg.pose.W_r), scatter(cfg.pose.W_r.shape[0], self.body, tau_k), None
 
 
 #: Force elements by scene type. Contact elements (viz3d.contact.element) register themselves

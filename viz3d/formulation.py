@@ -1,8 +1,8 @@
 """Formulations: how accelerations come out of the constrained equations of motion.
 
-A formulation has two hooks: ``solve(system, Q, rows, twist) -> (a, lam)`` with ``a`` shape
-(nb + 1, 6), and ``post_step(system, state) -> state`` (identity unless it stabilizes between
-steps). A formulation that does its own time stepping (``ALI3P``) also sets the class attribute
+A formulation has two hooks: ``solve(system, mass, Q, rows, cfg) -> ((a, a_e), lam)`` with the
+accelerations split like every generalized vector (``viz3d.mass``: ``a`` (nb + 1, 6), ``a_e``
+(n_e,)), and ``post_step(system, state) -> state`` (identity unless it stabilizes between steps). A formulation that does its own time stepping (``ALI3P``) also sets the class attribute
 ``integrator`` to the one integrator name it accepts and implements ``init_memory(system, state)``
 and ``step(system, state, h, memory) -> (state, memory, Status)``; ``viz3d.simulate`` then calls
 those instead of an integrator. Registry: ``FORMULATIONS``; see docs/extending.md.
@@ -23,23 +23,26 @@ from viz3d.constraints import (
     schur_solve,
 )
 from viz3d.integrators.base import Status
-from viz3d.kinematics import Twist
+from viz3d.kinematics import Configuration
 from viz3d.stabilization import project_positions, project_velocities
 from viz3d.system import State, System
 
 
-def solve_augmented(system: System, Q, rows: ConstraintRows, gamma, compliance: float = 0.0):
+def solve_augmented(system: System, mass, Q, rows: ConstraintRows, gamma, compliance: float = 0.0):
     """Solve ``[M C_v^T; C_v -compliance I] [a; lam] = [Q; gamma]`` by the Schur complement.
 
     ``compliance = 0`` is the rigid augmented system; ``compliance = 1 / alpha`` the penalty
-    formulation (``Penalty``). Returns ``a`` (nb + 1, 6) [m/s^2, rad/s^2] and ``lam`` (n_c,).
+    formulation (``Penalty``). ``Q = (frame (nb + 1, 6), elastic (n_e,))``. Returns ``(a, a_e)``
+    [m/s^2, rad/s^2, ...] and ``lam`` (n_c,).
     """
-    M_inv = system.bodies.M_inv
-    a_free = np.einsum("bij,bj->bi", M_inv, Q)
-    rhs = apply_jacobian(system.joints, rows.J, a_free) - gamma
-    lam = schur_solve(system.joints, M_inv, rows.J, rhs, compliance)
-    CtL = apply_jacobian_transpose(system.joints, rows.J, lam, Q.shape[0])
-    return a_free - np.einsum("bij,bj->bi", M_inv, CtL), lam
+    layout = system.joints
+    Q_f, Q_e = Q
+    a_free, a_free_e = mass.solve(Q_f, Q_e)
+    rhs = apply_jacobian(layout, rows.J, a_free, rows.Je, a_free_e) - gamma
+    lam = schur_solve(layout, mass, rows.J, rhs, compliance, rows.Je)
+    CtL, CtL_e = apply_jacobian_transpose(layout, rows.J, lam, Q_f.shape[0], rows.Je)
+    d, d_e = mass.solve(CtL, CtL_e)
+    return (a_free - d, a_free_e - d_e), lam
 
 
 @dataclass(frozen=True)
@@ -54,17 +57,18 @@ class Index1:
     #: themselves.
     integrator: ClassVar[str | None] = None
 
-    def solve(self, system: System, Q, rows: ConstraintRows, twist: Twist):
-        return solve_augmented(system, Q, rows, rows.gamma)
+    def solve(self, system: System, mass, Q, rows: ConstraintRows, cfg: Configuration):
+        return solve_augmented(system, mass, Q, rows, rows.gamma)
 
     def post_step(self, system: System, state: State) -> State:
         return state
 
 
-def _stabilized_gamma(system, rows, twist, damping: float, frequency: float):
+def _stabilized_gamma(system, rows, cfg: Configuration, damping: float, frequency: float):
     """``gamma - 2 damping C_d - frequency^2 C``, shape (n_c,): the right-hand side that makes the
     violation obey ``C_dd + 2 damping C_d + frequency^2 C = 0`` (Baumgarte; penalty springs)."""
-    C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(twist))
+    eta_dot = np.concatenate(cfg.eta_dot) if cfg.eta_dot else np.zeros(0)
+    C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(cfg.twist), rows.Je, eta_dot)
     return rows.gamma - 2.0 * damping * C_d - frequency**2 * rows.C
 
 
@@ -88,8 +92,8 @@ class Baumgarte(Index1):
     alpha: float = 10.0
     beta: float = 10.0
 
-    def solve(self, system, Q, rows, twist):
-        return solve_augmented(system, Q, rows, _stabilized_gamma(system, rows, twist, self.alpha, self.beta))
+    def solve(self, system, mass, Q, rows, cfg):
+        return solve_augmented(system, mass, Q, rows, _stabilized_gamma(system, rows, cfg, self.alpha, self.beta))
 
 
 @dataclass(frozen=True)
@@ -147,9 +151,9 @@ class Penalty(Index1):
     xi: float = 1.0
     omega: float = 10.0
 
-    def solve(self, system, Q, rows, twist):
-        gamma = _stabilized_gamma(system, rows, twist, self.xi * self.omega, self.omega)
-        return solve_augmented(system, Q, rows, gamma, compliance=1.0 / self.alpha)
+    def solve(self, system, mass, Q, rows, cfg):
+        gamma = _stabilized_gamma(system, rows, cfg, self.xi * self.omega, self.omega)
+        return solve_augmented(system, mass, Q, rows, gamma, compliance=1.0 / self.alpha)
 
 
 @dataclass(frozen=True)
@@ -194,7 +198,7 @@ class ALI3P(Index1):
         return ali3p_step(system, self, state, h, memory)
 
 
-def _per_body_twist(twist: Twist):
+def _per_body_twist(twist):
     return np.concatenate([twist.W_v, twist.B_omega], axis=1)
 
 

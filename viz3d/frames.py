@@ -181,22 +181,38 @@ class Frame:
 
 def frame_from_state(system: System, formulation, state: State) -> Frame:
     """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side)."""
-    pose, twist = body_state(system, state.q, state.v, state.chart)
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
     T, V = energies(system, state)
     acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart)
     reactions, points = [], []
     for js, sl in zip(system.joints.joints, system.joints.row_slices()):
         J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
         reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
-        points.append(pose.point(js.body[:, 0], js.B_s[:, 0]))
-    springs = [e.endpoints(pose)[0] for e in system.forces if isinstance(e, SpringDamper)]
-    contacts = [e.contacts(pose, twist) for e in system.forces if hasattr(e, "contacts")]
+        points.append(js.points(cfg))
+    springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
+    contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]
+    W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
-        t=state.t, W_r=pose.W_r[:-1], R_WB=pose.R_WB[:-1], W_v=twist.W_v[:-1], W_omega=twist.W_omega[:-1],
+        t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
         joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
         constraint_violation=float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0,
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
+
+
+def centres_of_mass(system: System, cfg) -> tuple[FloatArray, FloatArray]:
+    """World positions and velocities of the bodies' centres of mass, shapes (nb, 3) [m, m/s]: the
+    frame origins, shifted on flexible bodies by their deflection ``R S eta / m``."""
+    W_G, W_v = cfg.pose.W_r[:-1], cfg.twist.W_v[:-1]
+    if not system.bodies.flexible:
+        return W_G, W_v
+    W_G, W_v = W_G.copy(), W_v.copy()
+    for i, fb in enumerate(system.bodies.flexible):
+        R, b = cfg.pose.R_WB[fb.index], fb.index
+        shift = R @ (fb.bar.S @ cfg.eta[i]) / fb.bar.mass
+        W_G[b] += shift
+        W_v[b] += np.cross(cfg.twist.W_omega[b], shift) + R @ (fb.bar.S @ cfg.eta_dot[i]) / fb.bar.mass
+    return W_G, W_v
 
 
 def _stack(parts: list, empty_shape: tuple) -> FloatArray:

@@ -1,14 +1,16 @@
 """Holonomic joints, each class a vectorized set of joints of one type.
 
-A joint set of ``nj`` joints with ``n_eq`` equations each provides, at a pose and twist,
+A joint set of ``nj`` joints with ``n_eq`` equations each provides, at a ``Configuration``,
 
 * ``residual``: the constraint ``C``, shape (nj, n_eq),
-* ``jacobian``: ``C_v`` per side, shape (nj, n_eq, 2, 6), the derivative of ``C_dot`` with
-  respect to each body's velocity ``[W_v, B_omega]`` (side 0 = body 1, side 1 = body 2),
+* ``jacobian``: ``C_v`` per side, as a frame part (nj, n_eq, 2, 6) on each body's twist
+  ``[W_v, B_omega]`` (side 0 = body 1, side 1 = body 2) and an elastic part (nj, n_eq, 2, n_e) on the
+  stacked elastic velocities (a side attached to a section of a flexible body),
 * ``gamma``: the acceleration right-hand side, shape (nj, n_eq), with ``C_v @ v_dot = gamma``.
 
-Bodies are indices into the pose arrays; ground is index ``nb``. See docs/notation.md and
-docs/extending.md ("Add a joint").
+The sides are material points (``viz3d.points.BodyPoints``), so a joint attaches to any point of
+any body, including a section of a flexible bar. Bodies are indices into the pose arrays; ground is
+index ``nb``. See docs/notation.md and docs/extending.md ("Add a joint").
 """
 
 from __future__ import annotations
@@ -20,8 +22,8 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.kinematics import Pose, Twist
-from viz3d.rotations import cross, skew
+from viz3d.kinematics import Configuration
+from viz3d.points import BodyPoints, rigid_points
 
 
 @dataclass(frozen=True)
@@ -46,19 +48,20 @@ class Joint(ABC):
         return len(self.names)
 
     @abstractmethod
-    def residual(self, pose: Pose) -> FloatArray:
+    def residual(self, cfg: Configuration) -> FloatArray:
         """Constraint values ``C``, shape (nj, n_eq)."""
 
     @abstractmethod
-    def jacobian(self, pose: Pose) -> FloatArray:
-        """Velocity Jacobian blocks, shape (nj, n_eq, 2, 6)."""
+    def jacobian(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """Velocity Jacobian blocks: frame (nj, n_eq, 2, 6) and elastic (nj, n_eq, 2, n_e)."""
 
     @abstractmethod
-    def gamma(self, pose: Pose, twist: Twist) -> FloatArray:
+    def gamma(self, cfg: Configuration) -> FloatArray:
         """Acceleration right-hand side ``gamma = -C_v_dot @ v``, shape (nj, n_eq)."""
 
     def reaction_force(self, J: FloatArray, lam: FloatArray) -> FloatArray:
-        """World force on body 1 of each joint, shape (nj, 3) [N].
+        """World force on body 1 of each joint, shape (nj, 3) [N], from the frame Jacobian blocks
+        (nj, n_eq, 2, 6) and the multipliers (nj, n_eq).
 
         The constraint force on the bodies is ``-C_v^T lam`` (docs/notation.md, sign of lambda);
         its translational part on side 0 is this reaction.
@@ -68,52 +71,56 @@ class Joint(ABC):
 
 @dataclass(frozen=True)
 class BallJoint(Joint):
-    """Ball joint (rotula): point ``s1`` of body 1 coincides with point ``s2`` of body 2.
+    """Ball joint (rotula): point ``p1`` of body 1 coincides with point ``p2`` of body 2.
 
-    ``C = W_r1 + R1 s1 - W_r2 - R2 s2`` (3 equations), as in seed 000. With
-    ``rho_i = R_i s_i``: ``C_v = [I, -R1 skew(s1) | -I, R2 skew(s2)]`` and
-    ``gamma = -w1 x (w1 x rho1) + w2 x (w2 x rho2)`` (world angular velocities ``w``).
+    ``C = p1 - p2`` (3 equations), as in seed 000; ``C_v = J_p1 - J_p2`` and ``gamma = -(J_dot v)_1 +
+    (J_dot v)_2``, the points' velocity Jacobians and bias accelerations (``viz3d.points``): on rigid
+    bodies ``C_v = [I, -R1 skew(s1) | -I, R2 skew(s2)]`` and ``gamma = -w1 x (w1 x rho1) + w2 x (w2 x
+    rho2)``.
 
     Attributes
     ----------
     B_s : ndarray, shape (nj, 2, 3)
-        The joint point in each body's frame, from its centre of mass [m]; for ground, the
-        world point.
+        The joint point in each body's frame, from its frame origin [m] (ground: the world point;
+        a flexible body: the undeformed point).
+    sides : tuple of BodyPoints, optional
+        The two sides' material points (default: rigid points at ``B_s``).
     """
 
     type_name = "ball"
     n_eq = 3
 
     B_s: FloatArray = field(default=None)
-    _R_skew_sign: FloatArray = field(init=False, repr=False)
-    _J_translation: FloatArray = field(init=False, repr=False)
+    sides: tuple[BodyPoints, BodyPoints] | None = field(default=None)
 
     def __post_init__(self):
-        # -skew(s1) on side 0, +skew(s2) on side 1: the rotational Jacobian is R_i @ this.
-        signed = skew(self.B_s) * np.array([-1.0, 1.0])[None, :, None, None]
-        object.__setattr__(self, "_R_skew_sign", signed)
-        J = np.zeros((self.n_joints, 3, 2, 6))
-        J[:, :, 0, :3], J[:, :, 1, :3] = np.eye(3), -np.eye(3)
-        object.__setattr__(self, "_J_translation", J)
+        if self.sides is None:
+            sides = tuple(rigid_points(self.body[:, k], self.B_s[:, k]) for k in (0, 1))
+            object.__setattr__(self, "sides", sides)
 
-    def _points(self, pose: Pose) -> tuple[FloatArray, FloatArray]:
-        rho = np.einsum("jsab,jsb->jsa", pose.R_WB[self.body], self.B_s)
-        return pose.W_r[self.body] + rho, rho
+    @property
+    def n_elastic(self) -> int:
+        return self.sides[0].n_elastic
 
-    def residual(self, pose):
-        p, _ = self._points(pose)
-        return p[:, 0] - p[:, 1]
+    def points(self, cfg: Configuration) -> FloatArray:
+        """World joint points of side 0 (on body 1), shape (nj, 3) [m]."""
+        return self.sides[0].positions(cfg)
 
-    def jacobian(self, pose):
-        J = self._J_translation.copy()
-        J[:, :, :, 3:] = np.einsum("jsab,jsbc->jasc", pose.R_WB[self.body], self._R_skew_sign)
-        return J
+    def residual(self, cfg):
+        return self.sides[0].positions(cfg) - self.sides[1].positions(cfg)
 
-    def gamma(self, pose, twist):
-        _, rho = self._points(pose)
-        w = twist.W_omega[self.body]
-        centripetal = cross(w, cross(w, rho))
-        return centripetal[:, 1] - centripetal[:, 0]
+    def jacobian(self, cfg):
+        nj, ne = self.n_joints, self.n_elastic
+        J = np.zeros((nj, 3, 2, 6))
+        Je = np.zeros((nj, 3, 2, ne))
+        for k, sign in ((0, 1.0), (1, -1.0)):
+            Jf, Jel = self.sides[k].jacobian(cfg)
+            J[:, :, k, :] = sign * Jf
+            Je[:, :, k, :] = sign * Jel
+        return J, Je
+
+    def gamma(self, cfg):
+        return self.sides[1].bias(cfg) - self.sides[0].bias(cfg)
 
 
 JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint,)}

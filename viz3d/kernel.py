@@ -73,7 +73,7 @@ class KernelData:
 
 def kernel_for(system, formulation) -> KernelData | None:
     """Packed data when the kernel covers ``system`` with ``formulation``, else None."""
-    if numba is None or formulation.name not in ("index1", "baumgarte"):
+    if numba is None or formulation.name not in ("index1", "baumgarte") or system.bodies.flexible:
         return None
     if type(system.rotation) not in (EulerSwitching, EulerZXZ):
         return None

@@ -1,7 +1,10 @@
-"""Body poses and twists from the state vectors, with ground appended as body index ``nb``.
+"""Body poses and twists from the state vectors, with ground appended as body index ``nb``, and the
+``Configuration`` of a whole system at one instant (poses, twists, elastic coordinates).
 
 Appending ground (identity pose, zero twist, zero inverse mass) lets joints and force elements
-address "ground" like any body, so no stage needs a mask. See docs/notation.md.
+address "ground" like any body, so no stage needs a mask. A flexible body's pose is that of its
+frame (origin at its undeformed centre of mass); its deformation is in ``Configuration.eta``. See
+docs/notation.md.
 """
 
 from __future__ import annotations
@@ -81,3 +84,27 @@ def twist_from(W_v: FloatArray, B_omega: FloatArray, pose: Pose) -> Twist:
     B_omega = with_ground(B_omega, _ZERO3)
     W_omega = np.einsum("bij,bj->bi", pose.R_WB, B_omega)
     return Twist(W_v, B_omega, W_omega)
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """Everything position- and velocity-dependent of a system at one instant, computed once per
+    evaluation and read by every element.
+
+    Attributes
+    ----------
+    t : float
+        Time [s].
+    pose : Pose
+        Frames of all bodies plus ground, rows (nb + 1).
+    twist : Twist
+        Frame velocities of all bodies plus ground, rows (nb + 1) (zero for fixed frames).
+    eta, eta_dot : tuple of ndarray
+        Elastic coordinates (n_b,) and their rates of each flexible body, in body order.
+    """
+
+    t: float
+    pose: Pose
+    twist: Twist
+    eta: tuple = ()
+    eta_dot: tuple = ()

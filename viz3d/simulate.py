@@ -246,7 +246,7 @@ class Simulation:
         W_r, theta0 = self.system.split_q(new.q)
         normal = self.system.rotation.normalize(theta0)
         theta, chart, switched = self.system.rotation.rechart(normal, new.chart)
-        self.chart_switches += switched
+        self.chart_switches[self.system.frame_body] += switched
         self.n_steps += 1
         if new is raw and normal is theta0 and not np.any(switched):
             self._f = f1
@@ -257,7 +257,7 @@ class Simulation:
     def _turn_limit(self, f: np.ndarray) -> float:
         """Longest adaptive step [s] that turns no orientation coordinate by more than
         ``ADAPTIVE_MAX_TURN`` at the rates in ``f`` (charts are only switched between steps)."""
-        rates = f[: self.system.n_q].reshape(self.system.n_bodies, -1)[:, 3:]
+        rates = self.system.split_q(f[: self.system.n_q])[1]
         fastest = np.max(np.abs(rates), initial=0.0)
         return ADAPTIVE_MAX_TURN / fastest if fastest > 0.0 else np.inf
 
@@ -271,8 +271,8 @@ class Simulation:
         return rhs
 
     def _singular_message(self, s: State) -> str:
-        pose, twist = body_state(self.system, s.q, s.v, s.chart)
-        names = redundant_joints(self.system, constraint_rows(self.system.joints, pose, twist).J)
+        rows = constraint_rows(self.system.joints, body_state(self.system, s.q, s.v, s.chart, s.t))
+        names = redundant_joints(self.system, rows.J, rows.Je)
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "constraint matrix lost rank"
         return f"t = {s.t:.6g} s: singular constraint Jacobian: {who}"
 

@@ -1,9 +1,10 @@
 """Mass-orthogonal projections of positions and velocities onto the constraint manifold.
 
-Positions: Newton iterations ``dx = -M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C`` in body-velocity space
-(``dx`` per body: ``[dW_r, B_dphi]``), applied as ``W_r += dW_r`` and a small body-frame rotation
-``B_dphi``. Velocities: ``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C_v v`` (one linear step; the joints
-are scleronomic, ``C_t = 0``). Both are the minimum-kinetic-metric corrections.
+Positions: Newton iterations ``dx = -M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C`` in velocity space
+(``dx`` per floating frame: ``[dW_r, B_dphi]``; per flexible body also ``d_eta``), applied as
+``W_r += dW_r``, a small body-frame rotation ``B_dphi`` and ``eta += d_eta``. Velocities:
+``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C_v v`` (one linear step; the joints are scleronomic,
+``C_t = 0``). Both are the minimum-kinetic-metric corrections.
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_residual, schur_solve
-from viz3d.kinematics import pose_from
+from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_jacobian, constraint_residual, schur_solve
+from viz3d.dynamics import body_state, flat_velocity, split_velocity, system_mass
 
 #: Newton iterations allowed for a position projection.
 MAX_ITER = 50
@@ -22,21 +23,12 @@ class ProjectionError(RuntimeError):
     """The position projection did not converge."""
 
 
-def _pose(system, q, chart):
-    W_r, theta = system.split_q(q)
-    return pose_from(W_r, system.rotation.matrix(theta, chart))
-
-
-def _jacobian(system, pose) -> FloatArray:
-    return np.concatenate([js.jacobian(pose).reshape(-1, 2, 6) for js in system.joints.joints])
-
-
-def _min_norm_correction(system, J, r) -> FloatArray:
-    """``M^-1 C_v^T (C_v M^-1 C_v^T)^-1 r`` per body, shape (nb, 6)."""
-    M_inv = system.bodies.M_inv
-    lam = schur_solve(system.joints, M_inv, J, r)
-    CtL = apply_jacobian_transpose(system.joints, J, lam, M_inv.shape[0])
-    return np.einsum("bij,bj->bi", M_inv, CtL)[:-1]
+def _min_norm_correction(system, cfg, J, Je, r) -> FloatArray:
+    """``M^-1 C_v^T (C_v M^-1 C_v^T)^-1 r`` in the order of ``v``, shape (n_v,)."""
+    mass = system_mass(system, cfg)
+    lam = schur_solve(system.joints, mass, J, r, Je=Je)
+    CtL, CtL_e = apply_jacobian_transpose(system.joints, J, lam, system.n_bodies + 1, Je)
+    return flat_velocity(system, *mass.solve(CtL, CtL_e))
 
 
 def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-12,
@@ -51,14 +43,17 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
     if system.n_c == 0:
         return q, 0
     q = q.copy()
+    v0 = np.zeros(system.n_v)
     for it in range(max_iter + 1):
-        pose = _pose(system, q, chart)
-        C = constraint_residual(system.joints, pose)
+        cfg = body_state(system, q, v0, chart)
+        C = constraint_residual(system.joints, cfg)
         if np.max(np.abs(C)) <= tol:
             return q, it
-        dx = -_min_norm_correction(system, _jacobian(system, pose), C)
+        dx = -_min_norm_correction(system, cfg, *constraint_jacobian(system.joints, cfg), C)
         W_r, theta = system.split_q(q)
-        q = system.join_q(W_r + dx[:, :3], system.rotation.correct(theta, dx[:, 3:]))
+        dW, dphi = system.split_v(dx)
+        eta = system.elastic_part(q, system.n_frames * system.n_q_body) + system.elastic_part(dx, 6 * system.n_frames)
+        q = system.join_q(W_r + dW, system.rotation.correct(theta, dphi), eta)
     raise ProjectionError(f"position projection left max |C| = {np.max(np.abs(C)):.3e} m after {max_iter} iterations")
 
 
@@ -66,8 +61,8 @@ def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray) 
     """Project ``v`` (n_v,) onto ``C_v v = 0``."""
     if system.n_c == 0:
         return v
-    pose = _pose(system, q, chart)
-    J = _jacobian(system, pose)
-    v_body = np.concatenate([v.reshape(-1, 6), np.zeros((1, 6))])
-    dv = _min_norm_correction(system, J, apply_jacobian(system.joints, J, v_body))
-    return (v.reshape(-1, 6) - dv).reshape(-1)
+    cfg = body_state(system, q, v, chart)
+    J, Je = constraint_jacobian(system.joints, cfg)
+    frame, elastic = split_velocity(system, v)
+    dv = _min_norm_correction(system, cfg, J, Je, apply_jacobian(system.joints, J, frame, Je, elastic))
+    return v - dv

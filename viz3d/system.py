@@ -1,20 +1,25 @@
 """The frozen model (``System``) and the state value (``State``).
 
-Layout of the state vectors (docs/notation.md):
+Layout of the state vectors (docs/notation.md, "State layout"):
 
-* ``q`` (n_q,): per body ``[W_r (3) [m], theta (n_rot) [rad or -]]``, bodies in order.
-* ``v`` (n_v,): per body ``[W_v (3) [m/s], B_omega (3) [rad/s]]``; ``n_v = 6 nb``.
-* ``chart`` (nb, 3, 3): per-body reference rotation of the orientation coordinates.
+* ``q`` (n_q,): first the frame coordinates of every body whose frame floats (rigid bodies and
+  flexible bodies on a floating frame), ``[W_r (3) [m], theta (n_rot) [rad or -]]`` each, in body
+  order; then the elastic coordinates ``eta`` of every flexible body, in body order.
+* ``v`` (n_v,): the frame twists ``[W_v (3) [m/s], B_omega (3) [rad/s]]`` of the same bodies, then the
+  elastic velocities ``eta_dot``. A system of rigid bodies has ``n_v = 6 nb``.
+* ``chart`` (nf, 3, 3): per floating frame, the reference rotation of its orientation coordinates.
+
+Bodies whose frame is fixed (a clamped bar) have no frame coordinates: their frame pose is constant.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from viz3d._typing import FloatArray
+from viz3d._typing import FloatArray, IntArray
 from viz3d.bodies import Bodies
 from viz3d.constraints import ConstraintLayout
 from viz3d.coordinates import RotationCoordinates
@@ -33,28 +38,65 @@ class System:
     forces : tuple of ForceElement
         Gravity first (if any), then the scene's force elements.
     rotation : RotationCoordinates
+        Orientation coordinates of every floating frame.
+    frame_body : ndarray of int, shape (nf,)
+        Body index of each floating frame, in ``q`` order (derived).
+    q_elastic, v_elastic : tuple of slice
+        Where each flexible body's ``eta`` and ``eta_dot`` sit in ``q`` and ``v`` (derived).
     """
 
     bodies: Bodies
     joints: ConstraintLayout
     forces: tuple[ForceElement, ...]
     rotation: RotationCoordinates
+    frame_body: IntArray = field(init=False, repr=False)
+    q_elastic: tuple[slice, ...] = field(init=False, repr=False)
+    v_elastic: tuple[slice, ...] = field(init=False, repr=False)
+
+    def __post_init__(self):
+        floating = np.ones(self.bodies.n_bodies, dtype=bool)
+        for fb in self.bodies.flexible:
+            floating[fb.index] = fb.floating
+        object.__setattr__(self, "frame_body", np.flatnonzero(floating))
+        q0, v0 = len(self.frame_body) * self.n_q_body, 6 * len(self.frame_body)
+        q_sl, v_sl = [], []
+        for fb in self.bodies.flexible:
+            q_sl.append(slice(q0, q0 + fb.n))
+            v_sl.append(slice(v0, v0 + fb.n))
+            q0, v0 = q0 + fb.n, v0 + fb.n
+        object.__setattr__(self, "q_elastic", tuple(q_sl))
+        object.__setattr__(self, "v_elastic", tuple(v_sl))
 
     @property
     def n_bodies(self) -> int:
         return self.bodies.n_bodies
 
     @property
+    def n_frames(self) -> int:
+        """Floating frames (bodies with frame coordinates)."""
+        return len(self.frame_body)
+
+    @property
+    def all_frames_float(self) -> bool:
+        """Every body has frame coordinates (no fixed-frame body): frame index = body index."""
+        return self.n_frames == self.n_bodies
+
+    @property
     def n_q_body(self) -> int:
+        """Coordinates of one floating frame."""
         return 3 + self.rotation.n_q
 
     @property
+    def n_elastic(self) -> int:
+        return sum(fb.n for fb in self.bodies.flexible)
+
+    @property
     def n_q(self) -> int:
-        return self.n_bodies * self.n_q_body
+        return self.n_frames * self.n_q_body + self.n_elastic
 
     @property
     def n_v(self) -> int:
-        return 6 * self.n_bodies
+        return 6 * self.n_frames + self.n_elastic
 
     @property
     def n_c(self) -> int:
@@ -65,17 +107,34 @@ class System:
         return tuple(n for js in self.joints.joints for n in js.names)
 
     def split_q(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``(W_r (nb, 3), theta (nb, n_rot))`` views of ``q``."""
-        qb = q.reshape(self.n_bodies, self.n_q_body)
+        """``(W_r (nf, 3), theta (nf, n_rot))`` views of the frame coordinates of ``q``."""
+        qb = q[: self.n_frames * self.n_q_body].reshape(self.n_frames, self.n_q_body)
         return qb[:, :3], qb[:, 3:]
 
     def split_v(self, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``(W_v (nb, 3), B_omega (nb, 3))`` views of ``v``."""
-        vb = v.reshape(self.n_bodies, 6)
+        """``(W_v (nf, 3), B_omega (nf, 3))`` views of the frame twists of ``v``."""
+        vb = v[: 6 * self.n_frames].reshape(self.n_frames, 6)
         return vb[:, :3], vb[:, 3:]
 
-    def join_q(self, W_r: FloatArray, theta: FloatArray) -> FloatArray:
-        return np.concatenate([W_r, theta], axis=1).reshape(-1)
+    def elastic_q(self, q: FloatArray) -> tuple[FloatArray, ...]:
+        """``eta`` of each flexible body (views of ``q``)."""
+        return tuple(q[sl] for sl in self.q_elastic)
+
+    def elastic_v(self, v: FloatArray) -> tuple[FloatArray, ...]:
+        """``eta_dot`` of each flexible body (views of ``v``)."""
+        return tuple(v[sl] for sl in self.v_elastic)
+
+    def join_q(self, W_r: FloatArray, theta: FloatArray, eta: FloatArray | None = None) -> FloatArray:
+        """``q`` from frame coordinates (nf, 3), (nf, n_rot) and the stacked elastic ones (n_e,)."""
+        frames = np.concatenate([W_r, theta], axis=1).reshape(-1)
+        if not self.n_elastic:
+            return frames
+        return np.concatenate([frames, np.zeros(self.n_elastic) if eta is None else eta])
+
+    def elastic_part(self, x: FloatArray, n_frame: int) -> FloatArray:
+        """The stacked elastic entries (n_e,) of a ``q``- or ``v``-like vector whose frame part has
+        ``n_frame`` entries."""
+        return x[n_frame:n_frame + self.n_elastic]
 
 
 @dataclass(frozen=True)
@@ -90,8 +149,8 @@ class State:
         Positions (see module docstring).
     v : ndarray, shape (n_v,)
         Velocities.
-    chart : ndarray, shape (nb, 3, 3)
-        Reference rotation of each body's orientation coordinates.
+    chart : ndarray, shape (nf, 3, 3)
+        Reference rotation of each floating frame's orientation coordinates.
     """
 
     t: float

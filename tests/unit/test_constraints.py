@@ -8,47 +8,50 @@ from viz3d.bodies import Bodies
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_rows
 from viz3d.coordinates import EulerSwitching
 from viz3d.diagnosis import redundant_joints
-from viz3d.dynamics import generalized_forces
+from viz3d.dynamics import flat_velocity, generalized_forces, system_mass
 from viz3d.formulation import Index1
+from viz3d.mass import dense_mass_matrix
+from viz3d.constraints import dense_jacobian
 from viz3d.system import System
 
-from systems import ball_joints, pose_twist, random_state, random_system
+from systems import ball_joints, configuration, random_state, random_system
 
 #: Two backward-stable solves of the same system differ by at most ~ p(n) eps cond(A) |x| (Higham,
 #: Accuracy and Stability of Numerical Algorithms, 2nd ed., thm. 7.2); p(n) taken as 10 (seen <= 0.5).
 SOLVE_SAFETY = 10.0
 
 
-def dense_augmented(system, rows):
-    """[M C^T; C 0] as a dense matrix (test oracle)."""
-    nb, n_c = system.n_bodies, system.n_c
-    M = np.zeros((6 * nb, 6 * nb))
-    for b in range(nb):
-        M[6 * b:6 * b + 3, 6 * b:6 * b + 3] = system.bodies.mass[b] * np.eye(3)
-        M[6 * b + 3:6 * b + 6, 6 * b + 3:6 * b + 6] = system.bodies.inertia[b]
-    C = np.zeros((n_c, 6 * nb))
+def dense_augmented(system, cfg, rows):
+    """[M C^T; C 0] as a dense matrix (test oracle; the dense C assembled entry by entry here)."""
+    n_v, n_c = system.n_v, system.n_c
+    M = dense_mass_matrix(system, cfg)
+    C = np.zeros((n_c, n_v))
+    slot = {int(b): k for k, b in enumerate(system.frame_body)}
     for r in range(n_c):
         for s in range(2):
             b = system.joints.row_body[r, s]
-            if b < nb:
-                C[r, 6 * b:6 * b + 6] += rows.J[r, s]
+            if b in slot:
+                C[r, 6 * slot[b]:6 * slot[b] + 6] += rows.J[r, s]
+        C[r, 6 * system.n_frames:] += rows.Je[r].sum(axis=0)
     return np.block([[M, C.T], [C, np.zeros((n_c, n_c))]])
 
 
-@pytest.mark.parametrize("nb,extra", [(3, ((0, 2),)), (12, ()), (30, ((5, 17),))])
-def test_structured_solve_equals_dense_augmented_solve(nb, extra):
-    system = random_system(nb=nb, seed=nb, extra_pairs=extra)
+@pytest.mark.parametrize("nb,extra,flexible", [(3, ((0, 2),), False), (12, (), False), (30, ((5, 17),), False),
+                                               (3, ((0, 2),), True), (30, ((5, 17),), True)])
+def test_structured_solve_equals_dense_augmented_solve(nb, extra, flexible):
+    system = random_system(nb=nb, seed=nb, extra_pairs=extra, flexible=flexible)
     state = random_state(system, nb)
-    pose, twist = pose_twist(system, state)
-    Q = generalized_forces(system, 0.0, pose, twist)
-    rows = constraint_rows(system.joints, pose, twist)
-    a, lam = Index1().solve(system, Q, rows, twist)
-    rhs = np.concatenate([Q[:-1].reshape(-1), rows.gamma])
-    A = dense_augmented(system, rows)
+    cfg = configuration(system, state)
+    Q = generalized_forces(system, cfg)
+    rows = constraint_rows(system.joints, cfg)
+    (a, a_e), lam = Index1().solve(system, system_mass(system, cfg), Q, rows, cfg)
+    rhs = np.concatenate([flat_velocity(system, *Q), rows.gamma])
+    A = dense_augmented(system, cfg, rows)
+    np.testing.assert_array_equal(A[system.n_v:, :system.n_v], dense_jacobian(system, rows.J, rows.Je))
     sol = np.linalg.solve(A, rhs)
     tol = SOLVE_SAFETY * np.finfo(float).eps * np.linalg.cond(A, np.inf) * np.abs(sol).max()
-    np.testing.assert_allclose(a[:-1].reshape(-1), sol[: 6 * nb], rtol=0, atol=tol, err_msg="mismatch: v_dot")
-    np.testing.assert_allclose(lam, sol[6 * nb:], rtol=0, atol=tol, err_msg="mismatch: lam")
+    np.testing.assert_allclose(flat_velocity(system, a, a_e), sol[: system.n_v], rtol=0, atol=tol, err_msg="mismatch: v_dot")
+    np.testing.assert_allclose(lam, sol[system.n_v:], rtol=0, atol=tol, err_msg="mismatch: lam")
 
 
 def test_chain_uses_banded_solver_with_block_tridiagonal_bandwidth():
@@ -73,8 +76,8 @@ def test_redundant_joints_raise_and_are_named():
     js = type(js)(js.names, js.body, np.concatenate([js.B_s[:2], js.B_s[1:2]]))  # same point twice
     system = System(bodies, build_layout((js,), 2), (), EulerSwitching())
     state = random_state(system, 3)
-    pose, twist = pose_twist(system, state)
-    rows = constraint_rows(system.joints, pose, twist)
+    cfg = configuration(system, state)
+    rows = constraint_rows(system.joints, cfg)
     with pytest.raises(SingularConstraintError):
-        Index1().solve(system, generalized_forces(system, 0.0, pose, twist), rows, twist)
-    assert set(redundant_joints(system, rows.J)) == {"ab", "ab_again"}
+        Index1().solve(system, system_mass(system, cfg), generalized_forces(system, cfg), rows, cfg)
+    assert set(redundant_joints(system, rows.J, rows.Je)) == {"ab", "ab_again"}

@@ -6,31 +6,40 @@ import pytest
 
 from viz3d.dynamics import generalized_forces
 from viz3d.forces import AppliedForce, AppliedTorque, SpringDamper
-from viz3d.kinematics import pose_from, twist_from
+from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.timefunctions import TimeFunctions
 
-from systems import moved_pose, pose_twist, random_state, random_system
+from systems import configuration, moved, random_state, random_system
 
 #: Central difference of the potential along the motion: truncation EPS^2 |V'''| / 6, round-off eps |V| / EPS
 #: (2e-10 |V|); the power balance below allows 1e-7 relative + 1e-9 W, 500x the round-off for |V| ~ 1 J.
 EPS = 1e-6
 
 
-def _power(system, pose, twist, element):
-    """Power of one element's wrench on the bodies [W]."""
-    F, tau = element.wrench(0.0, pose, twist)
-    return float(np.sum(F * twist.W_v) + np.sum(tau * twist.W_omega))
+def _power(cfg, element):
+    """Power of one element's generalized forces on the bodies [W]: frame forces and torques on the
+    frames' twists, elastic forces on the elastic rates."""
+    F, tau, e = element.wrench(cfg)
+    P = float(np.sum(F * cfg.twist.W_v) + np.sum(tau * cfg.twist.W_omega))
+    if e is not None:
+        P += float(e @ np.concatenate(cfg.eta_dot))
+    return P
 
 
+def _cfg(pose, twist, t=0.0):
+    return Configuration(t, pose, twist)
+
+
+@pytest.mark.parametrize("flexible", [False, True])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_conservative_elements_power_equals_minus_potential_rate(seed):
-    system = random_system(nb=4, seed=seed)
-    pose, twist = pose_twist(system, random_state(system, seed))
-    dx = np.concatenate([twist.W_v[:-1], twist.B_omega[:-1]], axis=1)  # the motion's own twist
-    for element in system.forces:
-        V_rate = (element.potential_energy(0.0, moved_pose(pose, dx, EPS))
-                  - element.potential_energy(0.0, moved_pose(pose, dx, -EPS))) / (2 * EPS)
-        assert _power(system, pose, twist, element) == pytest.approx(-V_rate, rel=1e-7, abs=1e-9), type(element).__name__
+def test_conservative_elements_power_equals_minus_potential_rate(seed, flexible):
+    system = random_system(nb=4, seed=seed, flexible=flexible)
+    state = random_state(system, seed)
+    cfg = configuration(system, state)
+    for element in system.forces:  # along the motion's own velocity
+        V_rate = (element.potential_energy(moved(system, state, state.v, EPS))
+                  - element.potential_energy(moved(system, state, state.v, -EPS))) / (2 * EPS)
+        assert _power(cfg, element) == pytest.approx(-V_rate, rel=1e-7, abs=1e-9), type(element).__name__
 
 
 def test_damper_dissipates_c_times_length_rate_squared():
@@ -40,11 +49,12 @@ def test_damper_dissipates_c_times_length_rate_squared():
     c = 7.0
     damper = SpringDamper(("d",), np.array([[0, 1]]), rng.normal(scale=0.1, size=(1, 2, 3)), np.zeros(1),
                           np.array([c]), np.zeros(1))
-    p, rho = damper.endpoints(pose)
+    cfg = _cfg(pose, twist)
+    p, rho = damper.endpoints(cfg)
     u = (p[0, 1] - p[0, 0]) / np.linalg.norm(p[0, 1] - p[0, 0])
     vel = twist.point_velocity(damper.body[0], rho[0])
     l_dot = u @ (vel[1] - vel[0])
-    P = float(np.sum(damper.wrench(0, pose, twist)[0] * twist.W_v) + np.sum(damper.wrench(0, pose, twist)[1] * twist.W_omega))
+    P = _power(cfg, damper)
     assert P == pytest.approx(-c * l_dot**2, rel=1e-12)  # a dozen products and sums: ~10 eps; 4500 eps
 
 
@@ -57,23 +67,23 @@ def _loads(cls, frame_body, value):
 def test_applied_force_torque_about_centre_of_mass_and_frames():
     R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
     pose = pose_from(np.array([[1.0, 2.0, 3.0]]), R[None])
-    twist = twist_from(np.zeros((1, 3)), np.zeros((1, 3)), pose)
-    F, tau = _loads(AppliedForce, False, [0.0, 0.0, 5.0]).wrench(0.0, pose, twist)
+    cfg = _cfg(pose, twist_from(np.zeros((1, 3)), np.zeros((1, 3)), pose))
+    F, tau, _ = _loads(AppliedForce, False, [0.0, 0.0, 5.0]).wrench(cfg)
     lever = R @ [0.0, 0.2, 0.0]
     np.testing.assert_allclose(F[0], [0, 0, 5.0])
     np.testing.assert_allclose(tau[0], np.cross(lever, [0, 0, 5.0]))
-    F_b, _ = _loads(AppliedForce, True, [1.0, 0.0, 0.0]).wrench(0.0, pose, twist)
+    F_b, _, _ = _loads(AppliedForce, True, [1.0, 0.0, 0.0]).wrench(cfg)
     np.testing.assert_allclose(F_b[0], R @ [1.0, 0.0, 0.0], atol=1e-15)
-    F_t, tau_t = _loads(AppliedTorque, False, [0.0, 0.0, 2.0]).wrench(0.0, pose, twist)
+    F_t, tau_t, _ = _loads(AppliedTorque, False, [0.0, 0.0, 2.0]).wrench(cfg)
     np.testing.assert_allclose(F_t[0], 0.0)
     np.testing.assert_allclose(tau_t[0], [0, 0, 2.0])
 
 
 def test_generalized_forces_are_body_torques_minus_gyroscopic():
     system = random_system(nb=3, seed=5, springs=False)
-    pose, twist = pose_twist(system, random_state(system, 5))
-    Q = generalized_forces(system, 0.0, pose, twist)
-    w = twist.B_omega[:-1]
+    cfg = configuration(system, random_state(system, 5))
+    Q, _ = generalized_forces(system, cfg)
+    w = cfg.twist.B_omega[:-1]
     gyro = np.cross(w, np.einsum("bij,bj->bi", system.bodies.inertia, w))
     np.testing.assert_allclose(Q[:-1, 3:], -gyro, atol=1e-12)  # gravity has no torque about G
     np.testing.assert_allclose(Q[:-1, :3], system.bodies.mass[:, None] * [0, 0, -9.81])

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from viz3d.constraints import apply_jacobian, constraint_residual, constraint_rows
+from viz3d.dynamics import split_velocity
 from viz3d.joints import JOINTS
-from viz3d.kinematics import twist_from
 
-from systems import moved_pose, pose_along, pose_twist, random_state, random_system
+from systems import along, configuration, moved, random_state, random_system
 
 #: Central differences of step h err by h^2 |f'''| / 6 (truncation) + eps |f| / h (round-off). Jacobian:
 #: h = 1e-6 m or rad on O(1) residuals: ~1e-12 + 2e-10; JAC_TOL [m] is 50x the round-off.
@@ -18,56 +18,66 @@ JAC_TOL = 1e-8
 GAMMA_EPS = 1e-4
 GAMMA_TOL = 1e-6
 
-#: How the tests build a system holding each registered joint type. A new joint type must be
-#: added here, or ``test_every_registered_joint_type_is_covered`` fails.
-SYSTEMS = {"ball": lambda seed: random_system(nb=4, seed=seed)}
+#: How the tests build a system holding each registered joint type (also on sections of flexible
+#: bars). A new joint type must be added here, or ``test_every_registered_joint_type_is_covered`` fails.
+SYSTEMS = {"ball": lambda seed, flexible: random_system(nb=4, seed=seed, flexible=flexible)}
+
+
+def _C_v(system, rows, x):
+    """``C_v @ x`` for ``x`` in the order of ``v`` (n_v,)."""
+    frame, elastic = split_velocity(system, x)
+    return apply_jacobian(system.joints, rows.J, frame, rows.Je, elastic)
 
 
 def test_every_registered_joint_type_is_covered():
     assert set(JOINTS) == set(SYSTEMS)
 
 
+def _velocity_scales(system):
+    """Random increments of order 1 on frames and of about 1 cm of deflection on elastic coordinates."""
+    from systems import _mode_scale
+
+    parts = [np.ones(6 * system.n_frames)] + [_mode_scale(fb) for fb in system.bodies.flexible]
+    return np.concatenate(parts)
+
+
+@pytest.mark.parametrize("flexible", [False, True])
 @pytest.mark.parametrize("kind", sorted(JOINTS))
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_jacobian_matches_finite_differences(kind, seed):
-    system = SYSTEMS[kind](seed)
-    pose, twist = pose_twist(system, random_state(system, seed))
-    J = constraint_rows(system.joints, pose, twist).J
+def test_jacobian_matches_finite_differences(kind, seed, flexible):
+    system = SYSTEMS[kind](seed, flexible)
+    state = random_state(system, seed)
+    rows = constraint_rows(system.joints, configuration(system, state))
     rng = np.random.default_rng(10 + seed)
     for _ in range(3):
-        dx = rng.normal(size=(system.n_bodies, 6))
-        fd = (constraint_residual(system.joints, moved_pose(pose, dx, EPS))
-              - constraint_residual(system.joints, moved_pose(pose, dx, -EPS))) / (2 * EPS)
-        dx_g = np.concatenate([dx, np.zeros((1, 6))])
-        np.testing.assert_allclose(apply_jacobian(system.joints, J, dx_g), fd, atol=JAC_TOL, err_msg="mismatch: C_v")
+        dx = rng.normal(size=system.n_v) * _velocity_scales(system)
+        fd = (constraint_residual(system.joints, moved(system, state, dx, EPS))
+              - constraint_residual(system.joints, moved(system, state, dx, -EPS))) / (2 * EPS)
+        np.testing.assert_allclose(_C_v(system, rows, dx), fd, atol=JAC_TOL, err_msg="mismatch: C_v")
 
 
+@pytest.mark.parametrize("flexible", [False, True])
 @pytest.mark.parametrize("kind", sorted(JOINTS))
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_gamma_matches_second_time_derivative(kind, seed):
+def test_gamma_matches_second_time_derivative(kind, seed, flexible):
     """d/dt (C_v v) along a motion with accelerations a equals C_v a - gamma."""
-    system = SYSTEMS[kind](seed)
-    pose, twist = pose_twist(system, random_state(system, seed))
-    acc = np.random.default_rng(20 + seed).normal(size=(system.n_bodies, 6))
-    rows = constraint_rows(system.joints, pose, twist)
+    system = SYSTEMS[kind](seed, flexible)
+    state = random_state(system, seed)
+    acc = np.random.default_rng(20 + seed).normal(size=system.n_v) * _velocity_scales(system)
+    rows = constraint_rows(system.joints, configuration(system, state))
 
     def C_dot(t):
-        p = pose_along(pose, twist, acc, t)
-        v = np.concatenate([twist.W_v[:-1], twist.B_omega[:-1]], axis=1) + t * acc
-        tw = twist_from(v[:, :3], v[:, 3:], p)
-        J = constraint_rows(system.joints, p, tw).J
-        return apply_jacobian(system.joints, J, np.concatenate([v, np.zeros((1, 6))]))
+        r = constraint_rows(system.joints, along(system, state, acc, t))
+        return _C_v(system, r, state.v + t * acc)
 
     fd = (C_dot(GAMMA_EPS) - C_dot(-GAMMA_EPS)) / (2 * GAMMA_EPS)
-    acc_g = np.concatenate([acc, np.zeros((1, 6))])
-    expected = apply_jacobian(system.joints, rows.J, acc_g) - rows.gamma
+    expected = _C_v(system, rows, acc) - rows.gamma
     np.testing.assert_allclose(fd, expected, atol=GAMMA_TOL * np.abs(expected).max(), err_msg="mismatch: gamma")
 
 
 def test_reaction_force_is_minus_lambda_for_ball_joints():
     system = random_system(nb=3, seed=4)
-    pose, twist = pose_twist(system, random_state(system, 4))
     js = system.joints.joints[0]
     lam = np.random.default_rng(0).normal(size=(js.n_joints, 3))
-    J = js.jacobian(pose)
+    J, _ = js.jacobian(configuration(system, random_state(system, 4)))
     np.testing.assert_allclose(js.reaction_force(J, lam), -lam)

@@ -15,7 +15,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.forces import FORCES, ForceElement, scatter
-from viz3d.kinematics import Pose, Twist
+from viz3d.kinematics import Configuration
 from viz3d.rotations import cross
 
 #: Laws usable without contact memory.
@@ -53,8 +53,9 @@ class SpherePlane(ForceElement):
     laws: tuple
     damping: FloatArray
 
-    def kinematics(self, pose: Pose, twist: Twist):
+    def kinematics(self, cfg: Configuration):
         """Indentation (k,) [m], its rate (k,) [m/s], contact points (k, 3) and levers (k, 3)."""
+        pose, twist = cfg.pose, cfg.twist
         rho = pose.lever(self.body, self.B_c)
         centre = pose.W_r[self.body] + rho
         alpha = self.radius - np.einsum("ki,ki->k", self.normal, centre - self.plane_point)
@@ -67,13 +68,14 @@ class SpherePlane(ForceElement):
         elastic = np.array([float(law.force(a, 0.0, None)) if a > 0 else 0.0 for law, a in zip(self.laws, alpha)])
         return np.where(alpha > 0, np.maximum(elastic + self.damping * alpha_dot, 0.0), 0.0)
 
-    def wrench(self, t, pose, twist):
-        alpha, alpha_dot, _, lever = self.kinematics(pose, twist)
+    def wrench(self, cfg):
+        alpha, alpha_dot, _, lever = self.kinematics(cfg)
         f = self.magnitudes(alpha, alpha_dot)[:, None] * self.normal
-        n = pose.W_r.shape[0]
-        return scatter(n, self.body, f), scatter(n, self.body, cross(lever, f))
+        n = cfg.pose.W_r.shape[0]
+        return scatter(n, self.body, f), scatter(n, self.body, cross(lever, f)), None
 
-    def potential_energy(self, t, pose):
+    def potential_energy(self, cfg):
+        pose = cfg.pose
         rho = pose.lever(self.body, self.B_c)
         alpha = self.radius - np.einsum("ki,ki->k", self.normal, pose.W_r[self.body] + rho - self.plane_point)
         return float(sum(float(law.elastic_energy(a, None)) for law, a in zip(self.laws, alpha) if a > 0))
@@ -82,9 +84,9 @@ class SpherePlane(ForceElement):
     def conservative(self) -> bool:
         return not np.any(self.damping > 0)
 
-    def contacts(self, pose: Pose, twist: Twist) -> tuple[FloatArray, FloatArray]:
+    def contacts(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """Active contact points (m, 3) and the forces on the bodies there (m, 3), for display."""
-        alpha, alpha_dot, points, _ = self.kinematics(pose, twist)
+        alpha, alpha_dot, points, _ = self.kinematics(cfg)
         F = self.magnitudes(alpha, alpha_dot)
         on = F > 0
         return points[on], F[on, None] * self.normal[on]

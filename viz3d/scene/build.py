@@ -15,10 +15,11 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
-from viz3d.constraints import SingularConstraintError, build_layout, constraint_residual
+from viz3d.constraints import SingularConstraintError, build_layout, constraint_jacobian, constraint_residual
 from viz3d.contact.element import SpherePlane
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
+from viz3d.dynamics import body_state
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
@@ -74,7 +75,7 @@ def build(scene: Scene) -> tuple[System, State]:
     pose0 = pose_from(W_r0, R0)
     joints = build_joints(scene, bodies, pose0)
     forces = (Gravity(bodies.mass, np.asarray(sim["gravity"], float)),) + build_forces(scene, bodies, pose0)
-    system = System(bodies, build_layout(joints, bodies.n_bodies), forces, rotation)
+    system = System(bodies, build_layout(joints, bodies), forces, rotation)
     theta, chart = rotation.from_matrix(R0)
     q = system.join_q(W_r0, theta)
     v = initial_velocities(scene, R0)
@@ -241,7 +242,7 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
         q, _ = project_positions(system, state.q, state.chart, tol=tol)
         v = project_velocities(system, q, state.v, state.chart)
     except SingularConstraintError:
-        names = redundant_joints(system, _jacobian_rows(system, state))
+        names = redundant_joints(system, *constraint_jacobian(system.joints, _configuration(system, state)))
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"
         raise SceneError(source, "joints", f"independent joints ({who})") from None
     except ProjectionError as exc:
@@ -249,7 +250,7 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
     dq = _max_position_change(system, state.q, q)
     dv = float(np.max(np.abs(v - state.v)))
     if dq > REPORT_CORRECTION or dv > REPORT_CORRECTION:
-        C0 = constraint_residual(system.joints, _pose(system, state))
+        C0 = constraint_residual(system.joints, _configuration(system, state))
         warnings.warn(InitialConditionsWarning(
             f"{source}: initial conditions projected onto the joints: positions moved by up to {dq:.3g} m "
             f"(initial max |C| = {np.max(np.abs(C0)):.3g} m), velocities changed by up to {dv:.3g} m/s or rad/s"),
@@ -257,14 +258,8 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
     return state.replace(q=q, v=v)
 
 
-def _jacobian_rows(system, state):
-    pose = _pose(system, state)
-    return np.concatenate([js.jacobian(pose).reshape(-1, 2, 6) for js in system.joints.joints])
-
-
-def _pose(system, state):
-    W_r, theta = system.split_q(state.q)
-    return pose_from(W_r, system.rotation.matrix(theta, state.chart))
+def _configuration(system, state):
+    return body_state(system, state.q, state.v, state.chart, state.t)
 
 
 def _max_position_change(system, q0, q1) -> float:

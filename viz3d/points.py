@@ -1,0 +1,190 @@
+"""Material points on bodies: where joints, springs, loads and contacts attach.
+
+A ``BodyPoints`` holds k points, each fixed in the material of one body (or of ground). On a rigid
+body a point is a constant offset ``s`` from the centre of mass (body axes); on a flexible body it
+is a section ``x`` of the bar with an offset ``c`` in the section, which moves with the deformation
+(``viz3d.flexible.floating_points``). Every element asks its points for the same five things, so
+no element needs to know what kind of body it is attached to:
+
+* ``levers`` and ``positions``: world vectors from the frame origins, world positions [m];
+* ``velocities`` [m/s];
+* ``jacobian``: the velocity Jacobian, as a frame part (k, 3, 6) on the body's twist
+  ``[W_v, B_omega]`` and an elastic part (k, 3, n_e) on the stacked ``eta_dot`` of all flexible
+  bodies (zero columns except the point's own body);
+* ``bias``: the acceleration not proportional to ``v_dot`` (``J_dot v``) [m/s^2];
+* ``wrench``: world forces at the points as generalized forces: per body a world force at the frame
+  origin and a world torque about it (nb + 1, 3) each, plus the elastic part (n_e,).
+
+See docs/notation.md ("Points on bodies").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viz3d._typing import FloatArray, IntArray
+from viz3d.flexible import floating_points as fp
+from viz3d.kinematics import Configuration
+from viz3d.rotations import cross, skew
+
+
+@dataclass(frozen=True, eq=False)
+class FlexPoints:
+    """The points of a ``BodyPoints`` that lie on one flexible body.
+
+    Attributes
+    ----------
+    which : ndarray of int, shape (m,)
+        Their indices among the k points.
+    flex : int
+        Index of the body among ``Bodies.flexible`` (and of its ``eta`` in ``Configuration``).
+    offset : int
+        Position of the body's ``eta`` in the stacked elastic coordinates.
+    material : MaterialPoints
+        Sections and offsets, with their shape matrices.
+    """
+
+    which: IntArray
+    flex: int
+    offset: int
+    material: fp.MaterialPoints
+
+    @property
+    def n(self) -> int:
+        return self.material.N.shape[2]
+
+
+@dataclass(frozen=True, eq=False)
+class BodyPoints:
+    """k material points, vectorized.
+
+    Attributes
+    ----------
+    body : ndarray of int, shape (k,)
+        Body of each point; ``nb`` is ground.
+    B_s : ndarray, shape (k, 3)
+        Offset from the body's frame origin in body axes [m] (ground: the world point); for points on
+        flexible bodies, the undeformed one.
+    flex : tuple of FlexPoints
+        The points on flexible bodies, grouped by body.
+    n_elastic : int
+        Elastic coordinates of the system (columns of the elastic Jacobian part).
+    """
+
+    body: IntArray
+    B_s: FloatArray
+    flex: tuple[FlexPoints, ...] = ()
+    n_elastic: int = 0
+
+    @property
+    def k(self) -> int:
+        return len(self.body)
+
+    def body_positions(self, cfg: Configuration) -> FloatArray:
+        """Offsets from the frame origins in body axes, deformed, shape (k, 3) [m]."""
+        if not self.flex:
+            return self.B_s
+        s = self.B_s.copy()
+        for g in self.flex:
+            s[g.which] = g.material.s0 + g.material.N @ cfg.eta[g.flex]
+        return s
+
+    def levers(self, cfg: Configuration) -> FloatArray:
+        """World vectors from the frame origins to the points, shape (k, 3) [m]."""
+        return np.einsum("kij,kj->ki", cfg.pose.R_WB[self.body], self.body_positions(cfg))
+
+    def positions(self, cfg: Configuration) -> FloatArray:
+        """World positions, shape (k, 3) [m]."""
+        return cfg.pose.W_r[self.body] + self.levers(cfg)
+
+    def velocities(self, cfg: Configuration, levers: FloatArray | None = None) -> FloatArray:
+        """World velocities, shape (k, 3) [m/s]."""
+        rho = self.levers(cfg) if levers is None else levers
+        v = cfg.twist.point_velocity(self.body, rho)
+        for g in self.flex:
+            R = cfg.pose.R_WB[self.body[g.which]]
+            v[g.which] += np.einsum("kij,kjq,q->ki", R, g.material.N, cfg.eta_dot[g.flex])
+        return v
+
+    def jacobian(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """Velocity Jacobian: frame part (k, 3, 6) ``[I, -R skew(s)]`` on ``[W_v, B_omega]`` and
+        elastic part (k, 3, n_e) ``R N``."""
+        Jf = np.zeros((self.k, 3, 6))
+        Jf[:, :, :3] = np.eye(3)
+        Jf[:, :, 3:] = np.einsum("kab,kbc->kac", cfg.pose.R_WB[self.body], -skew(self.body_positions(cfg)))
+        Je = np.zeros((self.k, 3, self.n_elastic))
+        for g in self.flex:
+            R = cfg.pose.R_WB[self.body[g.which]]
+            Je[g.which, :, g.offset:g.offset + g.n] = R @ g.material.N
+        return Jf, Je
+
+    def bias(self, cfg: Configuration, levers: FloatArray | None = None) -> FloatArray:
+        """``J_dot v``, shape (k, 3) [m/s^2]: ``w x (w x rho)`` plus, on flexible bodies, the Coriolis
+        term ``2 w x (R N eta_dot)`` (world axes)."""
+        rho = self.levers(cfg) if levers is None else levers
+        w = cfg.twist.W_omega[self.body]
+        a = cross(w, cross(w, rho))
+        for g in self.flex:
+            R = cfg.pose.R_WB[self.body[g.which]]
+            u_dot = np.einsum("kij,kjq,q->ki", R, g.material.N, cfg.eta_dot[g.flex])
+            a[g.which] += 2.0 * cross(w[g.which], u_dot)
+        return a
+
+    def wrench(self, cfg: Configuration, W_F: FloatArray, levers: FloatArray | None = None
+               ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """World forces ``W_F`` (k, 3) [N] at the points as generalized forces: world forces at the
+        frame origins and world torques about them, shapes (nb + 1, 3), and the elastic part (n_e,)."""
+        rho = self.levers(cfg) if levers is None else levers
+        n = cfg.pose.W_r.shape[0]
+        F = scatter(n, self.body, W_F)
+        tau = scatter(n, self.body, cross(rho, W_F))
+        Qe = np.zeros(self.n_elastic)
+        for g in self.flex:
+            R = cfg.pose.R_WB[self.body[g.which]]
+            F_B = np.einsum("kji,kj->ki", R, W_F[g.which])
+            Qe[g.offset:g.offset + g.n] += np.einsum("kiq,ki->q", g.material.N, F_B)
+        return F, tau, Qe
+
+
+def scatter(n_rows: int, body: IntArray, values: FloatArray) -> FloatArray:
+    """Sum ``values`` (k, 3) into rows ``body`` (k,) of a zero (n_rows, 3) array."""
+    out = np.zeros((n_rows, 3))
+    np.add.at(out, body, values)
+    return out
+
+
+def rigid_points(body: IntArray, B_s: FloatArray, n_elastic: int = 0) -> BodyPoints:
+    """Points with constant body-frame offsets (rigid bodies and ground)."""
+    return BodyPoints(np.asarray(body, dtype=int), np.asarray(B_s, dtype=float).reshape(-1, 3), (), n_elastic)
+
+
+def body_points(bodies, body: IntArray, B_s: FloatArray, x: FloatArray | None = None) -> BodyPoints:
+    """k points of ``bodies`` (a ``viz3d.bodies.Bodies``).
+
+    Parameters
+    ----------
+    body : ndarray of int, shape (k,)
+        Body of each point (``nb`` = ground).
+    B_s : ndarray, shape (k, 3)
+        Rigid bodies and ground: the offset from the centre of mass, body axes (ground: the world
+        point) [m]. Flexible bodies: the offset ``c`` of the point from its section's centroid, body
+        axes [m] (e.g. ``(depth / 2) d`` for the surface).
+    x : ndarray, shape (k,), optional
+        Flexible bodies: the section of each point along the bar [m] (ignored elsewhere).
+    """
+    body = np.asarray(body, dtype=int)
+    B_s = np.asarray(B_s, dtype=float).reshape(-1, 3).copy()
+    n_elastic = sum(fb.n for fb in bodies.flexible)
+    groups, offset = [], 0
+    for i, fb in enumerate(bodies.flexible):
+        which = np.flatnonzero(body == fb.index)
+        if which.size:
+            if x is None:
+                raise ValueError(f"points on the flexible body {bodies.names[fb.index]!r} need their sections x")
+            material = fp.material_points(fb.bar, np.asarray(x, dtype=float)[which], B_s[which])
+            B_s[which] = material.s0
+            groups.append(FlexPoints(which, i, offset, material))
+        offset += fb.n
+    return BodyPoints(body, B_s, tuple(groups), n_elastic)
