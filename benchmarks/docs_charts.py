@@ -36,11 +36,11 @@ CHARTS = {
         dts=[2e-3, 1e-3, 5e-4, 2.5e-4], tols=[1e-6, 1e-8, 1e-10], t_end=3.0),
         "Dzhanibekov flip, 3 s: rotation parametrizations and integrators"),
     "stiff_contact_stable_step": ("stability", "stiff_contact", dict(
-        methods=["rk4", "trapezoidal", "gen_alpha"], sweep="forces.floor.stiffness=1e6,1e7,1e8,1e9,1e10,2.2e10",
+        methods=["rk4", "trapezoidal", "gen_alpha"], sweep="contacts.floor.stiffness=1e6,1e7,1e8,1e9,1e10,2.2e10",
         t_end=0.1),
         "largest stable step against Hertz contact stiffness (ball dropped 5 mm)"),
     "stiff_contact_stable_step_whole_run": ("stability", "stiff_contact", dict(
-        methods=["rk4", "trapezoidal", "gen_alpha"], sweep="forces.floor.stiffness=1e6,1e8,1e10"),
+        methods=["rk4", "trapezoidal", "gen_alpha"], sweep="contacts.floor.stiffness=1e6,1e8,1e10"),
         "the same over the scene's whole 0.2 s (several bounces): what a step spanning each onset adds accumulates"),
     "stiff_spring_stable_step": ("stability", "stiff_spring", dict(
         methods=["rk4", "trapezoidal", "gen_alpha", "ali3p"], sweep="forces.spring.stiffness=1e4,1e5,1e6,1e7,1e8",

@@ -55,12 +55,16 @@ class ConstraintRows:
         Acceleration right-hand side [m/s^2].
     Je : ndarray, shape (n_c, 2, n_e)
         Elastic part of each side's Jacobian (zero unless the side is on a flexible body).
+    inactive : ndarray of bool, shape (n_c,)
+        Rows that do not act now (a kinematic contact that is not touching): zero rows, and a unit
+        diagonal in the Schur complement so that their multipliers are zero.
     """
 
     C: FloatArray
     J: FloatArray
     gamma: FloatArray
     Je: FloatArray
+    inactive: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -213,18 +217,27 @@ def _bandwidth_order(r_idx: IntArray, k_idx: IntArray, n_c: int) -> IntArray:
     return np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=int)
 
 
-def constraint_rows(layout: ConstraintLayout, cfg: Configuration) -> ConstraintRows:
-    """Residuals, Jacobian blocks and gamma of every joint, stacked (see ``ConstraintRows``)."""
+def constraint_rows(layout: ConstraintLayout, cfg: Configuration, memory: tuple = ()) -> ConstraintRows:
+    """Residuals, Jacobian blocks and gamma of every joint (and kinematic contact row active in
+    ``memory``, the contact phases of ``State.memory``), stacked (see ``ConstraintRows``)."""
     if not layout.joints:
         return ConstraintRows(np.zeros(0), np.zeros((0, 2, 6)), np.zeros(0), np.zeros((0, 2, layout.n_elastic)))
-    C, J, Je, gamma = [], [], [], []
+    C, J, Je, gamma, off = [], [], [], [], []
     for js in layout.joints:
+        m = js.n_joints * js.n_eq
         C.append(js.residual(cfg).reshape(-1))
         Jf, Jel = js.jacobian(cfg)
-        J.append(Jf.reshape(-1, 2, 6))
-        Je.append(Jel.reshape(js.n_joints * js.n_eq, 2, layout.n_elastic))
+        J.append(Jf.reshape(m, 2, 6))
+        Je.append(Jel.reshape(m, 2, layout.n_elastic))
         gamma.append(js.gamma(cfg).reshape(-1))
-    return ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je))
+        off.append(np.zeros(m, dtype=bool) if js.is_joint else np.repeat(~js.active(memory), js.n_eq))
+    rows = ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je))
+    inactive = np.concatenate(off)
+    if not inactive.any():
+        return rows
+    keep = ~inactive
+    return ConstraintRows(rows.C * keep, rows.J * keep[:, None, None], rows.gamma * keep, rows.Je * keep[:, None, None],
+                          inactive)
 
 
 def constraint_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
@@ -276,7 +289,7 @@ def apply_jacobian_transpose(layout: ConstraintLayout, J: FloatArray, lam: Float
 
 
 def schur_solve(layout: ConstraintLayout, mass, J: FloatArray, b: FloatArray, shift: float = 0.0,
-                Je: FloatArray | None = None) -> FloatArray:
+                Je: FloatArray | None = None, inactive: np.ndarray | None = None) -> FloatArray:
     """Solve ``(C_v M^-1 C_v^T + shift I) lam = b`` for ``lam`` (n_c,), on dense or banded storage
     (``shift > 0``: the compliance of penalty-like formulations, positive definite even for
     redundant joints). ``mass`` is a ``viz3d.mass.MassMatrix`` (or, for rigid bodies only, the
@@ -292,14 +305,18 @@ def schur_solve(layout: ConstraintLayout, mass, J: FloatArray, b: FloatArray, sh
     M_inv = mass if isinstance(mass, np.ndarray) else mass.M_inv
     W = np.einsum("rsi,rsij->rsj", J, M_inv[layout.row_body])
     vals = np.einsum("pi,pi->p", W[layout.pair_row, layout.pair_side], J[layout.pair_col, layout.pair_colside])
-    store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size)
+    # (float even without rigid couplings: bincount of no weights is an integer array)
+    store = np.bincount(layout.pair_slot, vals, minlength=layout.storage_size).astype(float, copy=False)
     for g in layout.flex_groups:
         G = flex_rows(mass, g, J, Je)
         A = G @ mass.solve_block(g.flex, G)
         np.add.at(store, g.pair_slot, A[g.pair_a, g.pair_b])
     n = layout.n_rows
+    diagonal = layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)
     if shift:
-        store[layout.kd * n + np.arange(n) if layout.banded else np.arange(n) * (n + 1)] += shift
+        store[diagonal] += shift
+    if inactive is not None:
+        store[diagonal[np.argsort(layout.perm)][inactive]] += 1.0  # rows that do not act: lam = b = 0
     rhs = b[layout.perm]
     if layout.banded:
         _, x, info = lapack.dpbsv(store.reshape(layout.kd + 1, n), rhs, lower=0)

@@ -145,7 +145,12 @@ def _worst_joint(system: System, state: State) -> str:
         return ""
     per_joint = _per_joint(system, np.abs(C))
     j = int(np.argmax(per_joint))
-    return f"; largest violation at joint {system.joint_names[j]!r} (|C| = {per_joint[j]:.3g} m)"
+    return f"; largest violation at joint {_row_names(system)[j]!r} (|C| = {per_joint[j]:.3g} m)"
+
+
+def _row_names(system: System) -> tuple[str, ...]:
+    """Names of every row provider's members (joints, then kinematic contacts)."""
+    return tuple(n for js in system.joints.joints for n in js.names)
 
 
 def _per_joint(system: System, row_values: np.ndarray) -> np.ndarray:
@@ -167,4 +172,4 @@ def redundant_joints(system: System, J: np.ndarray, Je: np.ndarray | None = None
     if null.shape[1] == 0:
         return []
     weight = _per_joint(system, np.abs(null).max(axis=1))
-    return [system.joint_names[j] for j in np.flatnonzero(weight > 1e-6)]
+    return [_row_names(system)[j] for j in np.flatnonzero(weight > 1e-6)]

@@ -49,13 +49,14 @@ def _with_fixed_frames(system: System, W_r, R, W_v, B_omega) -> tuple[Pose, Twis
     return pose, twist_from(v_all, w_all, pose)
 
 
-def generalized_forces(system: System, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+def generalized_forces(system: System, cfg: Configuration, memory: tuple = ()) -> tuple[FloatArray, FloatArray]:
     """``Q``: frame part (nb + 1, 6) ``[W_F, B_tau - gyroscopic]`` [N, N m] and elastic part (n_e,).
 
     Forces are world vectors at the frame origins; torques are about them, in body axes. Rigid
     bodies add ``-B_omega x I B_omega``; flexible bodies their velocity forces (centrifugal,
-    Coriolis, gyroscopic) and elastic forces ``-K eta - C eta_dot``. Rows of ground and of fixed
-    frames are zero (their reactions are not unknowns).
+    Coriolis, gyroscopic) and elastic forces ``-K eta - C eta_dot``; contacts their law forces,
+    given their phases in ``memory`` (``State.memory``). Rows of ground and of fixed frames are zero
+    (their reactions are not unknowns).
     """
     pose, twist = cfg.pose, cfg.twist
     W_F = np.zeros_like(pose.W_r)
@@ -67,6 +68,11 @@ def generalized_forces(system: System, cfg: Configuration) -> tuple[FloatArray, 
         W_tau += tau
         if e is not None:
             Q_e += e
+    for k, contacts in enumerate(system.contacts):
+        F, tau, e = contacts.wrench(cfg, memory[k] if memory else contacts.initial_phases())
+        W_F += F
+        W_tau += tau
+        Q_e += e
     Q = np.zeros((W_F.shape[0], 6))
     Q[:, :3] = W_F
     Q[:, 3:] = np.einsum("bji,bj->bi", pose.R_WB, W_tau)  # R^T tau: body axes
@@ -121,22 +127,25 @@ class Accelerations:
     lam : ndarray, shape (n_c,)
         Multipliers; the constraint force on the bodies is ``-C_v^T lam`` [N].
     rows : ConstraintRows
+    cfg : Configuration
+        The configuration they were computed at.
     """
 
     v_dot: FloatArray
     lam: FloatArray
     rows: ConstraintRows
+    cfg: Configuration
 
 
 def accelerations(system: System, formulation, t: float, q: FloatArray, v: FloatArray,
-                  chart: FloatArray) -> Accelerations:
-    """Accelerations and multipliers at ``(t, q, v)`` (the physics recipe)."""
+                  chart: FloatArray, memory: tuple = ()) -> Accelerations:
+    """Accelerations and multipliers at ``(t, q, v)`` with the contact phases ``memory`` (the physics recipe)."""
     cfg = body_state(system, q, v, chart, t)
     mass = system_mass(system, cfg)
-    Q = generalized_forces(system, cfg)
-    rows = constraint_rows(system.joints, cfg)
+    Q = generalized_forces(system, cfg, memory)
+    rows = constraint_rows(system.joints, cfg, memory)
     (a, a_e), lam = formulation.solve(system, mass, Q, rows, cfg)
-    return Accelerations(flat_velocity(system, a, a_e), lam, rows)
+    return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
 
 
 def flat_velocity(system: System, frame: FloatArray, elastic: FloatArray) -> FloatArray:
@@ -177,8 +186,28 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
     return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi), eta)
 
 
+def aux_rates(system: System, cfg: Configuration, memory: tuple) -> FloatArray:
+    """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
+    contact ``F alpha_dot``, the damping power of the flexible bodies, the power of the
+    non-conservative force elements [W]."""
+    parts = [c.power(cfg, memory[k] if memory else c.initial_phases()) for k, c in enumerate(system.contacts)]
+    # (called only when the system keeps a ledger: some contact set is located)
+    damping = 0.0
+    for i, fb in enumerate(system.bodies.flexible):
+        damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
+    power_in = 0.0
+    for element in system.forces:
+        if not element.conservative:
+            F, tau, e = element.wrench(cfg)
+            power_in += float(np.sum(F * cfg.twist.W_v) + np.sum(tau * cfg.twist.W_omega))
+            if e is not None:
+                power_in += float(e @ np.concatenate(cfg.eta_dot))
+    return np.concatenate(parts + [[damping, power_in]])
+
+
 class VectorField:
-    """``y_dot = f(t, y)`` with ``y = [q, v]``, for a fixed chart; what integrators see.
+    """``y_dot = f(t, y)`` with ``y = [q, v, w]``, for a fixed chart and contact phases; what
+    integrators see (``w``: the ledger's work integrals, present with contacts).
 
     Besides ``__call__`` it offers the ``retract`` hook of ``viz3d.integrators.base.Rhs``.
 
@@ -190,31 +219,37 @@ class VectorField:
         Number of evaluations so far.
     """
 
-    def __init__(self, system: System, formulation, chart: FloatArray):
-        self.system, self.formulation, self.chart = system, formulation, chart
-        self.n_q = system.n_q
+    def __init__(self, system: System, formulation, chart: FloatArray, memory: tuple = ()):
+        self.system, self.formulation, self.chart, self.memory = system, formulation, chart, memory
+        self.n_q, self.n_v = system.n_q, system.n_v
         self.n_evals = 0
 
     def __call__(self, t: float, y: FloatArray) -> FloatArray:
         self.n_evals += 1
-        q, v = y[: self.n_q], y[self.n_q:]
-        acc = accelerations(self.system, self.formulation, t, q, v, self.chart)
-        return np.concatenate([kinematic_rates(self.system, q, v), acc.v_dot])
+        q, v = y[: self.n_q], y[self.n_q:self.n_q + self.n_v]
+        acc = accelerations(self.system, self.formulation, t, q, v, self.chart, self.memory)
+        parts = [kinematic_rates(self.system, q, v), acc.v_dot]
+        if self.system.n_aux:
+            parts.append(aux_rates(self.system, acc.cfg, self.memory))
+        return np.concatenate(parts)
 
     def retract(self, q: FloatArray, w: FloatArray) -> FloatArray:
-        """``q`` moved by the velocity-space increment ``w`` (n_v,) [m, rad] (see ``retract``)."""
-        return retract(self.system, q, w, self.chart)
+        """``q`` moved by the velocity-space increment ``w`` (n_v,) [m, rad] (see ``retract``;
+        entries beyond n_v, the work integrals' increments, do not move positions)."""
+        return retract(self.system, q, w[: self.n_v], self.chart)
 
 
 def energies(system: System, state: State) -> tuple[float, float]:
     """Kinetic and potential energy [J] of a state (potential of all conservative elements, plus the
-    strain energy of flexible bodies)."""
+    strain energy of flexible bodies and the energy stored in contacts)."""
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
     T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
     V = sum(e.potential_energy(cfg) for e in system.forces)
     for i, fb in enumerate(system.bodies.flexible):
         T += _flexible_kinetic(fb, cfg, i)
         V += ffr.strain_energy(fb.bar, cfg.eta[i])
+    for k, c in enumerate(system.contacts):
+        V += float(c.elastic_energy(cfg, state.memory[k] if state.memory else c.initial_phases()).sum())
     return T, float(V)
 
 
@@ -223,3 +258,18 @@ def _flexible_kinetic(fb, cfg: Configuration, i: int) -> float:
         return 0.5 * float(cfg.eta_dot[i] @ fb.bar.M_ee @ cfg.eta_dot[i])
     v = np.concatenate([cfg.twist.W_v[fb.index], cfg.twist.B_omega[fb.index], cfg.eta_dot[i]])
     return ffr.kinetic_energy(fb.bar, cfg.pose.R_WB[fb.index], cfg.eta[i], v)
+
+
+def centres_of_mass(system: System, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+    """World positions and velocities of the bodies' centres of mass, shapes (nb, 3) [m, m/s]: the
+    frame origins, shifted on flexible bodies by their deflection ``R S eta / m``."""
+    W_G, W_v = cfg.pose.W_r[:-1], cfg.twist.W_v[:-1]
+    if not system.bodies.flexible:
+        return W_G, W_v
+    W_G, W_v = W_G.copy(), W_v.copy()
+    for i, fb in enumerate(system.bodies.flexible):
+        R, b = cfg.pose.R_WB[fb.index], fb.index
+        shift = R @ (fb.bar.S @ cfg.eta[i]) / fb.bar.mass
+        W_G[b] += shift
+        W_v[b] += np.cross(cfg.twist.W_omega[b], shift) + R @ (fb.bar.S @ cfg.eta_dot[i]) / fb.bar.mass
+    return W_G, W_v

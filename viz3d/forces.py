@@ -210,8 +210,7 @@ class AppliedTorque(AppliedForce):
         return np.zeros_like(cfg.pose.W_r), scatter(cfg.pose.W_r.shape[0], self.body, tau_k), None
 
 
-#: Force elements by scene type. Contact elements (viz3d.contact.element) register themselves
-#: here when imported, which viz3d.scene.build does.
+#: Force elements by scene type (contacts are not force elements: ``viz3d.contact.contacts``).
 FORCES: dict[str, type[ForceElement]] = {
     cls.type_name: cls for cls in (SpringDamper, AppliedForce, AppliedTorque)
 }

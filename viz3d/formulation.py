@@ -39,7 +39,7 @@ def solve_augmented(system: System, mass, Q, rows: ConstraintRows, gamma, compli
     Q_f, Q_e = Q
     a_free, a_free_e = mass.solve(Q_f, Q_e)
     rhs = apply_jacobian(layout, rows.J, a_free, rows.Je, a_free_e) - gamma
-    lam = schur_solve(layout, mass, rows.J, rhs, compliance, rows.Je)
+    lam = schur_solve(layout, mass, rows.J, rhs, compliance, rows.Je, rows.inactive)
     CtL, CtL_e = apply_jacobian_transpose(layout, rows.J, lam, Q_f.shape[0], rows.Je)
     d, d_e = mass.solve(CtL, CtL_e)
     return (a_free - d, a_free_e - d_e), lam
@@ -110,8 +110,8 @@ class Projection(Index1):
     tol: float = 1e-12
 
     def post_step(self, system, state):
-        q, _ = project_positions(system, state.q, state.chart, tol=self.tol)
-        return state.replace(q=q, v=project_velocities(system, q, state.v, state.chart))
+        q, _ = project_positions(system, state.q, state.chart, tol=self.tol, memory=state.memory)
+        return state.replace(q=q, v=project_velocities(system, q, state.v, state.chart, state.memory))
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.dynamics import accelerations, body_state, energies
+from viz3d.dynamics import accelerations, body_state, centres_of_mass, energies
 from viz3d.forces import SpringDamper
 from viz3d.system import State, System
 
@@ -179,40 +179,108 @@ class Frame:
         return self.energy_kinetic + self.energy_potential
 
 
-def frame_from_state(system: System, formulation, state: State) -> Frame:
-    """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side)."""
+@dataclass(frozen=True, eq=False)
+class FlexibleDrawing:
+    """How a flexible body is drawn: a tube of rings along its deformed axis, deformation amplified.
+
+    Attributes
+    ----------
+    name : str
+        The ``DeformableVisual`` it updates.
+    flex : int
+        The body among ``Bodies.flexible``.
+    body : int
+        Its body index.
+    points : MaterialPoints
+        Sections of the axis (``viz3d.flexible.floating_points``).
+    ring : ndarray, shape (m, 3)
+        Outline of a section, body axes, from the axis [m].
+    amplification : float
+        Deformation drawn this many times larger.
+    """
+
+    name: str
+    flex: int
+    body: int
+    points: object
+    ring: FloatArray
+    amplification: float = 1.0
+
+    def vertices(self, cfg) -> FloatArray:
+        """World vertices (sections * m, 3), float32 [m]."""
+        R = cfg.pose.R_WB[self.body]
+        axis = self.points.s0 + self.amplification * (self.points.N @ cfg.eta[self.flex])
+        local = axis[:, None, :] + self.ring[None, :, :]
+        return (cfg.pose.W_r[self.body] + local.reshape(-1, 3) @ R.T).astype(np.float32)
+
+
+def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
+                     reference_energy: float | None = None) -> Frame:
+    """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side).
+
+    ``drawings``: the ``FlexibleDrawing`` of each flexible body to draw deformed; with contacts,
+    ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``.
+    """
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
     T, V = energies(system, state)
-    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart)
+    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory)
     reactions, points = [], []
     for js, sl in zip(system.joints.joints, system.joints.row_slices()):
+        if not js.is_joint:
+            continue
         J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
         reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
         points.append(js.points(cfg))
     springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
     contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]
+    scalars: dict[str, float] = {}
+    for out in system.outputs:
+        scalars.update(out.values(cfg))
+    if system.contacts:
+        contacts += _contact_display(system, state, cfg, acc.lam, scalars)
+        scalars.update(_ledger_scalars(system, state, reference_energy))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
         joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
-        constraint_violation=float(np.max(np.abs(acc.rows.C))) if system.n_c else 0.0,
+        constraint_violation=_joint_violation(system, acc.rows.C), scalars=scalars,
+        deformed={d.name: d.vertices(cfg) for d in drawings},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
 
 
-def centres_of_mass(system: System, cfg) -> tuple[FloatArray, FloatArray]:
-    """World positions and velocities of the bodies' centres of mass, shapes (nb, 3) [m, m/s]: the
-    frame origins, shifted on flexible bodies by their deflection ``R S eta / m``."""
-    W_G, W_v = cfg.pose.W_r[:-1], cfg.twist.W_v[:-1]
-    if not system.bodies.flexible:
-        return W_G, W_v
-    W_G, W_v = W_G.copy(), W_v.copy()
-    for i, fb in enumerate(system.bodies.flexible):
-        R, b = cfg.pose.R_WB[fb.index], fb.index
-        shift = R @ (fb.bar.S @ cfg.eta[i]) / fb.bar.mass
-        W_G[b] += shift
-        W_v[b] += np.cross(cfg.twist.W_omega[b], shift) + R @ (fb.bar.S @ cfg.eta_dot[i]) / fb.bar.mass
-    return W_G, W_v
+def _joint_violation(system: System, C: FloatArray) -> float:
+    """max |C| over the joints' rows [m] (a kinematic contact's row is its indentation, not a violation)."""
+    rows = [C[sl] for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
+    rows = np.concatenate(rows) if rows else np.zeros(0)
+    return float(np.max(np.abs(rows))) if rows.size else 0.0
+
+
+def _contact_display(system: System, state: State, cfg, lam, scalars: dict) -> list:
+    """Contact points and forces of every contact set (for display), and their scalars."""
+    from viz3d.events import contact_forces
+
+    out = []
+    for c, F in zip(system.contacts, contact_forces(system, state, lam)):
+        gp = c.gap(cfg)
+        for i, name in enumerate(c.names):
+            scalars[f"contact/{name}/force"] = float(F[i])
+            scalars[f"contact/{name}/indentation"] = float(max(gp.alpha[i], 0.0))
+        on = F > 0.0
+        out.append((gp.point[on], F[on, None] * gp.n[on]))
+    return out
+
+
+def _ledger_scalars(system: System, state: State, reference_energy: float | None) -> dict[str, float]:
+    from viz3d.events import ledger
+
+    led = ledger(system, state)
+    out = {"energy/kinetic": led.kinetic, "energy/potential": led.potential, "energy/strain": led.strain,
+           "energy/contact_elastic": led.contact_elastic, "energy/dissipated": led.dissipated,
+           "energy/work_in": led.work_in}
+    if reference_energy is not None:
+        out["energy/balance_error"] = led.total + led.dissipated - led.work_in - reference_energy
+    return out
 
 
 def _stack(parts: list, empty_shape: tuple) -> FloatArray:

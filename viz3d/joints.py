@@ -39,6 +39,8 @@ class Joint(ABC):
 
     type_name: ClassVar[str]
     n_eq: ClassVar[int]
+    #: Row providers that are not joints (contact rows, ``viz3d.contact.contacts.ContactRows``) say False.
+    is_joint: ClassVar[bool] = True
 
     names: tuple[str, ...]
     body: IntArray

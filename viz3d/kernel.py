@@ -75,43 +75,43 @@ def kernel_for(system, formulation) -> KernelData | None:
     """Packed data when the kernel covers ``system`` with ``formulation``, else None."""
     if numba is None or formulation.name not in ("index1", "baumgarte") or system.bodies.flexible:
         return None
+    if any(not _compiled_contacts(c, system.n_bodies) for c in system.contacts):
+        return None
     if type(system.rotation) not in (EulerSwitching, EulerZXZ):
         return None
     if any(type(js) is not BallJoint for js in system.joints.joints):
         return None
-    from viz3d.contact.element import SpherePlane
+    if any(type(e) not in (Gravity, SpringDamper, AppliedForce, AppliedTorque) for e in system.forces):
+        return None
+    return pack(system, formulation)
+
+
+def _compiled_contacts(c, ground: int) -> bool:
+    """The kernel covers spheres on rigid bodies against ground planes with a memoryless law, stepped through."""
     from viz3d.contact.laws import Hertz, Linear
 
-    if any(type(e) not in (Gravity, SpringDamper, AppliedForce, AppliedTorque, SpherePlane) for e in system.forces):
-        return None
-    for e in system.forces:
-        if isinstance(e, SpherePlane) and any(type(law) not in (Hertz, Linear) or getattr(law, "damping", 0.0)
-                                              for law in e.laws):
-            return None
-    return pack(system, formulation)
+    return (not c.located and np.all(c.body[:, 1] == ground) and not c.sides[0].flex
+            and all(type(law) in (Hertz, Linear) for law in c.laws))
 
 
 def pack(system, formulation) -> KernelData:
     nb = system.n_bodies
-    from viz3d.contact.element import SpherePlane
-
     gravity = np.zeros(3)
-    springs, loads, contacts = [], [], []
+    springs, loads = [], []
     for e in system.forces:
         if isinstance(e, Gravity):
             gravity = gravity + e.g
         elif isinstance(e, SpringDamper):
             springs.append(e)
-        elif isinstance(e, SpherePlane):
-            contacts.append(e)
         else:
             loads.append(e)
     kb, kf = [], []
-    for e in contacts:  # centre (3), radius, plane point (3), normal (3), K, exponent, damping
-        for k, law in enumerate(e.laws):
-            kb.append(e.body[k])
-            kf.append([*e.B_c[k], e.radius[k], *e.plane_point[k], *e.normal[k], law.stiffness,
-                       getattr(law, "exponent", 1.0), e.damping[k]])
+    for c in system.contacts:  # centre (3), radius, plane point (3), normal (3), K, exponent, damping
+        for k, law in enumerate(c.laws):
+            kb.append(c.body[k, 0])
+            damping = law.damping if hasattr(law, "damping") else c.damping[k]
+            kf.append([*c.sides[0].B_s[k], c.radius[k], *c.sides[1].B_s[k], *c.normal[k], law.stiffness,
+                       getattr(law, "exponent", 1.0), damping])
     joints = system.joints.joints
     jb = np.concatenate([js.body for js in joints]) if joints else np.zeros((0, 2), int)
     js_ = np.concatenate([js.B_s for js in joints]) if joints else np.zeros((0, 2, 3))

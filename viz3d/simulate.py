@@ -11,6 +11,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -19,9 +20,10 @@ import numpy as np
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_chart, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
+from viz3d.extras import run_extras
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
-from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order
+from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
@@ -103,6 +105,33 @@ class Simulation:
         self._h = None          # adaptive: next step to try [s]
         self._fields: list[VectorField] = []
         self._kernel = _compiled(system, integrator, formulation, controller) if compiled else None
+        self._contacts = None   # contact events (systems with contacts): viz3d.events.ContactStepping
+        self._fired = None      # the event handled last, disarmed for the next step
+        #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
+        self.event_states: list[State] = []
+        if system.contacts:
+            self._start_contacts(state)
+
+    def _start_contacts(self, state: State) -> None:
+        from viz3d.events import ContactStepping
+
+        if state.w.size != self.system.n_aux or len(state.memory) != len(self.system.contacts):
+            state = state.replace(w=np.zeros(self.system.n_aux), memory=tuple(c.initial_phases() for c in self.system.contacts))
+        c = self.controller
+        self._contacts = ContactStepping(self.system, self.formulation, c.rtol if c else 0.0, c.atol if c else 0.0)
+        self.state = self._inner = self._contacts.start(state)
+
+    @property
+    def contacts(self):
+        """The run's ``viz3d.events.ContactStepping`` (None without contacts)."""
+        return self._contacts
+
+    def drain_events(self, until: float = np.inf) -> list[State]:
+        """The states right after the contact events not taken yet, up to time ``until`` (adaptive
+        steps may run ahead of the returned state), in time order."""
+        out = [s for s in self.event_states if s.t <= until]
+        self.event_states = [s for s in self.event_states if s.t > until]
+        return out
 
     def step(self) -> State:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
@@ -112,6 +141,8 @@ class Simulation:
         try:
             if self.formulation.integrator is not None:
                 new = self._own_step(target)
+            elif self._contacts is not None:
+                new = self._event_steps(target)
             elif self.controller is None:
                 new = self._fixed_step(target)
             else:
@@ -153,7 +184,7 @@ class Simulation:
         if not res.status.ok:
             raise SimulationFailure(res.status.message)
         self._solver = res.state
-        raw = State(target, res.y[: system.n_q], res.y[system.n_q:], s.chart)
+        raw = _state_at(system, target, res.y, s)
         return self._accept(raw, res.f1, self.dt)
 
     def _kernel_ready(self) -> bool:
@@ -199,6 +230,71 @@ class Simulation:
         self._f = None
         return y, chart, done, True
 
+    def _event_steps(self, target: float) -> State:
+        """Steps to ``target`` with contact events located on each step (``viz3d.events``): fixed
+        steps land on ``target`` (shortened by the contact step bound and by events), adaptive ones
+        are sampled there by dense output."""
+        s = self._inner
+        end = target - 1e-12 * max(1.0, abs(target))
+        while s.t < end and (self.controller is None or self._span is None or self._span.t1 < target):
+            s = self._event_step(s, target)
+            self._inner = s
+        if self.controller is None or abs(s.t - target) <= 1e-12 * max(1.0, abs(target)):
+            return s.replace(t=target) if self.controller is None else s
+        sample = self._span.sample(target)
+        W_r, theta = self.system.split_q(sample.q)
+        return sample.replace(q=self.system.with_frames(sample.q, W_r, self.system.rotation.normalize(theta)))
+
+    def _event_step(self, s: State, target: float) -> State:
+        """One accepted step from ``s``, cut at the first contact event inside it (then handled)."""
+        system, method, contacts = self.system, self.integrator, self._contacts
+        rhs = self._field(s.chart, s.memory)
+        f0 = rhs(s.t, s.y) if self._f is None else self._f
+        bound = contacts.step_bound(s)
+        with np.errstate(all="ignore"):
+            if self.controller is None:
+                h = min(self.dt, target - s.t, bound)
+                res = method.step(rhs, s.t, s.y, h, f0=f0, state=self._solver)
+                if not res.status.ok:
+                    raise SimulationFailure(res.status.message)
+                solver, t1 = res.state, (target if h == target - s.t else s.t + h)
+            else:
+                ctrl = self.controller if bound >= self.controller.max_step else replace(self.controller, max_step=bound)
+                if self._h is None:
+                    self._h = min(ctrl.first_step(rhs, s.t, s.y, f0, error_order(method)), self._turn_limit(f0))
+                acc = accepted_step(rhs, s.t, s.y, f0, min(self._h, ctrl.max_step), method, ctrl)
+                self.n_rejected += acc.n_rejected
+                res, h, solver = acc.res, acc.h, None
+                t1 = s.t + h
+                self._h = acc.h_next
+            f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
+        events = contacts.events(s)
+        g0 = [0.0 if ev.name == self._fired else ev.g(s.t, s.y) for ev in events]
+        hit = first_event(events, g0, s.t, s.y, f0, t1, res.y, f1)
+        if hit is None:
+            self._solver = solver
+            self._span = _Span(s.t, t1, s, system, lambda: method.interpolant(rhs, s.t, s.y, h, res, f1)) \
+                if self.controller is not None else None
+            new = contacts.after_step(self._accept(_state_at(system, t1, res.y, s), f1, h))
+            self._fired = None
+            if self.controller is not None:
+                self._h = min(self._h, self._turn_limit(f1))
+            return new
+        name, t_ev = hit
+        with np.errstate(all="ignore"):
+            res_ev = method.step(rhs, s.t, s.y, t_ev - s.t, f0=f0, state=self._solver)
+        if not res_ev.status.ok:
+            raise SimulationFailure(res_ev.status.message)
+        self._solver = res_ev.state
+        f_ev = res_ev.f1 if res_ev.f1 is not None else rhs(t_ev, res_ev.y)
+        self._span = _Span(s.t, t_ev, s, system, lambda: hermite_interpolant(s.t, s.y, f0, t_ev, res_ev.y, f_ev)) \
+            if self.controller is not None else None
+        reached = contacts.after_step(self._accept(_state_at(system, t_ev, res_ev.y, s), None, t_ev - s.t))
+        new = contacts.handle(name, reached)
+        self._fired, self._f = name, None
+        self.event_states.append(new)
+        return new
+
     def _own_step(self, target: float) -> State:
         s = self.state
         if self._memory is None:
@@ -218,7 +314,7 @@ class Simulation:
         sample = self.formulation.post_step(self.system, sample)
         check_state(self.system, sample, self.blowup_speed, self._span.t1 - self._span.t0)
         W_r, theta = self.system.split_q(sample.q)
-        return sample.replace(q=self.system.join_q(W_r, self.system.rotation.normalize(theta)))
+        return sample.replace(q=self.system.with_frames(sample.q, W_r, self.system.rotation.normalize(theta)))
 
     def _adaptive_step(self) -> None:
         s, system, method = self._inner, self.system, self.integrator
@@ -231,8 +327,8 @@ class Simulation:
             t1 = s.t + acc.h
             f1 = acc.res.f1 if acc.res.f1 is not None else rhs(t1, acc.res.y)
         self.n_rejected += acc.n_rejected
-        self._span = _Span(s.t, t1, s.chart, system.n_q, lambda: method.interpolant(rhs, s.t, s.y, acc.h, acc.res, f1))
-        raw = State(t1, acc.res.y[: system.n_q], acc.res.y[system.n_q:], s.chart)
+        self._span = _Span(s.t, t1, s, system, lambda: method.interpolant(rhs, s.t, s.y, acc.h, acc.res, f1))
+        raw = _state_at(system, t1, acc.res.y, s)
         self._inner = self._accept(raw, f1, acc.h)
         self._h = min(acc.h_next, self._turn_limit(f1))
 
@@ -252,7 +348,7 @@ class Simulation:
             self._f = f1
             return new
         self._f = None
-        return new.replace(q=self.system.join_q(W_r, theta), chart=chart)
+        return new.replace(q=self.system.with_frames(new.q, W_r, theta), chart=chart)
 
     def _turn_limit(self, f: np.ndarray) -> float:
         """Longest adaptive step [s] that turns no orientation coordinate by more than
@@ -261,8 +357,8 @@ class Simulation:
         fastest = np.max(np.abs(rates), initial=0.0)
         return ADAPTIVE_MAX_TURN / fastest if fastest > 0.0 else np.inf
 
-    def _field(self, chart) -> VectorField:
-        rhs = VectorField(self.system, self.formulation, chart)
+    def _field(self, chart, memory: tuple = ()) -> VectorField:
+        rhs = VectorField(self.system, self.formulation, chart, memory)
         self._fields.append(rhs)
         if self._kernel is not None:  # evaluations in the compiled kernel (same interface)
             from viz3d.kernel import CompiledField
@@ -277,21 +373,36 @@ class Simulation:
         return f"t = {s.t:.6g} s: singular constraint Jacobian: {who}"
 
 
-class _Span:
-    """One accepted adaptive step ``[t0, t1]`` in its chart; its interpolant is built on first use
-    (a continuous extension may cost extra evaluations, e.g. three for DOP853)."""
+def hermite_interpolant(t0, y0, f0, t1, y1, f1) -> Callable:
+    """The cubic Hermite interpolant of a step, as a function of ``t``."""
+    return lambda t: hermite(t0, y0, f0, t1, y1, f1, t)
 
-    def __init__(self, t0: float, t1: float, chart: np.ndarray, n_q: int, make_interpolant: Callable):
-        self.t0, self.t1, self.chart, self.n_q = t0, t1, chart, n_q
+
+def _state_at(system: System, t: float, y: np.ndarray, like: State) -> State:
+    """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""
+    q, v, w = system.split_y(y)
+    return State(t, q, v, like.chart, w, like.memory)
+
+
+class _Span:
+    """One accepted adaptive step ``[t0, t1]`` from ``start`` (its chart and contact phases); its
+    interpolant is built on first use (a continuous extension may cost extra evaluations, e.g.
+    three for DOP853)."""
+
+    def __init__(self, t0: float, t1: float, start: State, system: System, make_interpolant: Callable):
+        self.t0, self.t1, self.start, self.system = t0, t1, start, system
         self._make, self._interp = make_interpolant, None
 
+    @property
+    def chart(self) -> np.ndarray:
+        return self.start.chart
+
     def sample(self, t: float) -> State:
-        """The interpolated state at ``t0 <= t <= t1`` (chart of the step)."""
+        """The interpolated state at ``t0 <= t <= t1`` (chart and phases of the step)."""
         if self._interp is None:
             with np.errstate(all="ignore"):
                 self._interp = self._make()
-        y = self._interp(t)
-        return State(t, y[: self.n_q], y[self.n_q:], self.chart)
+        return _state_at(self.system, t, self._interp(t), self.start)
 
 
 def _compiled(system, integrator, formulation, controller):
@@ -315,7 +426,7 @@ class FrameRecorder:
     def record(self, frame: Frame) -> None:
         self.frames.append(frame)
 
-    def trajectory(self, status: str, scene_json: str, chart_switches, **cost) -> Trajectory:
+    def trajectory(self, status: str, scene_json: str, chart_switches, extras: dict | None = None, **cost) -> Trajectory:
         b, fr = self.system.bodies, self.frames
         nb, nj = b.n_bodies, len(self.system.joint_names)
 
@@ -331,7 +442,8 @@ class FrameRecorder:
             energy_potential=potential, energy_total=kinetic + potential,
             constraint_violation=stack("constraint_violation", ()),
             joint_names=np.array(self.system.joint_names, dtype=str), reaction_force=stack("reaction_force", (nj, 3)),
-            chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json, **cost)
+            chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json,
+            extras=extras or {}, **cost)
 
 
 def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None = None, dt: float | None = None,
@@ -380,7 +492,8 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
     full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
-    energy = EnergyWatch(sim.system, cfg["blowup_energy"], all(e.conservative for e in sim.system.forces))
+    conservative = all(e.conservative for e in sim.system.forces) and all(c.conservative for c in sim.system.contacts)
+    energy = EnergyWatch(sim.system, cfg["blowup_energy"], conservative)
     emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"], energy)
     try:
         emitter.open(scene)
@@ -390,6 +503,7 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
             k = 1 if full_rate else min(every - n % every, n_steps - n)
             sim.steps(k)
             n += k
+            emitter.emit_events()
             output = n % every == 0 or n == n_steps
             if output or full_rate:
                 emitter.emit(output)
@@ -407,9 +521,11 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
     finally:
         if bar is not None:
             bar.close()
-        emitter.close(status)
+        emitter.emit_events()
+        emitter.close(status)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
-    return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, wall_time=wall,
+    extras = run_extras(sim, scene, recorder.frames) if sim.system.contacts or sim.system.outputs else None
+    return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
                                n_steps=sim.n_steps, n_rhs=sim.n_rhs)
 
 
@@ -420,18 +536,26 @@ class _Emitter:
         self.sim, self.formulation, self.recorder, self.sinks = sim, formulation, recorder, list(sinks)
         self.blowup_violation, self.energy = blowup_violation, energy
         self.opened: list[Sink] = []
+        self.drawings: tuple = ()
+        self.logged = 0
 
     def open(self, scene: Scene) -> None:
         if self.sinks:
-            from viz3d.scene.visuals import scene_visuals
+            from viz3d.scene.visuals import flexible_drawings, scene_visuals
 
             visuals = scene_visuals(scene, self.sim.system)
+            self.drawings = flexible_drawings(scene, self.sim.system)
             for s in self.sinks:
                 s.open(visuals)
                 self.opened.append(s)
 
+    def _frame(self, state: State) -> Frame:
+        contacts = self.sim.contacts
+        return frame_from_state(self.sim.system, self.formulation, state, self.drawings,
+                                contacts.E0 if contacts is not None else None)
+
     def emit(self, output: bool) -> None:
-        frame = frame_from_state(self.sim.system, self.formulation, self.sim.state)
+        frame = self._frame(self.sim.state)
         if output:
             self.recorder.record(frame)
         for s in self.sinks:
@@ -439,6 +563,20 @@ class _Emitter:
                 s.log(frame)
         check_violation(self.sim.system, self.sim.state, frame.constraint_violation, self.blowup_violation)
         self.energy.check(frame)
+
+    def emit_events(self) -> None:
+        """Frames at the contact events since the last call (every sink gets them), and their texts."""
+        for state in self.sim.drain_events(self.sim.state.t):
+            frame = self._frame(state)
+            self.recorder.record(frame)
+            for s in self.sinks:
+                s.log(frame)
+        contacts = self.sim.contacts
+        if contacts is not None:
+            for t, text in contacts.log[self.logged:]:
+                for s in self.opened:
+                    s.event(t, text)
+            self.logged = len(contacts.log)
 
     def close(self, status: str) -> None:
         for s in self.opened:

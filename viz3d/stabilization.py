@@ -4,7 +4,8 @@ Positions: Newton iterations ``dx = -M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C`` in veloc
 (``dx`` per floating frame: ``[dW_r, B_dphi]``; per flexible body also ``d_eta``), applied as
 ``W_r += dW_r``, a small body-frame rotation ``B_dphi`` and ``eta += d_eta``. Velocities:
 ``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C_v v`` (one linear step; the joints are scleronomic,
-``C_t = 0``). Both are the minimum-kinetic-metric corrections.
+``C_t = 0``). Both are the minimum-kinetic-metric corrections. Only the rows that act are projected on (the
+joints, and kinematic contacts while touching: ``memory``, the state's contact phases).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_jacobian, constraint_residual, schur_solve
+from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_rows, schur_solve
 from viz3d.dynamics import body_state, flat_velocity, split_velocity, system_mass
 
 #: Newton iterations allowed for a position projection.
@@ -23,16 +24,17 @@ class ProjectionError(RuntimeError):
     """The position projection did not converge."""
 
 
-def _min_norm_correction(system, cfg, J, Je, r) -> FloatArray:
-    """``M^-1 C_v^T (C_v M^-1 C_v^T)^-1 r`` in the order of ``v``, shape (n_v,)."""
+def _min_norm_correction(system, cfg, rows, r) -> FloatArray:
+    """``M^-1 C_v^T (C_v M^-1 C_v^T)^-1 r`` in the order of ``v``, shape (n_v,), over the rows that act."""
     mass = system_mass(system, cfg)
-    lam = schur_solve(system.joints, mass, J, r, Je=Je)
+    J, Je = rows.J, rows.Je
+    lam = schur_solve(system.joints, mass, J, r, Je=Je, inactive=rows.inactive)
     CtL, CtL_e = apply_jacobian_transpose(system.joints, J, lam, system.n_bodies + 1, Je)
     return flat_velocity(system, *mass.solve(CtL, CtL_e))
 
 
 def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-12,
-                      max_iter: int = MAX_ITER) -> tuple[FloatArray, int]:
+                      max_iter: int = MAX_ITER, memory: tuple = ()) -> tuple[FloatArray, int]:
     """Project ``q`` (n_q,) onto ``C(q) = 0``; return the new ``q`` and the iterations used.
 
     Raises
@@ -46,10 +48,11 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
     v0 = np.zeros(system.n_v)
     for it in range(max_iter + 1):
         cfg = body_state(system, q, v0, chart)
-        C = constraint_residual(system.joints, cfg)
+        rows = constraint_rows(system.joints, cfg, memory)
+        C = rows.C
         if np.max(np.abs(C)) <= tol:
             return q, it
-        dx = -_min_norm_correction(system, cfg, *constraint_jacobian(system.joints, cfg), C)
+        dx = -_min_norm_correction(system, cfg, rows, C)
         W_r, theta = system.split_q(q)
         dW, dphi = system.split_v(dx)
         eta = system.elastic_part(q, system.n_frames * system.n_q_body) + system.elastic_part(dx, 6 * system.n_frames)
@@ -57,12 +60,12 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
     raise ProjectionError(f"position projection left max |C| = {np.max(np.abs(C)):.3e} m after {max_iter} iterations")
 
 
-def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray) -> FloatArray:
+def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray, memory: tuple = ()) -> FloatArray:
     """Project ``v`` (n_v,) onto ``C_v v = 0``."""
     if system.n_c == 0:
         return v
     cfg = body_state(system, q, v, chart)
-    J, Je = constraint_jacobian(system.joints, cfg)
+    rows = constraint_rows(system.joints, cfg, memory)
     frame, elastic = split_velocity(system, v)
-    dv = _min_norm_correction(system, cfg, J, Je, apply_jacobian(system.joints, J, frame, Je, elastic))
+    dv = _min_norm_correction(system, cfg, rows, apply_jacobian(system.joints, rows.J, frame, rows.Je, elastic))
     return v - dv

@@ -39,6 +39,11 @@ class System:
         Gravity first (if any), then the scene's force elements.
     rotation : RotationCoordinates
         Orientation coordinates of every floating frame.
+    contacts : tuple of ContactSet
+        Contacts between bodies (``viz3d.contact.contacts``); their kinematic rows, if any, are also
+        row providers of ``joints``.
+    outputs : tuple of Output
+        What a run reports without acting (``viz3d.outputs``: strain gauges).
     frame_body : ndarray of int, shape (nf,)
         Body index of each floating frame, in ``q`` order (derived).
     q_elastic, v_elastic : tuple of slice
@@ -49,6 +54,8 @@ class System:
     joints: ConstraintLayout
     forces: tuple[ForceElement, ...]
     rotation: RotationCoordinates
+    contacts: tuple = ()
+    outputs: tuple = ()
     frame_body: IntArray = field(init=False, repr=False)
     q_elastic: tuple[slice, ...] = field(init=False, repr=False)
     v_elastic: tuple[slice, ...] = field(init=False, repr=False)
@@ -103,8 +110,22 @@ class System:
         return self.joints.n_rows
 
     @property
+    def joint_sets(self) -> tuple:
+        """The joint sets among the row providers (not the contact rows)."""
+        return tuple(js for js in self.joints.joints if js.is_joint)
+
+    @property
     def joint_names(self) -> tuple[str, ...]:
-        return tuple(n for js in self.joints.joints for n in js.names)
+        return tuple(n for js in self.joint_sets for n in js.names)
+
+    @property
+    def n_aux(self) -> int:
+        """Work integrals carried in the state (``State.w``; ``viz3d.events``): with located contacts,
+        one per contact, one for the damping of flexible bodies and one for the work of
+        non-conservative force elements; none otherwise (no energy ledger)."""
+        if not any(c.located for c in self.contacts):
+            return 0
+        return sum(c.k for c in self.contacts) + 2
 
     def split_q(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(W_r (nf, 3), theta (nf, n_rot))`` views of the frame coordinates of ``q``."""
@@ -131,6 +152,15 @@ class System:
             return frames
         return np.concatenate([frames, np.zeros(self.n_elastic) if eta is None else eta])
 
+    def with_frames(self, q: FloatArray, W_r: FloatArray, theta: FloatArray) -> FloatArray:
+        """``q`` with its frame coordinates replaced, the elastic ones kept."""
+        return self.join_q(W_r, theta, self.elastic_part(q, self.n_frames * self.n_q_body))
+
+    def split_y(self, y: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(q, v, w)`` views of an integrator's ``y = [q, v, w]``."""
+        n_q, n_v = self.n_q, self.n_v
+        return y[:n_q], y[n_q:n_q + n_v], y[n_q + n_v:]
+
     def elastic_part(self, x: FloatArray, n_frame: int) -> FloatArray:
         """The stacked elastic entries (n_e,) of a ``q``- or ``v``-like vector whose frame part has
         ``n_frame`` entries."""
@@ -151,17 +181,23 @@ class State:
         Velocities.
     chart : ndarray, shape (nf, 3, 3)
         Reference rotation of each floating frame's orientation coordinates.
+    w : ndarray, shape (n_aux,)
+        Work integrals of the energy ledger [J] (``System.n_aux``; empty without contacts).
+    memory : tuple
+        Per contact set of ``System.contacts``, the tuple of its contacts' ``ContactPhase``.
     """
 
     t: float
     q: FloatArray
     v: FloatArray
     chart: FloatArray
+    w: FloatArray = field(default_factory=lambda: np.zeros(0))
+    memory: tuple = ()
 
     def replace(self, **changes) -> "State":
         return dataclasses.replace(self, **changes)
 
     @property
     def y(self) -> FloatArray:
-        """``[q, v]`` stacked, shape (n_q + n_v,): what integrators advance."""
-        return np.concatenate([self.q, self.v])
+        """``[q, v, w]`` stacked, shape (n_q + n_v + n_aux,): what integrators advance."""
+        return np.concatenate([self.q, self.v, self.w]) if self.w.size else np.concatenate([self.q, self.v])

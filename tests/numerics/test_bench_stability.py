@@ -79,7 +79,7 @@ def _hertz_rk4_limit(K, m, v):
 @pytest.mark.parametrize("K", [1e8, 1e10])
 def test_rk4_stable_step_on_stiff_hertz_contact_is_its_linear_stability_limit(K):
     scene = SCENES / "stiff_contact.toml"
-    over = ["sim.integrator=rk4", f"forces.floor.stiffness={K:g}"]
+    over = ["sim.integrator=rk4", f"contacts.floor.stiffness={K:g}"]
     dt, reason, detail = largest_stable_step(scene, over, 0.1)
     m = 7850.0 * 4.0 / 3.0 * np.pi * 0.02**3
     v = np.sqrt(2 * 9.81 * 0.005)  # dropped 5 mm

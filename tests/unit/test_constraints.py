@@ -81,3 +81,34 @@ def test_redundant_joints_raise_and_are_named():
     with pytest.raises(SingularConstraintError):
         Index1().solve(system, system_mass(system, cfg), generalized_forces(system, cfg), rows, cfg)
     assert set(redundant_joints(system, rows.J, rows.Je)) == {"ab", "ab_again"}
+
+
+def test_rows_coupled_only_through_a_flexible_body_solve_like_the_dense_system():
+    """A flexible bar pinned to ground: every coupling of the Schur complement goes through the
+    bar's whole block (none through a rigid body; a storage once built from integer counts)."""
+    from viz3d.bodies import FlexibleBody
+    from viz3d.points import body_points
+
+    from systems import flexible_bars
+
+    rng = np.random.default_rng(7)
+    bar = flexible_bars(rng)[0][0]
+    bodies = Bodies(("bar",), np.array([bar.mass]), bar.J0[None], (FlexibleBody(0, bar, True, np.zeros(3), np.eye(3)),))
+    pairs = np.array([[0, 1], [0, 1]])
+    B_s = np.zeros((2, 2, 3))
+    sides = (body_points(bodies, pairs[:, 0], B_s[:, 0], np.array([0.0, 0.8])),
+             body_points(bodies, pairs[:, 1], np.array([[0.0, 0.0, 0.0], [0.8, 0.0, 0.0]]), np.zeros(2)))
+    from viz3d.joints import BallJoint
+
+    js = BallJoint(("pin", "tip"), pairs, B_s, sides)
+    system = System(bodies, build_layout((js,), bodies), (), EulerSwitching())
+    assert not len(system.joints.pair_row) and system.joints.flex_groups
+    state = random_state(system, 2)
+    cfg = configuration(system, state)
+    Q = generalized_forces(system, cfg)
+    rows = constraint_rows(system.joints, cfg)
+    (a, a_e), lam = Index1().solve(system, system_mass(system, cfg), Q, rows, cfg)
+    A = dense_augmented(system, cfg, rows)
+    sol = np.linalg.solve(A, np.concatenate([flat_velocity(system, *Q), rows.gamma]))
+    tol = SOLVE_SAFETY * np.finfo(float).eps * np.linalg.cond(A, np.inf) * np.abs(sol).max()
+    np.testing.assert_allclose(lam, sol[system.n_v:], rtol=0, atol=tol, err_msg="mismatch: lam")

@@ -173,7 +173,7 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
         out.n_rejected += acc.n_rejected
         t1 = t + h
         f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
-        hit = _first_event(events, g, t, y, f, t1, res.y, f1)
+        hit = first_event(events, g, t, y, f, t1, res.y, f1)
         if hit is not None:
             name, t_ev = hit
             res_ev = method.step(rhs, t, y, t_ev - t, f0=f)  # the method's own solution at the event
@@ -194,7 +194,7 @@ def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, 
     return out
 
 
-def _first_event(events, g0, t0, y0, f0, t1, y1, f1):
+def first_event(events, g0, t0, y0, f0, t1, y1, f1):
     """Earliest (name, time) of an event crossing inside (t0, t1], located on the interpolant."""
     best = None
     for ev, g_start in zip(events, g0):

@@ -15,8 +15,8 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
-from viz3d.constraints import SingularConstraintError, build_layout, constraint_jacobian, constraint_residual
-from viz3d.contact.element import SpherePlane
+from viz3d.constraints import SingularConstraintError, build_layout, constraint_jacobian, constraint_rows
+from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
@@ -26,8 +26,13 @@ from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_prop
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
 from viz3d.joints import BallJoint
-from viz3d.kinematics import pose_from
+from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.rotations import matrix_from_euler
+from viz3d.outputs import StrainGauges
+from viz3d.points import body_points
+from viz3d.scene.bars import flexible_body
+from viz3d.scene.contacts import contact_law
+from viz3d.scene.contacts import materials as contact_materials
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError, project_positions, project_velocities
@@ -63,23 +68,48 @@ def build(scene: Scene) -> tuple[System, State]:
         For mass properties, meshes or joints that cannot be used (naming file and key).
     """
     src = scene.source()
-    props = [body_mass_properties(scene, i) for i in range(len(scene.data["bodies"]))]
-    names = tuple(b["name"] for b in scene.data["bodies"])
-    try:
-        bodies = Bodies(names, np.array([p.mass for p in props]), np.array([p.inertia for p in props]))
-    except InertiaError as exc:
-        raise SceneError(src, "bodies", f"physical mass properties ({exc})") from None
+    bodies, _ = build_bodies(scene)
     sim = scene.data["sim"]
     rotation = ROTATIONS[sim["rotation"]]()
-    W_r0, R0 = initial_pose(scene)
+    W_r0, R0 = initial_pose(scene, bodies)
     pose0 = pose_from(W_r0, R0)
     joints = build_joints(scene, bodies, pose0)
-    forces = (Gravity(bodies.mass, np.asarray(sim["gravity"], float)),) + build_forces(scene, bodies, pose0)
-    system = System(bodies, build_layout(joints, bodies), forces, rotation)
-    theta, chart = rotation.from_matrix(R0)
-    q = system.join_q(W_r0, theta)
-    v = initial_velocities(scene, R0)
-    return system, consistent_state(system, State(0.0, q, v, chart), src, sim["projection_tol"])
+    contacts = build_contacts(scene, bodies, pose0)
+    rows = joints + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
+    n_e = sum(fb.n for fb in bodies.flexible)
+    gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
+    forces = (gravity,) + build_forces(scene, bodies, pose0)
+    system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, build_gauges(scene, bodies))
+    frames = system.frame_body
+    theta, chart = rotation.from_matrix(R0[frames])
+    q = system.join_q(W_r0[frames], theta)
+    v = initial_velocities(scene, R0, system)
+    state = State(0.0, q, v, chart, np.zeros(system.n_aux), tuple(c.initial_phases() for c in contacts))
+    return system, consistent_state(system, state, src, sim["projection_tol"])
+
+
+def build_bodies(scene: Scene) -> tuple[Bodies, tuple[str, ...]]:
+    """The scene's bodies, and per flexible body how its model was chosen."""
+    src = scene.source()
+    specs = scene.data["bodies"]
+    mass, inertia, flexible, choices = [], [], [], []
+    for i, b in enumerate(specs):
+        if b["type"] == "flexible":
+            fb, choice = flexible_body(i, b, src, f"bodies[{i}]")
+            flexible.append(fb)
+            choices.append(choice)
+            mass.append(fb.bar.mass)
+            inertia.append(fb.bar.J0)
+        else:
+            p = body_mass_properties(scene, i)
+            mass.append(p.mass)
+            inertia.append(p.inertia)
+    try:
+        bodies = Bodies(tuple(b["name"] for b in specs), np.array(mass, float), np.array(inertia, float).reshape(-1, 3, 3),
+                        tuple(flexible))
+    except InertiaError as exc:
+        raise SceneError(src, "bodies", f"physical mass properties ({exc})") from None
+    return bodies, tuple(choices)
 
 
 def make_formulation(sim: dict):
@@ -134,22 +164,31 @@ def shape_unit_properties(scene: Scene, shape: dict, where: str):
         raise SceneError(scene.source(), f"{where}.file", f"a watertight, outward-oriented mesh file ({exc})") from None
 
 
-def initial_pose(scene: Scene) -> tuple[FloatArray, FloatArray]:
-    """Initial centres of mass (nb, 3) and rotations (nb, 3, 3)."""
+def initial_pose(scene: Scene, bodies: Bodies | None = None) -> tuple[FloatArray, FloatArray]:
+    """Initial frame origins (nb, 3) and rotations (nb, 3, 3): rigid bodies' centres of mass, flexible
+    bodies' undeformed centres of mass."""
     W_r, R = [], []
-    for b in scene.data["bodies"]:
+    flexible = {fb.index: fb for fb in (bodies.flexible if bodies is not None else ())}
+    for i, b in enumerate(scene.data["bodies"]):
+        if i in flexible:
+            W_r.append(flexible[i].W_r0)
+            R.append(flexible[i].R0)
+            continue
         angles = np.radians(b["euler_deg"]) if "euler_deg" in b else np.asarray(b.get("euler", [0.0, 0.0, 0.0]))
         W_r.append(b["position"])
         R.append(matrix_from_euler(angles))
-    return np.asarray(W_r, float), np.asarray(R)
+    return np.asarray(W_r, float).reshape(-1, 3), np.asarray(R).reshape(-1, 3, 3)
 
 
-def initial_velocities(scene: Scene, R0: FloatArray) -> FloatArray:
-    """``v`` (n_v,) from the scene's world velocities and world angular velocities."""
-    W_v = np.array([b["velocity"] for b in scene.data["bodies"]], float)
-    W_omega = np.array([b["omega"] for b in scene.data["bodies"]], float)
+def initial_velocities(scene: Scene, R0: FloatArray, system: System | None = None) -> FloatArray:
+    """``v`` (n_v,) from the scene's world velocities and world angular velocities (elastic rates 0)."""
+    W_v = np.array([b["velocity"] for b in scene.data["bodies"]], float).reshape(-1, 3)
+    W_omega = np.array([b["omega"] for b in scene.data["bodies"]], float).reshape(-1, 3)
     B_omega = np.einsum("bji,bj->bi", R0, W_omega)
-    return np.concatenate([W_v, B_omega], axis=1).reshape(-1)
+    frames = np.arange(len(W_v)) if system is None else system.frame_body
+    v = np.concatenate([W_v[frames], B_omega[frames]], axis=1).reshape(-1)
+    n_e = 0 if system is None else system.n_elastic
+    return np.concatenate([v, np.zeros(n_e)]) if n_e else v
 
 
 # ---------------------------------------------------------------- joints and forces
@@ -162,6 +201,35 @@ def _local_point(pose, body: int, entry: dict, point_key: str, local_key: str) -
     return pose.R_WB[body].T @ (np.asarray(entry[point_key], float) - pose.W_r[body])
 
 
+def _side(bodies: Bodies, pose, body: int, entry: dict, side: str, point_key: str, local_key: str,
+          default=None) -> tuple[FloatArray, float]:
+    """One side's attachment: ``(B_s (3,), x)``. Rigid bodies and ground: the point in body axes
+    (``x`` unused). Flexible bodies: the section ``x`` (given as ``x<side>``, or the world point's
+    projection on the undeformed axis) and the offset of the point from the section centroid."""
+    fb = next((f for f in bodies.flexible if f.index == body), None)
+    if fb is None:
+        if point_key not in entry and local_key not in entry:
+            return np.zeros(3) if default is None else np.asarray(default, float), 0.0
+        return _local_point(pose, body, entry, point_key, local_key), 0.0
+    x_key = f"x{side}"
+    if x_key in entry:
+        return np.asarray(entry.get(local_key, [0.0, 0.0, 0.0]), float), float(entry[x_key])
+    if point_key in entry:
+        s = pose.R_WB[body].T @ (np.asarray(entry[point_key], float) - pose.W_r[body])
+        x = float(np.clip(s[0] + fb.bar.x_G, 0.0, fb.bar.length))
+        return s - (x - fb.bar.x_G) * np.array([1.0, 0.0, 0.0]), x
+    return np.zeros(3), fb.bar.x_G
+
+
+def _points(bodies: Bodies, pose, body: np.ndarray, entries: list[dict], side: str, point_key: str, local_key: str,
+            default=None):
+    """``(B_s (k, 3), BodyPoints)`` of one side of ``entries``."""
+    sides = [_side(bodies, pose, int(b), e, side, point_key, local_key, default) for b, e in zip(body, entries)]
+    B_s = np.array([s for s, _ in sides], float).reshape(-1, 3)
+    x = np.array([x for _, x in sides], float)
+    return B_s, body_points(bodies, body, B_s, x)
+
+
 def build_joints(scene: Scene, bodies: Bodies, pose0) -> tuple:
     """One joint set per joint type present, in the order of ``JOINT_BUILDERS``."""
     groups: dict[str, list[dict]] = {}
@@ -172,9 +240,9 @@ def build_joints(scene: Scene, bodies: Bodies, pose0) -> tuple:
 
 def _ball_joints(entries: list[dict], bodies: Bodies, pose0) -> BallJoint:
     body = np.array([[bodies.index(j["body1"]), bodies.index(j["body2"])] for j in entries], dtype=int)
-    B_s = np.array([[_local_point(pose0, body[k, 0], j, "point", "local1"),
-                     _local_point(pose0, body[k, 1], j, "point", "local2")] for k, j in enumerate(entries)])
-    return BallJoint(tuple(j["name"] for j in entries), body, B_s)
+    s1, p1 = _points(bodies, pose0, body[:, 0], entries, "1", "point", "local1")
+    s2, p2 = _points(bodies, pose0, body[:, 1], entries, "2", "point", "local2")
+    return BallJoint(tuple(j["name"] for j in entries), body, np.stack([s1, s2], axis=1), (p1, p2))
 
 
 #: Joint type (scene ``type``) -> builder of its joint set from the resolved scene entries.
@@ -191,44 +259,81 @@ def build_forces(scene: Scene, bodies: Bodies, pose0) -> tuple:
     for kind, cls in (("force", AppliedForce), ("torque", AppliedTorque)):
         if kind in groups:
             out.append(_loads(cls, groups[kind], bodies, pose0))
-    if "contact" in groups:
-        out.append(_contacts(groups["contact"], bodies, pose0))
     return tuple(out)
-
-
-def _contacts(entries: list[dict], bodies: Bodies, pose0) -> SpherePlane:
-    from viz3d.contact.laws import Hertz, Linear
-
-    body = np.array([bodies.index(f["body"]) for f in entries], dtype=int)
-    B_c = np.array([_local_point(pose0, body[k], f, "point", "local") if ("point" in f or "local" in f)
-                    else np.zeros(3) for k, f in enumerate(entries)]).reshape(-1, 3)
-    normal = np.array([f["plane_normal"] for f in entries], float)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    laws = tuple(Hertz(f["stiffness"], f["exponent"]) if f["law"] == "hertz" else Linear(f["stiffness"], 0.0)
-                 for f in entries)
-    return SpherePlane(tuple(f["name"] for f in entries), body, B_c, np.array([f["radius"] for f in entries]),
-                       np.array([f["plane_point"] for f in entries], float), normal, laws,
-                       np.array([f["damping"] for f in entries]))
 
 
 def _springs(entries: list[dict], bodies: Bodies, pose0) -> SpringDamper:
     body = np.array([[bodies.index(f["body1"]), bodies.index(f["body2"])] for f in entries], dtype=int)
-    B_s = np.array([[_local_point(pose0, body[k, 0], f, "point1", "local1"),
-                     _local_point(pose0, body[k, 1], f, "point2", "local2")] for k, f in enumerate(entries)])
-    ends = pose0.W_r[body] + np.einsum("ksab,ksb->ksa", pose0.R_WB[body], B_s)
+    s1, p1 = _points(bodies, pose0, body[:, 0], entries, "1", "point1", "local1")
+    s2, p2 = _points(bodies, pose0, body[:, 1], entries, "2", "point2", "local2")
+    B_s = np.stack([s1, s2], axis=1)
+    cfg0 = Configuration(0.0, pose0, twist_from(np.zeros_like(pose0.W_r[:-1]), np.zeros_like(pose0.W_r[:-1]), pose0),
+                         tuple(np.zeros(fb.n) for fb in bodies.flexible), tuple(np.zeros(fb.n) for fb in bodies.flexible))
+    ends = np.stack([p1.positions(cfg0), p2.positions(cfg0)], axis=1)
     length0 = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
     rest = np.array([f.get("rest_length", length0[k]) for k, f in enumerate(entries)])
     return SpringDamper(tuple(f["name"] for f in entries), body, B_s,
-                        np.array([f["stiffness"] for f in entries]), np.array([f["damping"] for f in entries]), rest)
+                        np.array([f["stiffness"] for f in entries]), np.array([f["damping"] for f in entries]), rest, (p1, p2))
 
 
 def _loads(cls, entries: list[dict], bodies: Bodies, pose0):
     body = np.array([bodies.index(f["body"]) for f in entries], dtype=int)
-    B_s = np.array([_local_point(pose0, body[k], f, "point", "local") if ("point" in f or "local" in f)
-                    else np.zeros(3) for k, f in enumerate(entries)]).reshape(-1, 3)
+    B_s, points = _points(bodies, pose0, body, [{**f, "x1": f["x"]} if "x" in f else f for f in entries], "1",
+                          "point", "local")
     funcs = TimeFunctions.from_entries([{**f, "offset": f["value"]} for f in entries])
     in_body = np.array([f["frame"] == "body" for f in entries])
-    return cls(tuple(f["name"] for f in entries), body, B_s, in_body, funcs)
+    return cls(tuple(f["name"] for f in entries), body, B_s, in_body, funcs, points)
+
+
+def build_contacts(scene: Scene, bodies: Bodies, pose0) -> tuple[ContactSet, ...]:
+    """The scene's contacts: one set of the located ones, one of those stepped through."""
+    src, entries = scene.source(), scene.data["contacts"]
+    sets = []
+    for located in (True, False):
+        chosen = [(i, c) for i, c in enumerate(entries) if c["events"] == located]
+        if chosen:
+            sets.append(_contact_set(src, [c for _, c in chosen], [i for i, _ in chosen], bodies, pose0, scene))
+    return tuple(sets)
+
+
+def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies, pose0, scene: Scene) -> ContactSet:
+    body = np.array([[bodies.index(c["body1"]), bodies.index(c["body2"])] for c in entries], dtype=int)
+    _, pa = _points(bodies, pose0, body[:, 0], entries, "1", "point1", "local1")
+    _, pb = _points(bodies, pose0, body[:, 1], entries, "2", "point2", "local2")
+    normal = np.array([c["normal"] for c in entries], float)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.einsum("kji,kj->ki", pose0.R_WB[body[:, 1]], normal)  # world -> body 2 axes at t = 0
+    models, laws = [], []
+    for c, i in zip(entries, index):
+        model, law, _ = contact_law(c, contact_materials(c, scene.data["bodies"]), src, f"contacts[{i}]")
+        if not c["events"] and (model != "law" or law.kind == "elastoplastic" or law.name not in MEMORYLESS_LAWS):
+            raise SceneError(src, f"contacts[{i}].events", f"true for the {c['law']} law (it needs contact memory; "
+                             f"without events only {list(MEMORYLESS_LAWS)} act)")
+        models.append(model)
+        laws.append(law)
+    # the linear law carries its own dashpot; any other law gets it added (never pulling)
+    dashpot = np.array([0.0 if (law is not None and law.name == "linear") else c["damping"] for c, law in zip(entries, laws)])
+    return ContactSet(tuple(c["name"] for c in entries), body, (pa, pb), normal,
+                      np.array([c["radius"] for c in entries], float), tuple(models), tuple(laws),
+                      np.array([c.get("restitution", 1.0) for c in entries], float),
+                      tuple(c["hypothesis"] for c in entries), dashpot, entries[0]["events"])
+
+
+def build_gauges(scene: Scene, bodies: Bodies) -> tuple:
+    """Strain gauges on flexible bodies, one output element per body."""
+    src, entries = scene.source(), scene.data["gauges"]
+    by_body: dict[int, list] = {}
+    for i, g in enumerate(entries):
+        flex = [k for k, fb in enumerate(bodies.flexible) if "body" not in g or bodies.names[fb.index] == g["body"]]
+        if len(flex) != 1:
+            raise SceneError(src, f"gauges[{i}].body", "the name of a flexible body (required when there are several)",
+                             g.get("body"))
+        fb = bodies.flexible[flex[0]]
+        if g["x"] > fb.bar.length:
+            raise SceneError(src, f"gauges[{i}].x", f"a section in [0, {fb.bar.length}] m", g["x"])
+        by_body.setdefault(flex[0], []).append(g)
+    return tuple(StrainGauges(tuple(g["name"] for g in gs), k, np.array([g["x"] for g in gs], float), bodies.flexible[k].bar)
+                 for k, gs in by_body.items())
 
 
 # ---------------------------------------------------------------- initial conditions
@@ -239,8 +344,8 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
     if system.n_c == 0:
         return state
     try:
-        q, _ = project_positions(system, state.q, state.chart, tol=tol)
-        v = project_velocities(system, q, state.v, state.chart)
+        q, _ = project_positions(system, state.q, state.chart, tol=tol, memory=state.memory)
+        v = project_velocities(system, q, state.v, state.chart, state.memory)
     except SingularConstraintError:
         names = redundant_joints(system, *constraint_jacobian(system.joints, _configuration(system, state)))
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"
@@ -250,7 +355,7 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
     dq = _max_position_change(system, state.q, q)
     dv = float(np.max(np.abs(v - state.v)))
     if dq > REPORT_CORRECTION or dv > REPORT_CORRECTION:
-        C0 = constraint_residual(system.joints, _configuration(system, state))
+        C0 = constraint_rows(system.joints, _configuration(system, state), state.memory).C
         warnings.warn(InitialConditionsWarning(
             f"{source}: initial conditions projected onto the joints: positions moved by up to {dq:.3g} m "
             f"(initial max |C| = {np.max(np.abs(C0)):.3g} m), velocities changed by up to {dv:.3g} m/s or rad/s"),

@@ -294,7 +294,8 @@ def _cross_check(data: dict, source: str) -> None:
     _unique(bodies, "bodies", source)
     names = {b["name"] for b in bodies} | {"ground"}
     for i, b in enumerate(bodies):
-        _check_body(b, f"bodies[{i}]", source)
+        if b["type"] == "rigid":
+            _check_body(b, f"bodies[{i}]", source)
     for i, j in enumerate(data["joints"]):
         j.setdefault("name", f"j{i}")
         _check_refs(j, ("body1", "body2"), names, f"joints[{i}]", source)
@@ -308,11 +309,21 @@ def _cross_check(data: dict, source: str) -> None:
             for side in "12":
                 if (f"point{side}" in f) == (f"local{side}" in f):
                     raise SceneError(source, f"{where}.point{side}", f"exactly one of point{side} or local{side}")
-        if f["type"] in ("force", "contact") and "point" in f and "local" in f:
+        if f["type"] == "force" and "point" in f and "local" in f:
             raise SceneError(source, f"{where}.point", "at most one of point or local")
         if f.get("body") == "ground":
             raise SceneError(source, f"{where}.body", "a body (not ground)")
     _unique(data["forces"], "forces", source)
+    for i, c in enumerate(data["contacts"]):
+        c.setdefault("name", f"contact{i}")
+        _check_refs(c, ("body1", "body2"), names, f"contacts[{i}]", source)
+        for side in "12":
+            if f"point{side}" in c and f"local{side}" in c:
+                raise SceneError(source, f"contacts[{i}].point{side}", f"at most one of point{side} or local{side}")
+    _unique(data["contacts"], "contacts", source)
+    for i, g in enumerate(data["gauges"]):
+        if "body" in g:
+            _check_refs(g, ("body",), names, f"gauges[{i}]", source)
 
 
 def _unique(items: list[dict], table: str, source: str) -> None:

@@ -5,7 +5,12 @@
 
 from __future__ import annotations
 
+from viz3d.contact.contacts import HYPOTHESES
+from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.coordinates import ROTATIONS
+from viz3d.flexible.bar import SUPPORTS
+from viz3d.flexible.bar import THEORIES as THEORIES_BY_KIND
+from viz3d.flexible.fe import ELEMENT_TYPES
 from viz3d.formulation import FORMULATIONS
 from viz3d.integrators import INTEGRATORS
 from viz3d.scene.budget import LIMITS
@@ -13,6 +18,7 @@ from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
     Field,
+    Invalid,
     Table,
     boolean,
     color,
@@ -23,9 +29,11 @@ from viz3d.scene.schema import (
     nonzero_vec3,
     number,
     one_of,
+    poisson_ratio,
     positive,
     positive_int,
     string,
+    unit_fraction,
     unit_interval,
     vec3,
 )
@@ -80,26 +88,97 @@ SHAPES = {
 }
 SHAPE = Table({"type": Field(one_of(*SHAPES), doc=f"one of {list(SHAPES)}")}, "geometry", tag="type", variants=SHAPES)
 
-BODY = Table({
+#: Bar theories of every deformation kind, in ``viz3d.flexible.bar.THEORIES`` order.
+THEORIES = tuple(theory for theories in THEORIES_BY_KIND.values() for theory in theories)
+
+
+def supports(x):
+    if not (isinstance(x, list) and len(x) == 2 and all(s in SUPPORTS for s in x)):
+        raise Invalid(f"two end conditions [at x = 0, at x = L], each one of {list(SUPPORTS)}")
+    return list(x)
+
+
+MATERIAL = Table({
+    "E": Field(positive, doc="Young's modulus [Pa]"),
+    "rho": Field(positive, OPTIONAL, "density [kg/m^3]"),
+    "nu": Field(poisson_ratio, 0.3, "Poisson's ratio, in (-1, 0.5)"),
+}, "elastic material")
+
+SECTIONS = {
+    "rectangle": Table({"width": Field(positive, doc="[m]"), "depth": Field(positive, doc="in the bending plane [m]")},
+                       "rectangular section"),
+    "circle": Table({"diameter": Field(positive, doc="[m]")}, "solid circular section"),
+    "general": Table({"area": Field(positive, doc="[m^2]"), "second_moment": Field(positive, doc="[m^4]"),
+                      "depth": Field(positive, doc="extreme-fibre distance x 2 [m]")}, "any section"),
+}
+SECTION = Table({"type": Field(one_of(*SECTIONS), doc=f"one of {list(SECTIONS)}"),
+                 "shear_coefficient": Field(unit_fraction, OPTIONAL,
+                                            "Timoshenko k in (0, 1] (default 5/6 rectangle, 9/10 circle)")},
+                "cross-section", tag="type", variants=SECTIONS)
+
+POINT_MASS = Table({
+    "x": Field(nonnegative, doc="section [m]"),
+    "mass": Field(positive, doc="[kg]"),
+}, "a rigid point mass on the bar's axis")
+
+_BODY_COMMON = {
     "name": Field(name, doc="unique body name"),
-    "shape": Field(SHAPE, OPTIONAL, "geometry (drawn, and used for mass properties with density)"),
-    "mass": Field(positive, OPTIONAL, "[kg]"),
-    "inertia": Field(mat3_or_diag, OPTIONAL, "about the centre of mass, body axes [kg m^2]"),
-    "density": Field(positive, OPTIONAL, "[kg/m^3]: mass and inertia from the shape"),
-    "position": Field(vec3, doc="centre of mass, world [m]"),
-    "euler": Field(vec3, OPTIONAL, "ZXZ angles (psi, theta, phi) [rad]"),
-    "euler_deg": Field(vec3, OPTIONAL, "ZXZ angles (psi, theta, phi) [deg]"),
-    "velocity": Field(vec3, ZERO3, "centre-of-mass velocity, world [m/s]"),
+    "type": Field(one_of("rigid", "flexible"), "rigid", "rigid or flexible"),
+    "velocity": Field(vec3, ZERO3, "velocity of the centre of mass (flexible: of the frame origin, the undeformed "
+                      "centre of mass), world [m/s]"),
     "omega": Field(vec3, ZERO3, "angular velocity, world axes [rad/s]"),
     "color": Field(color, OPTIONAL, 'display colour, [r, g, b] or "#rrggbb"'),
-}, "a rigid body")
+}
+BODY_TYPES = {
+    "rigid": Table({
+        "shape": Field(SHAPE, OPTIONAL, "geometry (drawn, and used for mass properties with density)"),
+        "mass": Field(positive, OPTIONAL, "[kg]"),
+        "inertia": Field(mat3_or_diag, OPTIONAL, "about the centre of mass, body axes [kg m^2]"),
+        "density": Field(positive, OPTIONAL, "[kg/m^3]: mass and inertia from the shape"),
+        "position": Field(vec3, doc="centre of mass, world [m]"),
+        "euler": Field(vec3, OPTIONAL, "ZXZ angles (psi, theta, phi) [rad]"),
+        "euler_deg": Field(vec3, OPTIONAL, "ZXZ angles (psi, theta, phi) [deg]"),
+    }, "a rigid body (6 velocity coordinates)"),
+    "flexible": Table({
+        "length": Field(positive, doc="L [m]"),
+        "material": Field(MATERIAL, doc="E, rho, nu"),
+        "section": Field(SECTION, doc="cross-section"),
+        "theory": Field(one_of(*THEORIES), doc="rod (axial deformation), euler_bernoulli or timoshenko (bending)"),
+        "supports": Field(supports, ["free", "free"],
+                          "end conditions of the mode set / mesh at x = 0 and x = L: the reference condition of a "
+                          "floating frame (free-free: mean axes; clamped at x = 0: tangent frame)"),
+        "frame": Field(one_of("floating", "fixed"), "floating",
+                       "floating: the bar's frame moves (6 + n coordinates); fixed: clamped in the world (n coordinates)"),
+        "model": Field(one_of("modal", "fe"), "modal", "analytic modes or finite elements"),
+        "modes": Field(positive_int, OPTIONAL, "number of modes (modal; with fe: keep this many FE modes)"),
+        "elements": Field(positive_int, OPTIONAL, "number of finite elements (model = fe)"),
+        "element": Field(one_of(*ELEMENT_TYPES), OPTIONAL, "finite element (default: the theory's; 'quintic' for "
+                         "euler_bernoulli with curvature dofs)"),
+        "tolerance": Field(positive, OPTIONAL, "truncation error target: choose the mode count from the physics"),
+        "resolve_time": Field(positive, OPTIONAL, "with tolerance: the shortest time the modes must resolve (a "
+                              "contact's duration) [s]"),
+        "resolve_x": Field(nonnegative, OPTIONAL, "with tolerance: the section whose flexibility matters [m]"),
+        "damping": Field(nonnegative, 0.0, "modal damping ratio of every mode"),
+        "point_masses": Field(ArrayOf(POINT_MASS), list, "rigid point masses on the axis"),
+        "position": Field(vec3, doc="world position of the end x = 0 [m]"),
+        "axis": Field(nonzero_vec3, [1.0, 0.0, 0.0], "world direction of the bar axis (x = 0 to x = L)"),
+        "bending_direction": Field(nonzero_vec3, [0.0, 0.0, 1.0], "world direction of positive deflection w "
+                                   "(the depth of the section; made normal to the axis)"),
+    }, "a flexible bar on a floating or fixed frame (6 + n or n velocity coordinates)"),
+}
+BODY = Table(_BODY_COMMON, "a body", tag="type", variants=BODY_TYPES)
 
+_SECTIONS = {
+    "x1": Field(nonnegative, OPTIONAL, "flexible body 1: the section of the point [m] (with local1: the offset in the section)"),
+    "x2": Field(nonnegative, OPTIONAL, "flexible body 2: the section of the point [m] (with local2: the offset in the section)"),
+}
 JOINT_TYPES = {
     "ball": Table({
         "point": Field(vec3, OPTIONAL, "joint point, world, in the initial configuration [m]"),
         "local1": Field(vec3, OPTIONAL, "joint point in body 1 axes from its centre of mass [m]"),
         "local2": Field(vec3, OPTIONAL, "joint point in body 2 axes (world if ground) [m]"),
-    }, "ball joint (rotula): give `point`, or `local1` and `local2`"),
+        **_SECTIONS,
+    }, "ball joint (rotula): give `point`, or `local1` and `local2` (on a flexible body: `x1`/`x2`)"),
 }
 JOINT = Table({
     "name": Field(name, OPTIONAL, "default j<index>"),
@@ -132,28 +211,56 @@ FORCE_TYPES = {
         "stiffness": Field(nonnegative, doc="[N/m]"),
         "damping": Field(nonnegative, 0.0, "[N s/m]"),
         "rest_length": Field(nonnegative, OPTIONAL, "[m] (default: the initial length)"),
+        **_SECTIONS,
     }, "linear spring-damper between two points"),
     "force": Table({**_LOAD, "point": Field(vec3, OPTIONAL, "point of application, world, initial configuration [m]"),
                     "local": Field(vec3, OPTIONAL,
-                                   "point of application, body axes from the centre of mass [m] (default: centre of mass)")},
+                                   "point of application, body axes from the centre of mass [m] (default: centre of mass)"),
+                    "x": Field(nonnegative, OPTIONAL, "flexible body: the section of the point [m]")},
                    "applied force = value + amplitude * f(t)"),
     "torque": Table(dict(_LOAD), "applied couple = value + amplitude * f(t)"),
-    "contact": Table({
-        "name": Field(name, OPTIONAL, "default contact<index>"),
-        "body": Field(string, doc="body carrying the sphere"),
-        "point": Field(vec3, OPTIONAL, "sphere centre, world, initial configuration [m]"),
-        "local": Field(vec3, OPTIONAL, "sphere centre, body axes from the centre of mass [m] (default: centre of mass)"),
-        "radius": Field(positive, doc="sphere radius [m]"),
-        "plane_point": Field(vec3, ZERO3, "a point of the fixed plane [m]"),
-        "plane_normal": Field(nonzero_vec3, [0.0, 0.0, 1.0], "plane normal, towards the free side"),
-        "law": Field(one_of("hertz", "linear"), "hertz", "normal force law (memoryless)"),
-        "stiffness": Field(positive, doc="K [N/m^n] (Hertz: 4/3 E* sqrt(R))"),
-        "exponent": Field(positive, 1.5, "n of the Hertz law"),
-        "damping": Field(nonnegative, 0.0, "linear dashpot [N s/m], never pulls"),
-    }, "a sphere on a body against a fixed plane"),
 }
 FORCE = Table({"type": Field(one_of(*FORCE_TYPES), doc=f"one of {list(FORCE_TYPES)}")}, "a force element",
               tag="type", variants=FORCE_TYPES)
+
+CONTACT_MODELS = ("rigid", "restitution")
+CONTACT = Table({
+    "name": Field(name, OPTIONAL, "default contact<index>"),
+    "body1": Field(string, doc="the body carrying the sphere (or point, or flat face)"),
+    "body2": Field(string, "ground", "the body carrying the surface, or ground"),
+    "radius": Field(nonnegative, 0.0, "sphere radius on body 1 [m] (0: a point or a flat face)"),
+    "point1": Field(vec3, OPTIONAL, "sphere centre, world, initial configuration [m] (default: body 1's centre of mass)"),
+    "local1": Field(vec3, OPTIONAL, "sphere centre, body 1 axes from its centre of mass [m]"),
+    "x1": Field(nonnegative, OPTIONAL, "flexible body 1: section of the sphere centre [m]"),
+    "point2": Field(vec3, OPTIONAL, "a point of the surface, world, initial configuration [m] (default: the origin)"),
+    "local2": Field(vec3, OPTIONAL, "a point of the surface, body 2 axes (world if ground) [m]"),
+    "x2": Field(nonnegative, OPTIONAL, "flexible body 2: section of the surface point [m]"),
+    "normal": Field(nonzero_vec3, [0.0, 0.0, 1.0], "outward normal of body 2's surface, world, initial configuration"),
+    "law": Field(one_of(*CONTACT_MODELS, *NORMAL_LAWS), "hertz",
+                 f"one of {[*CONTACT_MODELS, *NORMAL_LAWS]}: a force law, kinematic contact, or impulses"),
+    "stiffness": Field(positive, OPTIONAL, "K [N/m^n] (default: Hertz from the materials and the radius)"),
+    "exponent": Field(positive, OPTIONAL, "n (default 1 linear, 1.5 otherwise)"),
+    "damping": Field(nonnegative, 0.0, "linear dashpot added to the law [N s/m], never pulls"),
+    "restitution": Field(positive, OPTIONAL, "restitution: e; rate laws: the target e they are calibrated to"),
+    "hypothesis": Field(one_of(*HYPOTHESES), "newton", "restitution impulses: velocity ratio or impulse ratio"),
+    "yield_stress": Field(positive, OPTIONAL, "sigma_Y of the softer body [Pa] (elastoplastic laws)"),
+    "material1": Field(MATERIAL, OPTIONAL, "body 1's E, nu for Hertz-type laws (default: a flexible body's, else steel)"),
+    "material2": Field(MATERIAL, OPTIONAL, "body 2's E, nu (default: a flexible body's, else steel; rigid ground: rigid)"),
+    "events": Field(boolean, True, "locate onset, maximum indentation and separation in time (false: the law acts "
+                    "whenever the bodies overlap, stepped through; memoryless laws only)"),
+}, "a contact between a sphere (or point) on body 1 and a surface of body 2 or ground")
+
+GAUGE = Table({
+    "name": Field(name, doc="gauge name"),
+    "body": Field(string, OPTIONAL, "flexible body (default: the only one)"),
+    "x": Field(nonnegative, doc="section [m]"),
+}, "a strain gauge (axial strain plus the bending surface strain on the +w fibre)")
+
+DISPLAY = Table({
+    "amplification": Field(positive, 1.0, "deformation of flexible bodies drawn this many times larger"),
+    "frame_dt": Field(positive, OPTIONAL, "simulated time between drawn frames in recordings [s]"),
+    "speed": Field(positive, 1.0, "live viewer: simulated seconds per wall-clock second"),
+}, "how the run is drawn")
 
 CHAIN = Table({
     "n": Field(positive_int, doc="number of links"),
@@ -174,15 +281,22 @@ CHECKS = Table({
     "max_constraint_violation": Field(positive, OPTIONAL, "bound on max |C| over the run [m]"),
     "max_energy_drift_rel": Field(positive, OPTIONAL, "bound on max |E - E0| / max T (conservative scenes)"),
     "min_chart_switches": Field(nonnegative_int, OPTIONAL, "at least this many chart switches in the run"),
+    "max_energy_balance_error": Field(positive, OPTIONAL, "bound on |ledger balance error| / largest energy (contacts)"),
+    "restitution": Field(number, OPTIONAL, "expected achieved restitution (contacts)"),
+    "restitution_tol": Field(positive, 0.01, "absolute tolerance on it"),
+    "min_contacts": Field(positive_int, OPTIONAL, "at least this many contacts"),
     "no_warnings": Field(boolean, False, "fail if the run emits warnings"),
 }, "what the headless test of this scene asserts")
 
 SCENE_FILE = Table({
     "scene": Field(SCENE, dict, "about the scene"),
     "sim": Field(SIM, dict, "integration settings"),
-    "bodies": Field(ArrayOf(BODY), list, "rigid bodies"),
+    "bodies": Field(ArrayOf(BODY), list, "rigid and flexible bodies"),
     "joints": Field(ArrayOf(JOINT), list, "joints"),
     "forces": Field(ArrayOf(FORCE), list, "force elements"),
+    "contacts": Field(ArrayOf(CONTACT), list, "contacts"),
+    "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
+    "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),
     "checks": Field(CHECKS, dict, "headless test checks"),
     "limits": Field(LIMITS, dict, "size limits checked before building"),

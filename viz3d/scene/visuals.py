@@ -12,10 +12,14 @@ import json
 
 import numpy as np
 
+from functools import cache
+
+from viz3d.flexible.floating_points import material_points
 from viz3d.forces import SpringDamper
-from viz3d.frames import BodyVisual, SceneVisuals, StaticVisual
+from viz3d.frames import BodyVisual, DeformableVisual, FlexibleDrawing, SceneVisuals, StaticVisual
 from viz3d.geometry import display_mesh
-from viz3d.scene.build import body_mass_properties
+from viz3d.kinematics import Configuration, pose_from, twist_from
+from viz3d.scene.build import body_mass_properties, initial_pose
 from viz3d.scene.load import Scene
 from viz3d.system import System
 
@@ -27,25 +31,138 @@ G_REFERENCE = 9.81
 POST_RADIUS = 0.25
 KNOB_RADIUS = 0.6
 POST_COLOR = np.array([110, 110, 110], dtype=np.uint8)
+PLANE_COLOR = np.array([150, 150, 150], dtype=np.uint8)
+#: A flexible bar is drawn as a tube: this many sections along it, this many points round each.
+SECTIONS = 41
+RING = 12
+#: Plates drawn for contact planes on ground: side [multiple of the scene's length scale].
+PLANE_SIZE = 20.0
 
 
 def scene_visuals(scene: Scene, system: System) -> SceneVisuals:
-    """Display data of every body, joint and spring of ``scene``."""
+    """Display data of every body, joint, spring, contact plane and flexible body of ``scene``."""
     bodies = tuple(_body_visual(scene, system, i) for i in range(system.n_bodies))
-    positions = np.array([b["position"] for b in scene.data["bodies"]], float)
+    positions, _ = initial_pose(scene, system.bodies)
+    drawings = flexible_drawings(scene, system)
+    deformables = _deformables(scene, system, drawings)
     radii = np.array([b.radius for b in bodies])
+    for d in deformables:
+        radii[d.body] = float(np.max(np.linalg.norm(d.vertices - positions[d.body], axis=1)))
     g = np.linalg.norm(scene.data["sim"]["gravity"]) or G_REFERENCE
     weight = float(system.bodies.mass.sum() * g)
     springs = tuple(n for e in system.forces if isinstance(e, SpringDamper) for n in e.names)
-    thickness = float(np.median([_thickness(b) for b in bodies]))
+    thickness = float(np.median([_thickness(b) for b in bodies if b.vertices.size] or [_bar_depth(system)]))
     lo, hi = (positions - radii[:, None]).min(axis=0), (positions + radii[:, None]).max(axis=0)
-    statics = _posts(_spring_ground_points(system), min(0.0, lo[2]), thickness)
+    length_scale = float(np.median(radii))
+    statics = _posts(_spring_ground_points(system), min(0.0, lo[2]), thickness) + _planes(system, PLANE_SIZE * length_scale)
     for st in statics:
         lo, hi = np.minimum(lo, st.vertices.min(axis=0)), np.maximum(hi, st.vertices.max(axis=0))
+    frame_dt = scene.data["display"].get("frame_dt")
+    extra = {"display_dt": float(frame_dt)} if frame_dt else {}
     return SceneVisuals(
         name=scene.name, bodies=bodies, joint_names=system.joint_names, spring_names=springs,
-        length_scale=float(np.median(radii)), thickness=thickness, force_scale=weight if weight > 0 else 1.0,
-        bounds=np.array([lo, hi]), statics=statics, reach=_reach(system, positions, radii))
+        length_scale=length_scale, thickness=thickness, force_scale=weight if weight > 0 else 1.0,
+        bounds=np.array([lo, hi]), deformables=tuple(DeformableVisual(d.name, d.faces, d.vertices, d.color)
+                                                     for d in deformables),
+        plots=_plots(system), statics=statics, reach=_reach(system, positions, radii), **extra)
+
+
+def _plots(system: System) -> tuple[tuple[str, str], ...]:
+    """The time-series panels the frames feed (title, entity prefix under /plots)."""
+    plots = [("Energy [J]", "energy"), ("Constraint violation [m]", "constraint_violation"),
+             ("Joint reaction force [N]", "reaction_force")]
+    if system.contacts:
+        plots.append(("Contact force [N]", "contact"))
+    if system.outputs:
+        plots.append(("Gauge strain [-]", "strain"))
+    return tuple(plots)
+
+
+def _bar_depth(system: System) -> float:
+    return float(min(fb.bar.section.depth for fb in system.bodies.flexible)) if system.bodies.flexible else 0.01
+
+
+def flexible_drawings(scene: Scene, system: System) -> tuple[FlexibleDrawing, ...]:
+    """How each flexible body is drawn: a tube along its deformed axis, ``[display] amplification``
+    times its deformation."""
+    out = []
+    for k, fb in enumerate(system.bodies.flexible):
+        name = system.bodies.names[fb.index]
+        points = material_points(fb.bar, np.linspace(0.0, fb.bar.length, SECTIONS))
+        out.append(FlexibleDrawing(name, k, fb.index, points, _ring(fb.bar.section), scene.data["display"]["amplification"]))
+    return tuple(out)
+
+
+class _Deformable:
+    def __init__(self, name, body, faces, vertices, color):
+        self.name, self.body, self.faces, self.vertices, self.color = name, body, faces, vertices, color
+
+
+def _deformables(scene: Scene, system: System, drawings) -> list:
+    """The undeformed tube of each flexible body, world coordinates."""
+    W_r0, R0 = initial_pose(scene, system.bodies)
+    pose = pose_from(W_r0, R0)
+    zeros = np.zeros_like(W_r0)
+    cfg = Configuration(0.0, pose, twist_from(zeros, zeros, pose), tuple(np.zeros(fb.n) for fb in system.bodies.flexible),
+                        tuple(np.zeros(fb.n) for fb in system.bodies.flexible))
+    out = []
+    for d in drawings:
+        spec = scene.data["bodies"][d.body]
+        color = np.asarray(spec.get("color", PALETTE[d.body % len(PALETTE)]), dtype=np.uint8)
+        out.append(_Deformable(d.name, d.body, _tube_faces().astype(np.int32), d.vertices(cfg), color))
+    return out
+
+
+def _ring(section) -> np.ndarray:
+    """Cross-section outline in body axes (0, depth direction y, width direction z), shape (RING, 3) [m]."""
+    half = 0.5 * section.depth
+    width = section.area / section.depth
+    angle = np.linspace(0.0, 2 * np.pi, RING, endpoint=False) + np.pi / RING
+    if abs(section.area - np.pi * half**2) < 1e-9 * section.area:  # circle
+        yz = np.column_stack([half * np.cos(angle), half * np.sin(angle)])
+    else:
+        yz = np.column_stack([np.sign(np.cos(angle)) * half, np.sign(np.sin(angle)) * 0.5 * width])
+    return np.column_stack([np.zeros(RING), yz])
+
+
+@cache
+def _tube_faces() -> np.ndarray:
+    """Triangles of the tube (shared by every frame: read-only)."""
+    faces = []
+    for i in range(SECTIONS - 1):
+        for j in range(RING):
+            a, b = i * RING + j, i * RING + (j + 1) % RING
+            faces += [(a, b, b + RING), (a, b + RING, a + RING)]
+    for end, flip in ((0, True), ((SECTIONS - 1) * RING, False)):
+        for j in range(1, RING - 1):
+            tri = (end, end + j, end + j + 1)
+            faces.append(tri[::-1] if flip else tri)
+    faces = np.array(faces)
+    faces.flags.writeable = False
+    return faces
+
+
+def _planes(system: System, size: float) -> tuple[StaticVisual, ...]:
+    """One mesh of square plates for the contact planes on ground (at their point, normal to their normal)."""
+    import trimesh
+
+    parts, seen = [], set()
+    for c in system.contacts:
+        for i in np.flatnonzero(c.body[:, 1] == system.n_bodies):
+            point, normal = c.sides[1].B_s[i], c.normal[i]
+            key = tuple(np.round(np.concatenate([point, normal]), 9))
+            if key in seen:
+                continue
+            seen.add(key)
+            plate = trimesh.creation.box(extents=(size, size, 0.005 * size))
+            plate.apply_translation((0.0, 0.0, -0.0025 * size))
+            plate.apply_transform(trimesh.geometry.align_vectors((0.0, 0.0, 1.0), normal))
+            plate.apply_translation(point)
+            parts.append(plate)
+    if not parts:
+        return ()
+    mesh = trimesh.util.concatenate(parts)
+    return (StaticVisual("planes", np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.int32), PLANE_COLOR),)
 
 
 def _spring_ground_points(system: System) -> np.ndarray:
@@ -87,7 +204,7 @@ def _reach(system: System, positions: np.ndarray, radii: np.ndarray) -> np.ndarr
         return i
 
     anchors = []
-    for js in system.joints.joints:
+    for js in system.joint_sets:
         for (b0, b1), s in zip(js.body, getattr(js, "B_s", np.zeros((len(js.body), 2, 3)))):
             if b0 != ground and b1 != ground:
                 root[find(b0)] = find(b1)
@@ -103,6 +220,9 @@ def _reach(system: System, positions: np.ndarray, radii: np.ndarray) -> np.ndarr
 def _body_visual(scene: Scene, system: System, i: int) -> BodyVisual:
     spec = scene.data["bodies"][i]
     color = np.asarray(spec.get("color", PALETTE[i % len(PALETTE)]), dtype=np.uint8)
+    if spec["type"] == "flexible":  # drawn as a deformable tube (``flexible_drawings``), not as a rigid mesh
+        return BodyVisual(spec["name"], np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), color,
+                          f"flexible:{spec['name']}", 0.0)
     if "shape" in spec:
         center = body_mass_properties(scene, i).center if "inertia" not in spec else np.zeros(3)
         mesh = display_mesh(spec["shape"], scene.base_dir, center)

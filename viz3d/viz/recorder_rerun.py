@@ -125,6 +125,8 @@ class RerunRecorder:
         rec = self.rec
         rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for b in visuals.bodies:
+            if not b.vertices.size:  # a flexible body: recorded as a deformable mesh
+                continue
             rec.log(f"/world/bodies/{b.name}/mesh", rr.Mesh3D(
                 vertex_positions=b.vertices, triangle_indices=b.faces,
                 albedo_factor=[*b.color.tolist(), 255]), static=True)
@@ -146,7 +148,8 @@ class RerunRecorder:
         rec.set_time("sim_time", duration=frame.t)
         quats = xyzw_from_wxyz(quat_from_matrix(frame.R_WB))
         for b, r, q in zip(vis.bodies, frame.W_r, quats):
-            rec.log(f"/world/bodies/{b.name}", rr.Transform3D(translation=r, quaternion=rr.Quaternion(xyzw=q)))
+            if b.vertices.size:
+                rec.log(f"/world/bodies/{b.name}", rr.Transform3D(translation=r, quaternion=rr.Quaternion(xyzw=q)))
         for d in vis.deformables:
             rec.log(f"/world/{d.name}", rr.Mesh3D(vertex_positions=frame.deformed[d.name], triangle_indices=d.faces,
                                                   albedo_factor=[*d.color.tolist(), 255]))

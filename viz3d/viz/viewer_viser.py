@@ -173,7 +173,8 @@ class SceneNodes:
     def _add_bodies(self, visuals: SceneVisuals) -> list[tuple[object, np.ndarray]]:
         groups: dict[str, list[int]] = {}
         for i, b in enumerate(visuals.bodies):
-            groups.setdefault(b.group, []).append(i)
+            if b.vertices.size:  # a flexible body has no rigid mesh: it is a deformable
+                groups.setdefault(b.group, []).append(i)
         out = []
         for k, members in enumerate(groups.values()):
             b = visuals.bodies[members[0]]

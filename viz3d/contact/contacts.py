@@ -1,0 +1,362 @@
+"""Contacts between bodies: geometry, a normal law or a rigid treatment, and their memory.
+
+A ``ContactSet`` holds k contacts. Each is a sphere of radius ``r`` (``r = 0``: a point or a flat
+face) centred on a material point ``a`` of body A, against a surface through a material point ``b``
+of body B (or ground) whose outward normal ``n`` is fixed in B (``viz3d.points``: either point may
+sit on a section of a flexible bar). The gap and the indentation are
+
+    g = n . (a - b) - r,    alpha = -g,
+
+so ``alpha > 0`` means overlap, and ``alpha_dot = J_alpha v`` with the rows of ``rows``. What acts
+at the contact is chosen per contact (``model``):
+
+* ``"law"``: a continuous normal law of ``viz3d.contact.laws`` (plus an optional linear dashpot
+  that never pulls) gives ``F >= 0``; A is pushed along ``+n``, B along ``-n`` at the contact;
+* ``"rigid"``: kinematic contact: a plastic impulse at onset, then ``alpha = 0`` held by a
+  multiplier while it stays compressive (a constraint row that is active while touching);
+* ``"restitution"``: an instantaneous impulse (Newton: separation speed ``e`` times the approach
+  speed; Poisson: restitution impulse ``e`` times the compression impulse) at every touch.
+
+Each contact's history is a ``ContactPhase`` value kept in the simulation state: whether it is
+touching, its law's memory, the energy its impulses took and what its current contact started
+with. Onset, maximum indentation and separation are events the stepper locates in time
+(``viz3d.events``); with ``located = False`` a law contact acts whenever ``alpha > 0`` without any
+event (a penalty contact stepped through, as in the stiff-contact stability study).
+
+Sign of the multiplier of a rigid contact row: ``lambda >= 0`` is compressive (the row is
+``alpha``, and the constraint force on the bodies is ``-C_v^T lambda``, docs/notation.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viz3d._typing import FloatArray, IntArray
+from viz3d.contact.laws import ContactMemory, NormalLaw
+from viz3d.kinematics import Configuration
+from viz3d.points import BodyPoints
+from viz3d.rotations import cross
+
+#: Contact treatments.
+MODELS = ("law", "rigid", "restitution")
+#: Laws that act without contact memory (what a contact without located events may use).
+MEMORYLESS_LAWS = ("linear", "hertz")
+#: Restitution hypotheses of impulses.
+HYPOTHESES = ("newton", "poisson")
+
+
+@dataclass(frozen=True)
+class Onset:
+    """What a contact started with, for its step bound and its checks (``viz3d.events``).
+
+    Attributes
+    ----------
+    number : int
+        1-based count of this contact's touches.
+    t : float
+        Onset time [s].
+    speed : float
+        Approach speed ``alpha_dot`` [m/s].
+    memory : ContactMemory or None
+        The law's memory before the touch.
+    energy : float
+        Mechanical energy of the system at onset [J].
+    signed_potential : float
+        Potential energies that may become negative (gravity, loads) at onset [J].
+    balance : float
+        Energy-ledger balance error at onset [J].
+    dissipated : float
+        Energy dissipated by the system so far at onset [J].
+    time_scale : float
+        The contact's time scale [s] (``viz3d.contact.resolution.contact_time_scale``).
+    n_steps : int
+        Accepted steps taken while touching.
+    """
+
+    number: int
+    t: float
+    speed: float
+    memory: ContactMemory | None
+    energy: float
+    signed_potential: float
+    balance: float
+    dissipated: float
+    time_scale: float
+    n_steps: int = 0
+
+
+@dataclass(frozen=True)
+class ContactPhase:
+    """The history of one contact (a value; handlers return new ones).
+
+    Attributes
+    ----------
+    touching : bool
+    memory : ContactMemory or None
+        The normal law's memory (None before the first touch).
+    impulse_loss : float
+        Kinetic energy taken by its impulses so far [J].
+    touches : int
+        Touches so far.
+    onset : Onset or None
+        The current (or last) touch's start.
+    """
+
+    touching: bool = False
+    memory: ContactMemory | None = None
+    impulse_loss: float = 0.0
+    touches: int = 0
+    onset: Onset | None = None
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Contact kinematics at one configuration (k contacts).
+
+    Attributes
+    ----------
+    alpha, alpha_dot : ndarray, shape (k,)
+        Indentation [m] and its rate [m/s].
+    n : ndarray, shape (k, 3)
+        World normal of B's surface, pointing to A's side.
+    d : ndarray, shape (k, 3)
+        ``a - b``, world [m].
+    point : ndarray, shape (k, 3)
+        Contact point: A's sphere surface point nearest to B, ``a - r n`` [m].
+    """
+
+    alpha: FloatArray
+    alpha_dot: FloatArray
+    n: FloatArray
+    d: FloatArray
+    point: FloatArray
+
+
+@dataclass(frozen=True)
+class ContactSet:
+    """k contacts between material points and surfaces (see the module docstring).
+
+    Attributes
+    ----------
+    names : tuple of str, length k
+    body : ndarray of int, shape (k, 2)
+        Bodies A and B of each contact (``nb`` = ground).
+    sides : tuple of BodyPoints
+        Sphere centres on A and surface points on B.
+    normal : ndarray, shape (k, 3)
+        B's outward unit normal in B's axes (ground: world) [-].
+    radius : ndarray, shape (k,)
+        A's sphere radius [m] (0: a point or a flat face).
+    models : tuple of str, length k
+        ``MODELS``.
+    laws : tuple of NormalLaw or None, length k
+        The normal law of each ``"law"`` contact.
+    restitution : ndarray, shape (k,)
+        ``e`` of ``"restitution"`` contacts.
+    hypotheses : tuple of str, length k
+        ``HYPOTHESES``.
+    damping : ndarray, shape (k,)
+        Linear dashpot added to a law's force [N s/m] (never pulls).
+    located : bool
+        Events (onset, separation, maximum indentation) located in time and the law active only
+        while touching; False: a law acts whenever ``alpha > 0`` (memoryless laws only).
+    """
+
+    names: tuple[str, ...]
+    body: IntArray
+    sides: tuple[BodyPoints, BodyPoints]
+    normal: FloatArray
+    radius: FloatArray
+    models: tuple[str, ...]
+    laws: tuple[NormalLaw | None, ...]
+    restitution: FloatArray = field(default=None)
+    hypotheses: tuple[str, ...] = field(default=None)
+    damping: FloatArray = field(default=None)
+    located: bool = True
+
+    def __post_init__(self):
+        k = len(self.names)
+        if self.restitution is None:
+            object.__setattr__(self, "restitution", np.ones(k))
+        if self.hypotheses is None:
+            object.__setattr__(self, "hypotheses", ("newton",) * k)
+        if self.damping is None:
+            object.__setattr__(self, "damping", np.zeros(k))
+        if not self.located and any(m != "law" for m in self.models):
+            raise ValueError("contacts without located events must use a force law")
+
+    @property
+    def k(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_elastic(self) -> int:
+        return self.sides[0].n_elastic
+
+    @property
+    def conservative(self) -> bool:
+        """Forces that derive from a potential: stepped-through elastic laws without dashpots."""
+        return (not self.located and all(law is not None and not law.dissipative for law in self.laws)
+                and not np.any(self.damping > 0))
+
+    def initial_phases(self) -> tuple[ContactPhase, ...]:
+        return tuple(ContactPhase() for _ in self.names)
+
+    def rigid_rows(self) -> IntArray:
+        """Indices of the contacts with a kinematic (constraint-row) treatment."""
+        return np.array([i for i, m in enumerate(self.models) if m == "rigid"], dtype=int)
+
+    # ------------------------------------------------------------------ kinematics
+
+    def _normals(self, cfg: Configuration) -> FloatArray:
+        return np.einsum("kij,kj->ki", cfg.pose.R_WB[self.body[:, 1]], self.normal)
+
+    def gap(self, cfg: Configuration) -> Gap:
+        """Indentations, their rates, normals and contact points (see ``Gap``)."""
+        A, B = self.sides
+        rho_a, rho_b = A.levers(cfg), B.levers(cfg)
+        a = cfg.pose.W_r[self.body[:, 0]] + rho_a
+        b = cfg.pose.W_r[self.body[:, 1]] + rho_b
+        n = self._normals(cfg)
+        d = a - b
+        g = np.einsum("ki,ki->k", n, d) - self.radius
+        w_b = cfg.twist.W_omega[self.body[:, 1]]
+        d_dot = A.velocities(cfg, rho_a) - B.velocities(cfg, rho_b)
+        g_dot = np.einsum("ki,ki->k", cross(w_b, n), d) + np.einsum("ki,ki->k", n, d_dot)
+        return Gap(-g, -g_dot, n, d, a - self.radius[:, None] * n)
+
+    def rows(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Rows of ``alpha``: residual (k,), frame Jacobian (k, 2, 6), elastic Jacobian (k, 2, n_e) and
+        gamma (k,) with ``J_alpha v_dot = gamma`` while ``alpha`` is held constant.
+
+        ``g_dot = n . (v_a - v_b) + (w_B x n) . d``, so on A ``n^T J_a``, on B ``-n^T J_b + (n x d)^T
+        [0, R_B]``; ``gamma_alpha = g_ddot - J_g v_dot``, the velocity-product terms ``(w x (w x n)) .
+        d + 2 (w x n) . d_dot + n . (bias_a - bias_b)``.
+        """
+        A, B = self.sides
+        gp = self.gap(cfg)
+        Jf_a, Je_a = A.jacobian(cfg)
+        Jf_b, Je_b = B.jacobian(cfg)
+        J = np.zeros((self.k, 2, 6))
+        J[:, 0] = -np.einsum("ki,kij->kj", gp.n, Jf_a)
+        J[:, 1] = np.einsum("ki,kij->kj", gp.n, Jf_b)
+        R_b = cfg.pose.R_WB[self.body[:, 1]]
+        J[:, 1, 3:] -= np.einsum("ki,kij->kj", cross(gp.n, gp.d), R_b)
+        Je = np.stack([-np.einsum("ki,kij->kj", gp.n, Je_a), np.einsum("ki,kij->kj", gp.n, Je_b)], axis=1)
+        w = cfg.twist.W_omega[self.body[:, 1]]
+        rho_a, rho_b = A.levers(cfg), B.levers(cfg)
+        d_dot = A.velocities(cfg, rho_a) - B.velocities(cfg, rho_b)
+        wn = cross(w, gp.n)
+        bias = (np.einsum("ki,ki->k", cross(w, wn), gp.d) + 2.0 * np.einsum("ki,ki->k", wn, d_dot)
+                + np.einsum("ki,ki->k", gp.n, A.bias(cfg, rho_a) - B.bias(cfg, rho_b)))
+        return gp.alpha, J, Je, bias
+
+    # ------------------------------------------------------------------ forces
+
+    def active(self, phases: tuple[ContactPhase, ...], gp: Gap) -> np.ndarray:
+        """Contacts whose law acts now (touching, or overlapping when events are not located)."""
+        if not self.located:
+            return gp.alpha > 0.0
+        return np.array([p.touching and m == "law" for p, m in zip(phases, self.models)], dtype=bool)
+
+    def magnitudes(self, gp: Gap, phases: tuple[ContactPhase, ...]) -> FloatArray:
+        """Normal force of each law contact that acts [N] (0 elsewhere)."""
+        on = self.active(phases, gp)
+        F = np.zeros(self.k)
+        for i in np.flatnonzero(on):
+            law = self.laws[i]
+            memory = phases[i].memory if self.located else None
+            elastic = float(law.force(gp.alpha[i], gp.alpha_dot[i], memory)) if gp.alpha[i] > 0.0 else 0.0
+            F[i] = max(elastic + self.damping[i] * gp.alpha_dot[i], 0.0) if gp.alpha[i] > 0.0 else 0.0
+        return F
+
+    def wrench(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Generalized forces of the law contacts: ``F`` along ``+n`` on A at its sphere centre, along
+        ``-n`` on B at its material point plus the couple ``F (n x d)`` (the force acts at A's point),
+        shapes (nb + 1, 3), (nb + 1, 3), (n_e,)."""
+        gp = self.gap(cfg)
+        F = self.magnitudes(gp, phases)
+        f = F[:, None] * gp.n
+        Fa, ta, Qa = self.sides[0].wrench(cfg, f)
+        Fb, tb, Qb = self.sides[1].wrench(cfg, -f)
+        n_rows = cfg.pose.W_r.shape[0]
+        couple = np.zeros((n_rows, 3))
+        np.add.at(couple, self.body[:, 1], F[:, None] * cross(gp.n, gp.d))
+        return Fa + Fb, ta + tb + couple, Qa + Qb
+
+    def power(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> FloatArray:
+        """Power the bodies do on each contact's law, ``F alpha_dot`` [W], shape (k,)."""
+        gp = self.gap(cfg)
+        return self.magnitudes(gp, phases) * gp.alpha_dot
+
+    def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> FloatArray:
+        """Recoverable energy stored in each acting law contact [J], shape (k,)."""
+        gp = self.gap(cfg)
+        on = self.active(phases, gp)
+        U = np.zeros(self.k)
+        for i in np.flatnonzero(on & (gp.alpha > 0.0)):
+            memory = phases[i].memory if self.located else None
+            U[i] = float(self.laws[i].elastic_energy(gp.alpha[i], memory))
+        return U
+
+    def contacts(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray]:
+        """Contact points (m, 3) of the contacts that carry a law force and that force on A (m, 3), for display."""
+        gp = self.gap(cfg)
+        F = self.magnitudes(gp, phases)
+        on = F > 0.0
+        return gp.point[on], F[on, None] * gp.n[on]
+
+
+@dataclass(frozen=True)
+class ContactRows:
+    """The kinematic contacts of a ``ContactSet`` as constraint rows (``alpha``, one per contact),
+    active only while touching: a row provider beside the joint sets of a ``ConstraintLayout``.
+
+    Attributes
+    ----------
+    contacts : ContactSet
+    which : ndarray of int, shape (m,)
+        The rigid contacts of the set.
+    set_index : int
+        Position of the set among ``System.contacts`` (its phases in ``State.memory``).
+    """
+
+    contacts: ContactSet
+    which: IntArray
+    set_index: int
+    is_joint = False
+    n_eq = 1
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.contacts.names[i] for i in self.which)
+
+    @property
+    def body(self) -> IntArray:
+        return self.contacts.body[self.which]
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.which)
+
+    def active(self, memory: tuple) -> np.ndarray:
+        """Rows that act now, shape (m,) (touching kinematic contacts)."""
+        phases = memory[self.set_index] if memory else self.contacts.initial_phases()
+        return np.array([phases[i].touching for i in self.which], dtype=bool)
+
+    def _rows(self, cfg):
+        alpha, J, Je, gamma = self.contacts.rows(cfg)
+        w = self.which
+        return alpha[w], J[w], Je[w], gamma[w]
+
+    def residual(self, cfg):
+        return self._rows(cfg)[0][:, None]
+
+    def jacobian(self, cfg):
+        _, J, Je, _ = self._rows(cfg)
+        return J[:, None], Je[:, None]
+
+    def gamma(self, cfg):
+        return self._rows(cfg)[3][:, None]

@@ -1,0 +1,548 @@
+"""Contacts in the one stepper: work integrals of the energy ledger, event functions of every
+contact, what happens at each event, the step bound while a law contact lasts, and the checks that
+each contact was resolved.
+
+* **Ledger.** With contacts, the state carries work integrals ``w`` (``System.n_aux``): per contact
+  the work the bodies did on its law, ``int F alpha_dot dt``; the energy dissipated by the damping of
+  flexible bodies; the work of non-conservative force elements. Then ``dissipated = sum (W_i - U_i)
+  + impulse losses + damping`` and the balance error ``E(t) + dissipated - W_in - E(0)`` measures
+  what the numerics created or destroyed (``ledger``).
+* **Events** (``ContactStepping.events``): onset (``alpha - crater`` rising through 0), separation
+  (falling through 0; for kinematic contacts the multiplier falling through 0, i.e. tension),
+  maximum indentation (``alpha_dot`` falling through 0, elastoplastic laws). The stepper locates
+  them on the step's dense output and redoes the step to the event (``viz3d.simulate``).
+* **Handlers** (``ContactStepping.handle``): law onset (memory, time scale of the contact), plastic
+  impulse of a kinematic contact and its activation while compressive, restitution impulses
+  (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
+  contact its target normal velocity while every joint keeps its velocity constraint.
+* **Checks** (``ContactStepping.after_step``, at separation): the indentation reached cannot store
+  more energy than the contact can have been given since onset, and a law contact between rigid
+  bodies separates with the restitution its law allows (``viz3d.contact.resolution``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from viz3d._typing import FloatArray
+from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_rows, schur_solve
+from viz3d.contact.contacts import ContactPhase, ContactRows, Onset
+from viz3d.contact.resolution import (
+    STEP_FRACTION,
+    contact_time_scale,
+    free_impact_restitution,
+    indentation_diagnosis,
+    integration_restitution_slack,
+    load_restitution_slack,
+    restitution_diagnosis,
+)
+from viz3d.diagnosis import SimulationFailure
+from viz3d.dynamics import accelerations, body_state, centres_of_mass, flat_velocity, split_velocity, system_mass
+from viz3d.forces import AppliedForce, Gravity
+from viz3d.integrators.adaptive import Event
+from viz3d.system import State, System
+
+#: A kinematic contact needing less tension than this [N] (round-off) is kept at onset.
+RIGID_TENSION_TOL = 1e-9
+#: Relative round-off of sums of energies, allowed on top of the ledger's balance error.
+ENERGY_ROUNDOFF = 1e-12
+
+
+# ---------------------------------------------------------------------------- the ledger
+
+
+@dataclass(frozen=True)
+class Ledger:
+    """The energies of a state [J].
+
+    Attributes
+    ----------
+    kinetic : float
+        Of every body (flexible ones: frame and deformation).
+    potential : float
+        Of the conservative force elements (gravity, springs, constant loads).
+    strain : float
+        Elastic energy of the flexible bodies.
+    contact_elastic : float
+        Recoverable energy stored in the contacts.
+    signed_potential : float
+        The part of ``potential`` that may be negative (gravity, loads).
+    dissipated : float
+        Taken by contact laws (work minus what they store), impulses and damping since t = 0.
+    work_in : float
+        Done on the bodies by non-conservative force elements since t = 0.
+    """
+
+    kinetic: float
+    potential: float
+    strain: float
+    contact_elastic: float
+    signed_potential: float
+    dissipated: float
+    work_in: float
+
+    @property
+    def total(self) -> float:
+        """Mechanical energy ``kinetic + potential + strain + contact_elastic``."""
+        return self.kinetic + self.potential + self.strain + self.contact_elastic
+
+
+def ledger(system: System, state: State) -> Ledger:
+    """The energy ledger of ``state`` (see ``Ledger``)."""
+    from viz3d.dynamics import energies
+
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    T, V_all = energies(system, state)
+    strain = sum(float(0.5 * cfg.eta[i] @ fb.bar.K @ cfg.eta[i]) for i, fb in enumerate(system.bodies.flexible))
+    signed = sum(e.potential_energy(cfg) for e in system.forces if isinstance(e, (Gravity, AppliedForce)))
+    elastic, dissipated, k0 = 0.0, 0.0, 0
+    for k, c in enumerate(system.contacts):
+        phases = state.memory[k] if state.memory else c.initial_phases()
+        U = c.elastic_energy(cfg, phases)
+        W = state.w[k0:k0 + c.k] if state.w.size else np.zeros(c.k)
+        elastic += float(U.sum())
+        dissipated += float(np.sum(W - U)) + sum(p.impulse_loss for p in phases)
+        k0 += c.k
+    V = V_all - strain - elastic
+    if state.w.size:
+        dissipated += float(state.w[-2])
+    work_in = float(state.w[-1]) if state.w.size else 0.0
+    return Ledger(T, V, strain, elastic, float(signed), dissipated, work_in)
+
+
+# ---------------------------------------------------------------------------- contact records
+
+
+@dataclass
+class ContactRecord:
+    """One touch of one contact, as the stepper saw it (output, not state).
+
+    Attributes
+    ----------
+    contact : str
+        Name of the contact.
+    t_start, approach, t_end, separation : float
+        Onset time [s], approach speed [m/s], end time [s] and separation speed [m/s] of the contact
+        points (nan while it lasts).
+    rigid_start, rigid_end : float
+        Relative normal velocity of the two bodies' centres of mass (momentum-based, so elastic
+        vibration does not count) at onset and end [m/s].
+    """
+
+    contact: str
+    t_start: float
+    approach: float
+    t_end: float = np.nan
+    separation: float = np.nan
+    rigid_start: float = np.nan
+    rigid_end: float = np.nan
+
+
+# ---------------------------------------------------------------------------- the stepping
+
+
+class ContactStepping:
+    """Events, handlers, step bound and checks of a system's contacts (one per run).
+
+    Parameters
+    ----------
+    system : System
+    formulation
+        The run's formulation (multipliers of kinematic contacts come from it).
+    rtol, atol : float
+        Tolerances of the run's error control (fixed steps: 0), for the restitution check's slack.
+    step_fraction : float
+        Longest step during a law contact, as a fraction of its time scale (``inf`` removes the
+        bound; for tests of the checks).
+
+    Attributes
+    ----------
+    log : list of (float, str)
+        Events with their time, in order.
+    records : list of ContactRecord
+    impulses : list of (float, str, float)
+        Time, contact and impulse [N s] of every impulse.
+    """
+
+    def __init__(self, system: System, formulation, rtol: float = 0.0, atol: float = 0.0,
+                 step_fraction: float = STEP_FRACTION):
+        self.system, self.formulation = system, formulation
+        self.rtol, self.atol, self.step_fraction = rtol, atol, step_fraction
+        self.log: list[tuple[float, str]] = []
+        self.records: list[ContactRecord] = []
+        self.impulses: list[tuple[float, str, float]] = []
+        self._open: dict[tuple[int, int], ContactRecord] = {}
+        self.E0: float | None = None
+
+    # ------------------------------------------------------------------ state plumbing
+
+    def with_phase(self, state: State, k: int, i: int, phase: ContactPhase) -> State:
+        memory = list(state.memory)
+        phases = list(memory[k])
+        phases[i] = phase
+        memory[k] = tuple(phases)
+        return state.replace(memory=tuple(memory))
+
+    def state_at(self, t: float, y: FloatArray, like: State) -> State:
+        """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""
+        s = self.system
+        n_q, n_v = s.n_q, s.n_v
+        return State(t, y[:n_q], y[n_q:n_q + n_v], like.chart, y[n_q + n_v:], like.memory)
+
+    def _gap(self, state: State, k: int):
+        return self.system.contacts[k].gap(body_state(self.system, state.q, state.v, state.chart, state.t))
+
+    def _crater(self, state: State, k: int, i: int) -> float:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        if c.models[i] != "law" or phase.memory is None or not c.laws[i].dissipative:
+            return 0.0
+        return float(phase.memory.alpha_residual)
+
+    # ------------------------------------------------------------------ events
+
+    def events(self, state: State) -> tuple[Event, ...]:
+        """The event functions of every located contact in its current phase (functions of ``(t, y)``)."""
+        out = []
+        for k, c in enumerate(self.system.contacts):
+            if not c.located:
+                continue
+            for i in range(c.k):
+                out += self._contact_events(state, k, i)
+        return tuple(out)
+
+    def _contact_events(self, state: State, k: int, i: int) -> list[Event]:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        floor = self._crater(state, k, i)
+
+        def alpha(t, y):
+            return float(self._gap(self.state_at(t, y, state), k).alpha[i]) - floor
+
+        if not phase.touching:
+            return [Event(f"onset:{k}:{i}", alpha, +1)]
+        if c.models[i] == "rigid":
+            return [Event(f"separation:{k}:{i}", lambda t, y: self.multiplier(self.state_at(t, y, state), k, i), -1)]
+        out = [Event(f"separation:{k}:{i}", alpha, -1)]
+        if c.laws[i].kind == "elastoplastic":
+            out.append(Event(f"max_indentation:{k}:{i}",
+                             lambda t, y: float(self._gap(self.state_at(t, y, state), k).alpha_dot[i]), -1))
+        return out
+
+    def step_bound(self, state: State) -> float:
+        """Longest step allowed now [s]: a fraction of the time scale of every law contact under way."""
+        bound = np.inf
+        for k, c in enumerate(self.system.contacts):
+            for i, phase in enumerate(state.memory[k] if state.memory else ()):
+                if phase.touching and c.models[i] == "law" and phase.onset is not None:
+                    bound = min(bound, self.step_fraction * phase.onset.time_scale)
+        return bound
+
+    # ------------------------------------------------------------------ contact mechanics
+
+    def _contact_row(self, state: State, k: int, i: int):
+        cfg = body_state(self.system, state.q, state.v, state.chart, state.t)
+        alpha, J, Je, gamma = self.system.contacts[k].rows(cfg)
+        return cfg, J[i], Je[i], gamma[i]
+
+    def response(self, state: State, k: int, i: int) -> tuple[FloatArray, float]:
+        """Velocity change per unit impulse at contact ``(k, i)`` with every active row held
+        (``u``, shape (n_v,)) and the contact's constrained mobility ``J_alpha u`` [1/kg]."""
+        s = self.system
+        cfg, J, Je, _ = self._contact_row(state, k, i)
+        mass = system_mass(s, cfg)
+        rows_i = _single_row(s, k, i)
+        Fu, Fu_e = apply_jacobian_transpose(rows_i, J[None], np.ones(1), s.n_bodies + 1, Je[None])
+        u, u_e = mass.solve(Fu, Fu_e)
+        rows = constraint_rows(s.joints, cfg, state.memory)
+        if s.n_c:
+            mu = schur_solve(s.joints, mass, rows.J, apply_jacobian(s.joints, rows.J, u, rows.Je, u_e), Je=rows.Je,
+                             inactive=rows.inactive)
+            CtL, CtL_e = apply_jacobian_transpose(s.joints, rows.J, mu, s.n_bodies + 1, rows.Je)
+            d, d_e = mass.solve(CtL, CtL_e)
+            u, u_e = u - d, u_e - d_e
+        mobility = float(apply_jacobian(rows_i, J[None], u, Je[None], u_e)[0])
+        return flat_velocity(s, u, u_e), mobility
+
+    def multiplier(self, state: State, k: int, i: int) -> float:
+        """Multiplier of kinematic contact ``(k, i)`` (its row active in ``state``) [N]; >= 0 compressive."""
+        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory)
+        return float(acc.lam[_row_index(self.system, k, i)])
+
+    def pressing_force(self, state: State, k: int, i: int) -> float:
+        """Multiplier that would keep ``alpha_dd = 0`` at contact ``(k, i)`` given everything else [N]
+        (what the loads press the surfaces together with, if > 0)."""
+        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory)
+        cfg, J, Je, gamma = self._contact_row(state, k, i)
+        frame, elastic = split_velocity(self.system, acc.v_dot)
+        alpha_dd = float(apply_jacobian(_single_row(self.system, k, i), J[None], frame, Je[None], elastic)[0]) - gamma
+        _, mobility = self.response(state, k, i)
+        return alpha_dd / mobility
+
+    def impulse(self, state: State, k: int, i: int, e: float, hypothesis: str = "newton") -> tuple[State, float, float]:
+        """Impact at contact ``(k, i)``: returns the state after it, the impulse [N s] and the kinetic
+        energy lost [J].
+
+        Newton: the normal separation speed is ``e`` times the approach speed, ``P = (1 + e)
+        alpha_dot / mobility``; Poisson: a compression impulse ``P_c = alpha_dot / mobility`` that
+        stops the approach, then a restitution impulse ``e P_c``. With one frictionless contact both
+        give the same ``P``; both are kept to say which hypothesis a run used.
+        """
+        gp = self._gap(state, k)
+        u, mobility = self.response(state, k, i)
+        approach = float(gp.alpha_dot[i])
+        P_c = approach / mobility
+        P = (1.0 + e) * P_c if hypothesis == "poisson" else (1.0 + e) * approach / mobility
+        T0 = ledger(self.system, state).kinetic
+        new = state.replace(v=state.v - P * u)
+        return new, P, T0 - ledger(self.system, new).kinetic
+
+    def effective_mass(self, state: State, k: int, i: int) -> float:
+        return 1.0 / self.response(state, k, i)[1]
+
+    def rigid_velocity(self, state: State, k: int) -> FloatArray:
+        """Relative normal velocity of each contact's bodies' rigid motion at the contact point (k,)
+        [m/s], positive approaching: of each body, the rigid motion with its momentum (linear and
+        angular, about its centre of mass), so elastic vibration does not count; a flexible body on a
+        fixed frame has none."""
+        cfg = body_state(self.system, state.q, state.v, state.chart, state.t)
+        c = self.system.contacts[k]
+        gp = c.gap(cfg)
+        out = np.empty(c.k)
+        for i in range(c.k):
+            va = rigid_point_velocity(self.system, cfg, int(c.body[i, 0]), gp.point[i])
+            vb = rigid_point_velocity(self.system, cfg, int(c.body[i, 1]), gp.point[i])
+            out[i] = -float(gp.n[i] @ (va - vb))
+        return out
+
+    # ------------------------------------------------------------------ handlers
+
+    def start(self, state: State) -> State:
+        """Contacts touching and approaching (or overlapping) at the start begin at once."""
+        self.E0 = ledger(self.system, state).total
+        for k, c in enumerate(self.system.contacts):
+            if not c.located:
+                continue
+            gp = self._gap(state, k)
+            for i in range(c.k):
+                if gp.alpha[i] > 0.0 or (gp.alpha[i] == 0.0 and gp.alpha_dot[i] > 0.0):
+                    state = self.handle(f"onset:{k}:{i}", state)
+        return state
+
+    def handle(self, name: str, state: State) -> State:
+        """The state after event ``name`` at ``state.t`` (velocities, contact phases); logs it."""
+        kind, k, i = name.split(":")
+        k, i = int(k), int(i)
+        return getattr(self, f"_{kind}")(state, k, i)
+
+    def _onset(self, state: State, k: int, i: int) -> State:
+        c = self.system.contacts[k]
+        gp = self._gap(state, k)
+        approach = float(gp.alpha_dot[i])
+        self.log.append((state.t, f"{c.names[i]}: contact start (approach speed {approach:.4g} m/s)"))
+        record = ContactRecord(c.names[i], state.t, approach, rigid_start=float(self.rigid_velocity(state, k)[i]))
+        self.records.append(record)
+        self._open[(k, i)] = record
+        phase = state.memory[k][i]
+        phase = dataclasses.replace(phase, touches=phase.touches + 1)
+        model = c.models[i]
+        if model == "restitution":
+            state, P, loss = self.impulse(state, k, i, float(c.restitution[i]), c.hypotheses[i])
+            state = self.with_phase(state, k, i, dataclasses.replace(phase, impulse_loss=phase.impulse_loss + loss))
+            self.impulses.append((state.t, c.names[i], P))
+            self.log.append((state.t, f"{c.names[i]}: impulse {P:.4g} N s, e = {c.restitution[i]:g}: contact end"))
+            return self._close(state, k, i)
+        if model == "rigid":
+            state, P, loss = self.impulse(state, k, i, 0.0)
+            self.impulses.append((state.t, c.names[i], P))
+            phase = dataclasses.replace(phase, impulse_loss=phase.impulse_loss + loss, touching=True)
+            state = self.with_phase(state, k, i, phase)
+            # Complementarity: stay in contact unless holding alpha = 0 needs tension. lam = 0
+            # exactly (an undeformed target) counts as compressive: the force grows from zero.
+            if self.multiplier(state, k, i) >= -RIGID_TENSION_TOL:
+                return state
+            state = self.with_phase(state, k, i, dataclasses.replace(phase, touching=False))
+            self.log.append((state.t, f"{c.names[i]}: contact end (plastic impulse only: holding contact would need tension)"))
+            return self._close(state, k, i)
+        return self._law_onset(state, k, i, phase, approach)
+
+    def _law_onset(self, state: State, k: int, i: int, phase: ContactPhase, approach: float) -> State:
+        """Start a law contact: memory, time scale (the step bound) and the energy it may use."""
+        c = self.system.contacts[k]
+        law, before = c.laws[i], phase.memory
+        memory = law.onset(max(approach, 0.0), before)
+        pressing = max(self.pressing_force(state, k, i), 0.0)
+        t_c = contact_time_scale(law, self.effective_mass(state, k, i), max(approach, 0.0), before, pressing)
+        touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
+        led = ledger(self.system, touching)
+        onset = Onset(phase.touches, state.t, approach, before, led.total, led.signed_potential,
+                      self.balance(led), led.dissipated, t_c)
+        return self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory, onset=onset))
+
+    def _max_indentation(self, state: State, k: int, i: int) -> State:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        gp = self._gap(state, k)
+        memory = c.laws[i].update(phase.memory, float(gp.alpha[i]), float(gp.alpha_dot[i]))
+        self.log.append((state.t, f"{c.names[i]}: maximum indentation {gp.alpha[i]:.4g} m"))
+        return self.with_phase(state, k, i, dataclasses.replace(phase, memory=memory))
+
+    def _separation(self, state: State, k: int, i: int) -> State:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        gp = self._gap(state, k)
+        separation = -float(gp.alpha_dot[i])
+        if c.models[i] == "law":
+            phase = dataclasses.replace(phase, memory=c.laws[i].update(phase.memory, max(float(gp.alpha[i]), 0.0),
+                                                                        float(gp.alpha_dot[i])))
+        state = self.with_phase(state, k, i, dataclasses.replace(phase, touching=False))
+        self.log.append((state.t, f"{c.names[i]}: contact end (separation speed {separation:.4g} m/s)"))
+        state = self._close(state, k, i)
+        if c.models[i] == "law":
+            diagnosis = self._restitution_check(state, k, i, separation)
+            if diagnosis:
+                raise SimulationFailure(diagnosis)
+        return state
+
+    def _close(self, state: State, k: int, i: int) -> State:
+        record = self._open.pop((k, i), None)
+        if record is not None:
+            record.t_end = state.t
+            record.separation = -float(self._gap(state, k).alpha_dot[i])
+            record.rigid_end = float(self.rigid_velocity(state, k)[i])
+        return state
+
+    # ------------------------------------------------------------------ checks
+
+    def balance(self, led: Ledger) -> float:
+        return led.total + led.dissipated - led.work_in - (self.E0 if self.E0 is not None else led.total)
+
+    def after_step(self, state: State) -> State:
+        """Count the step of every law contact under way and check its indentation; raises
+        ``SimulationFailure`` with the diagnosis.
+
+        The recoverable energy of the indentation cannot exceed what the contact can have been given
+        since onset: the system's energy then, less the potential energies that may be negative now
+        (gravity, loads; every other stored energy is >= 0), plus what the numerics created since
+        (the change of the ledger's balance error, and any dissipation that went backwards).
+        """
+        led = None
+        for k, c in enumerate(self.system.contacts):
+            if not c.located:
+                continue
+            for i, phase in enumerate(state.memory[k]):
+                if not (phase.touching and c.models[i] == "law" and phase.onset is not None):
+                    continue
+                state = self.with_phase(state, k, i, dataclasses.replace(
+                    phase, onset=dataclasses.replace(phase.onset, n_steps=phase.onset.n_steps + 1)))
+                led = led or ledger(self.system, state)
+                self._indentation_check(state, k, i, led)
+        return state
+
+    def _indentation_check(self, state: State, k: int, i: int, led: Ledger) -> None:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        o, law = phase.onset, c.laws[i]
+        alpha = float(self._gap(state, k).alpha[i])
+        need = float(law.elastic_energy(alpha, phase.memory)) if alpha > 0 else 0.0
+        available = o.energy - led.signed_potential
+        if need <= available:
+            return
+        created = abs(self.balance(led) - o.balance) + max(0.0, o.dissipated - led.dissipated)
+        if need <= available + created + ENERGY_ROUNDOFF * abs(o.energy):
+            return
+        detail = (f"{o.energy - o.signed_potential:.3g} J in the system at onset, work of gravity and loads "
+                  f"{o.signed_potential - led.signed_potential:.3g} J, created by the numerics {created:.3g} J")
+        raise SimulationFailure(f"{c.names[i]}: " + indentation_diagnosis(
+            o.number, state.t, alpha, law, available + created, phase.memory, detail))
+
+    def _restitution_check(self, state: State, k: int, i: int, separation: float) -> str | None:
+        """Diagnosis if the restitution of the law contact just ended is outside what the law allows.
+
+        Any bodies: not below 0 (a located separation has the surfaces receding). Two rigid bodies
+        (or one and ground): the law's free-impact value, within what the loads and the integration
+        can change.
+        """
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        o, law = phase.onset, c.laws[i]
+        if o is None or o.speed <= 0.0:
+            return None
+        slack = integration_restitution_slack(o.n_steps, self.system.n_q + self.system.n_v, self.rtol, self.atol, o.speed)
+        low, high = -slack, np.inf
+        if self._rigid_pair(k, i):
+            acc = self._load_acceleration(state, k, i)
+            slack += load_restitution_slack(acc, state.t - o.t, o.speed)
+            if slack < 1.0:  # else the loads decide more than the law (a ball coming to rest)
+                e_law = free_impact_restitution(law, self.effective_mass(state, k, i), o.speed, o.memory)
+                low, high = e_law - slack, e_law + slack
+        diagnosis = restitution_diagnosis(o.number, state.t, separation / o.speed, low, high, law, o.speed, separation)
+        return None if diagnosis is None else f"{c.names[i]}: {diagnosis}"
+
+    def _rigid_pair(self, k: int, i: int) -> bool:
+        """Both bodies of the contact rigid or ground, and no joint on either: the relative motion
+        along the normal is one degree of freedom."""
+        s = self.system
+        pair = s.contacts[k].body[i]
+        rigid = all(b == s.n_bodies or s.bodies.is_rigid[b] for b in pair)
+        jointed = any(np.isin(js.body, pair[pair < s.n_bodies]).any() for js in s.joint_sets)
+        return rigid and not jointed
+
+    def _load_acceleration(self, state: State, k: int, i: int) -> float:
+        """Relative normal acceleration the loads give the contact's bodies, free of the contact [m/s^2]."""
+        return self.pressing_force(state, k, i) * self.response(state, k, i)[1]
+
+
+def rigid_point_velocity(system: System, cfg, body: int, point: FloatArray) -> FloatArray:
+    """Velocity of ``point`` [m] carried by the rigid motion of ``body`` with the body's linear and
+    angular momentum [m/s] (rigid bodies: their motion; flexible bodies on a fixed frame, ground: 0)."""
+    if body == system.n_bodies:
+        return np.zeros(3)
+    flexible = {fb.index: (i, fb) for i, fb in enumerate(system.bodies.flexible)}
+    if body not in flexible:
+        return cfg.twist.W_v[body] + np.cross(cfg.twist.W_omega[body], point - cfg.pose.W_r[body])
+    i, fb = flexible[body]
+    if not fb.floating:
+        return np.zeros(3)
+    from viz3d.flexible import floating as ffr
+
+    R, W_r, eta = cfg.pose.R_WB[body], cfg.pose.W_r[body], cfg.eta[i]
+    v = np.concatenate([cfg.twist.W_v[body], cfg.twist.B_omega[body], cfg.eta_dot[i]])
+    L = ffr.linear_momentum(fb.bar, R, eta, v)
+    c = R @ (fb.bar.S @ eta) / fb.bar.mass                     # centre of mass from the frame origin
+    G = W_r + c
+    H_G = ffr.angular_momentum(fb.bar, W_r, R, eta, v) - np.cross(G, L)
+    J_O = R @ ffr.inertia_tensor(fb.bar, eta) @ R.T
+    J_G = J_O - fb.bar.mass * ((c @ c) * np.eye(3) - np.outer(c, c))
+    omega = np.linalg.solve(J_G, H_G)
+    return L / fb.bar.mass + np.cross(omega, point - G)
+
+
+def _single_row(system: System, k: int, i: int):
+    """A one-row layout stand-in for applying contact ``(k, i)``'s row: ``row_body`` only."""
+    return _RowBody(system.contacts[k].body[i:i + 1])
+
+
+@dataclass(frozen=True)
+class _RowBody:
+    row_body: np.ndarray
+
+
+def _row_index(system: System, k: int, i: int) -> int:
+    """Row of kinematic contact ``(k, i)`` among the system's constraint rows."""
+    for provider, sl in zip(system.joints.joints, system.joints.row_slices()):
+        if isinstance(provider, ContactRows) and provider.set_index == k:
+            return sl.start + int(np.flatnonzero(provider.which == i)[0])
+    raise KeyError(f"contact ({k}, {i}) has no constraint row (not kinematic)")
+
+
+def contact_forces(system: System, state: State, lam: FloatArray) -> list[FloatArray]:
+    """Normal force of every contact [N], per set (k,): the law's, or a kinematic contact's
+    multiplier ``lam`` (the state's multipliers, ``Accelerations.lam``) while it touches."""
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    out = []
+    for k, c in enumerate(system.contacts):
+        phases = state.memory[k] if state.memory else c.initial_phases()
+        F = c.magnitudes(c.gap(cfg), phases)
+        for i in c.rigid_rows():
+            if phases[i].touching:
+                F[i] = max(float(lam[_row_index(system, k, i)]), 0.0)
+        out.append(F)
+    return out

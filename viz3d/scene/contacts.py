@@ -1,0 +1,80 @@
+"""Contacts of a scene: their treatment and normal law from the ``[[contacts]]`` keys and the
+materials (Hertz constants of a sphere on a locally flat surface, elastoplastic laws from the yield
+stress, rate laws calibrated to a target restitution).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viz3d.contact import laws as L
+from viz3d.contact.parameters import effective_modulus, hertz_stiffness
+from viz3d.scene.schema import SceneError
+
+#: A body's material when the scene gives none (steel).
+DEFAULT_MATERIAL = {"E": 210e9, "nu": 0.3}
+#: Ground's material when the scene gives none: rigid.
+RIGID = {"E": np.inf, "nu": 0.0}
+
+
+def contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str):
+    """``(model, law, requested restitution)`` of one contact: model ``"law"``, ``"rigid"`` or
+    ``"restitution"``; the law (None unless a law); the restitution asked for (None if none)."""
+    name = entry["law"]
+    if name == "rigid":
+        return "rigid", None, None
+    if name == "restitution":
+        if "restitution" not in entry:
+            raise SceneError(src, f"{where}.restitution", "a coefficient of restitution for law = restitution")
+        return "restitution", None, entry["restitution"]
+    cls = L.NORMAL_LAWS[name]
+    if cls.kind == "elastoplastic":
+        return "law", _elastoplastic(cls, entry, materials, src, where), None
+    stiffness = entry.get("stiffness") or _hertz(entry, materials, src, where)
+    if cls is L.Linear:
+        if "stiffness" not in entry:
+            raise SceneError(src, f"{where}.stiffness", "a stiffness [N/m] for the linear law")
+        return "law", L.Linear(stiffness, entry["damping"]), None
+    exponent = entry.get("exponent", 1.5)
+    if cls is L.Hertz:
+        return "law", L.Hertz(stiffness, exponent), None
+    if "restitution" not in entry:
+        raise SceneError(src, f"{where}.restitution", f"the target restitution the {name} law is calibrated to")
+    return "law", cls(stiffness, exponent, entry["restitution"]), entry["restitution"]
+
+
+def _hertz(entry: dict, materials, src: str, where: str) -> float:
+    """Hertz constant of the sphere on the (locally flat) surface [N/m^1.5]."""
+    if entry["radius"] <= 0.0:
+        raise SceneError(src, f"{where}.stiffness", f"a stiffness, or a sphere radius > 0, for the {entry['law']} law")
+    m1, m2 = materials
+    return hertz_stiffness(effective_modulus(m1["E"], m1["nu"], m2["E"], m2["nu"]), entry["radius"])
+
+
+def _elastoplastic(cls, entry: dict, materials, src: str, where: str):
+    if "yield_stress" not in entry:
+        raise SceneError(src, f"{where}.yield_stress", f"the yield stress [Pa] for the {cls.name} law")
+    if entry["radius"] <= 0.0:
+        raise SceneError(src, f"{where}.radius", f"a sphere radius for the {cls.name} law")
+    target = materials[1]
+    if not np.isfinite(target["E"]):
+        raise SceneError(src, f"{where}.material2", "a deformable target material for an elastoplastic law")
+    return cls.from_material(entry["radius"], target["E"], target["nu"], entry["yield_stress"])
+
+
+def materials(entry: dict, bodies: list[dict]) -> tuple[dict, dict]:
+    """E and nu of each side: given, a flexible body's, ground rigid, else steel."""
+    out = []
+    for side in ("1", "2"):
+        if f"material{side}" in entry:
+            out.append(entry[f"material{side}"])
+            continue
+        name = entry[f"body{side}"]
+        spec = next((b for b in bodies if b["name"] == name), None)
+        if spec is None:
+            out.append(RIGID)
+        elif spec.get("type") == "flexible":
+            out.append(spec["material"])
+        else:
+            out.append(DEFAULT_MATERIAL)
+    return out[0], out[1]
