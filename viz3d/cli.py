@@ -421,6 +421,7 @@ def summary(traj, out: Path) -> str:
         _energy_line(traj, meta),
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
+        f"kernel      {meta.get('kernel', 'n/a')}",
         f"status      {traj.status}",
         f"wrote       {out}",
     ]

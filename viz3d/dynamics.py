@@ -188,20 +188,14 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
 
 def aux_rates(system: System, cfg: Configuration, memory: tuple) -> FloatArray:
     """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
-    contact ``F alpha_dot``, the damping power of the flexible bodies, the power of the
-    non-conservative force elements [W]."""
+    contact ``F alpha_dot``, the damping power of the flexible bodies, the power of the force
+    elements' non-conservative forces (``ForceElement.nonconservative_power``) [W]."""
     parts = [c.power(cfg, memory[k] if memory else c.initial_phases()) for k, c in enumerate(system.contacts)]
     # (called only when the system keeps a ledger: some contact set is located)
     damping = 0.0
     for i, fb in enumerate(system.bodies.flexible):
         damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
-    power_in = 0.0
-    for element in system.forces:
-        if not element.conservative:
-            F, tau, e = element.wrench(cfg)
-            power_in += float(np.sum(F * cfg.twist.W_v) + np.sum(tau * cfg.twist.W_omega))
-            if e is not None:
-                power_in += float(e @ np.concatenate(cfg.eta_dot))
+    power_in = sum(element.nonconservative_power(cfg) for element in system.forces)
     return np.concatenate(parts + [[damping, power_in]])
 
 

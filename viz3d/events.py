@@ -157,6 +157,9 @@ class ContactStepping:
     step_fraction : float
         Longest step during a law contact, as a fraction of its time scale (``inf`` removes the
         bound; for tests of the checks).
+    kernel : viz3d.kernel.KernelStepper, optional
+        Evaluates the event functions (indentations, their rates, multipliers) compiled; the NumPy
+        path without it.
 
     Attributes
     ----------
@@ -168,9 +171,11 @@ class ContactStepping:
     """
 
     def __init__(self, system: System, formulation, rtol: float = 0.0, atol: float = 0.0,
-                 step_fraction: float = STEP_FRACTION):
-        self.system, self.formulation = system, formulation
+                 step_fraction: float = STEP_FRACTION, kernel=None):
+        self.system, self.formulation, self.kernel = system, formulation, kernel
         self.rtol, self.atol, self.step_fraction = rtol, atol, step_fraction
+        self._k0 = np.cumsum([0] + [c.k for c in system.contacts])
+        self._probed: tuple | None = None
         self.log: list[tuple[float, str]] = []
         self.records: list[ContactRecord] = []
         self.impulses: list[tuple[float, str, float]] = []
@@ -218,17 +223,38 @@ class ContactStepping:
         floor = self._crater(state, k, i)
 
         def alpha(t, y):
-            return float(self._gap(self.state_at(t, y, state), k).alpha[i]) - floor
+            return self._probe(t, y, state)[self._k0[k] + i, 0] - floor
 
         if not phase.touching:
             return [Event(f"onset:{k}:{i}", alpha, +1)]
         if c.models[i] == "rigid":
-            return [Event(f"separation:{k}:{i}", lambda t, y: self.multiplier(self.state_at(t, y, state), k, i), -1)]
+            return [Event(f"separation:{k}:{i}", lambda t, y: self._probe(t, y, state, k, i), -1)]
         out = [Event(f"separation:{k}:{i}", alpha, -1)]
         if c.laws[i].kind == "elastoplastic":
-            out.append(Event(f"max_indentation:{k}:{i}",
-                             lambda t, y: float(self._gap(self.state_at(t, y, state), k).alpha_dot[i]), -1))
+            out.append(Event(f"max_indentation:{k}:{i}", lambda t, y: self._probe(t, y, state)[self._k0[k] + i, 1], -1))
         return out
+
+    def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
+        """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``[alpha, alpha_dot]`` of
+        every contact (n_contacts, 2), or with ``(k, i)`` the multiplier of that kinematic contact.
+        Compiled when the run has a kernel; the last result is reused for the same ``(t, y)`` (the
+        events of one step are evaluated at the same points)."""
+        key = (t, y.tobytes(), k, i, id(like.memory))
+        if self._probed is not None and self._probed[0] == key:
+            return self._probed[1]
+        if k < 0:
+            if self.kernel is not None:
+                value = self.kernel.gaps(t, y, like.chart)
+            else:
+                cfg = body_state(self.system, *self.system.split_y(y)[:2], like.chart, t)
+                value = np.concatenate([np.column_stack([g.alpha, g.alpha_dot])
+                                        for g in (c.gap(cfg) for c in self.system.contacts)])
+        elif self.kernel is not None:
+            value = float(self.kernel.multipliers(t, y, like.chart, like.memory)[_row_index(self.system, k, i)])
+        else:
+            value = self.multiplier(self.state_at(t, y, like), k, i)
+        self._probed = (key, value)
+        return value
 
     def step_bound(self, state: State) -> float:
         """Longest step allowed now [s]: a fraction of the time scale of every law contact under way."""

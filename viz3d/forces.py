@@ -10,6 +10,7 @@ give ``potential_energy``. See docs/extending.md ("Add a force element").
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -17,9 +18,10 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
+from viz3d.compiled import Items, compiled_piece, dot3, force_piece, items, matvec3
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, rigid_points, scatter
-from viz3d.timefunctions import TimeFunctions
+from viz3d.points import BodyPoints, apply_force, rigid_points, scatter
+from viz3d.timefunctions import TimeFunctions, value
 
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
 MIN_LENGTH = 1e-12
@@ -28,7 +30,8 @@ __all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity",
 
 
 class ForceElement(ABC):
-    """Base class. Subclasses set ``type_name`` and implement ``wrench``."""
+    """Base class. Subclasses set ``type_name`` and implement ``wrench``; those with a compiled
+    piece (``viz3d.compiled``) also ``compiled(pack)``, returning their packed ``Items``."""
 
     type_name: ClassVar[str]
 
@@ -45,6 +48,15 @@ class ForceElement(ABC):
     def conservative(self) -> bool:
         """True when the element's forces are minus the gradient of ``potential_energy``."""
         return False
+
+    def nonconservative_power(self, cfg: Configuration) -> float:
+        """Power [W] of the forces that ``potential_energy`` does not account for (the energy
+        ledger's work in): none for a conservative element, all of them by default."""
+        if self.conservative:
+            return 0.0
+        F, tau, e = self.wrench(cfg)
+        power = float(np.sum(F * cfg.twist.W_v) + np.sum(tau * cfg.twist.W_omega))
+        return power + (float(e @ np.concatenate(cfg.eta_dot)) if e is not None else 0.0)
 
 
 @dataclass(frozen=True)
@@ -91,6 +103,27 @@ class Gravity(ForceElement):
     @property
     def conservative(self) -> bool:
         return True
+
+    def compiled(self, pack) -> Items:
+        """Each body's weight at its centre of mass (``Packer.centres_of_mass``: on a flexible body a
+        point that moves with ``S eta / m``, whose generalized force is exactly the one above)."""
+        nb = len(self.mass)
+        if self.flexible not in ((), pack.bodies.flexible) or nb != pack.bodies.n_bodies:
+            raise pack.Unsupported("gravity on a subset of the bodies")
+        if not self.flexible and pack.bodies.flexible:
+            raise pack.Unsupported("gravity without the flexible bodies' deflection")
+        weights = self.mass[:, None] * self.g[None, :]
+        return items(GravityItems, pack.centres_of_mass()[:, None], weights, k=nb)
+
+
+class GravityItems(Items):
+    """i: [centre-of-mass point]; f: [weight m g (3)] [N]."""
+
+
+@compiled_piece(force_piece, GravityItems)
+def _gravity(d, t, v, power):
+    for k in range(d.i.shape[0]):
+        apply_force(v, d.i[k, 0], d.f[k])
 
 
 @dataclass(frozen=True)
@@ -153,9 +186,45 @@ class SpringDamper(ForceElement):
     def conservative(self) -> bool:
         return not np.any(self.damping > 0)
 
+    def nonconservative_power(self, cfg):
+        """The dashpots' power on the bodies, ``-sum c l_dot^2`` [W] (the springs' is in ``potential_energy``)."""
+        rho, _, _, u = self._geometry(cfg)
+        v = [side.velocities(cfg, rho[:, k]) for k, side in enumerate(self.sides)]
+        length_d = np.einsum("ki,ki->k", u, v[1] - v[0])
+        return -float(np.sum(self.damping * length_d**2))
+
     def potential_energy(self, cfg):
         _, _, length, _ = self._geometry(cfg)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
+
+    def compiled(self, pack) -> Items:
+        i = np.column_stack([pack.points(self.sides[0]), pack.points(self.sides[1])])
+        return items(SpringItems, i, np.column_stack([self.stiffness, self.damping, self.rest_length]), k=len(self.names))
+
+
+class SpringItems(Items):
+    """i: [point 1, point 2]; f: [stiffness [N/m], damping [N s/m], rest length [m]]."""
+
+
+@compiled_piece(force_piece, SpringItems)
+def _spring(d, t, v, power):
+    dv, f = v.v3[8], v.v3[9]
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        for c in range(3):
+            f[c] = v.px[p2, c] - v.px[p1, c]
+            dv[c] = v.pv[p2, c] - v.pv[p1, c]
+        length = math.sqrt(dot3(f, f))
+        inv = 1.0 / max(length, MIN_LENGTH)
+        length_d = dot3(f, dv) * inv
+        K, D, l0 = d.f[k, 0], d.f[k, 1], d.f[k, 2]
+        for c in range(3):
+            f[c] = K * (f[c] - l0 * f[c] * inv) + D * length_d * f[c] * inv
+        apply_force(v, p1, f)
+        for c in range(3):
+            f[c] = -f[c]
+        apply_force(v, p2, f)
+        power[power.shape[0] - 1] -= D * length_d * length_d
 
 
 @dataclass(frozen=True)
@@ -198,6 +267,29 @@ class AppliedForce(ForceElement):
         F, tau, Qe = self.points.wrench(cfg, self.world_value(cfg))
         return F, tau, Qe if Qe.size else None
 
+    def compiled(self, pack) -> Items:
+        kind, table = self.value.table()
+        i = np.column_stack([pack.points(self.points), kind, self.in_body_frame.astype(np.int64)])
+        return items(ForceItems, i, table, k=len(self.names))
+
+
+class ForceItems(Items):
+    """i: [point, time-function kind, in body axes]; f: ``TimeFunctions.table`` row (10)."""
+
+
+@compiled_piece(force_piece, ForceItems)
+def _force(d, t, v, power):
+    f, fw = v.v3[8], v.v3[9]
+    for k in range(d.i.shape[0]):
+        p = d.i[k, 0]
+        value(d.i[k, 1], d.f[k], t, f)
+        if d.i[k, 2] == 1:
+            matvec3(v.R[v.pt_i[p, 0]], f, fw)
+            for c in range(3):
+                f[c] = fw[c]
+        apply_force(v, p, f)
+        power[power.shape[0] - 1] += dot3(f, v.pv[p])
+
 
 @dataclass(frozen=True)
 class AppliedTorque(AppliedForce):
@@ -208,6 +300,30 @@ class AppliedTorque(AppliedForce):
     def wrench(self, cfg):
         tau_k = self.world_value(cfg)
         return np.zeros_like(cfg.pose.W_r), scatter(cfg.pose.W_r.shape[0], self.body, tau_k), None
+
+    def compiled(self, pack) -> Items:
+        kind, table = self.value.table()
+        i = np.column_stack([self.body, kind, self.in_body_frame.astype(np.int64)])
+        return items(TorqueItems, i, table, k=len(self.names))
+
+
+class TorqueItems(Items):
+    """i: [body, time-function kind, in body axes]; f: ``TimeFunctions.table`` row (10)."""
+
+
+@compiled_piece(force_piece, TorqueItems)
+def _torque(d, t, v, power):
+    tau, tw = v.v3[8], v.v3[9]
+    for k in range(d.i.shape[0]):
+        b = d.i[k, 0]
+        value(d.i[k, 1], d.f[k], t, tau)
+        if d.i[k, 2] == 1:
+            matvec3(v.R[b], tau, tw)
+            for c in range(3):
+                tau[c] = tw[c]
+        for c in range(3):
+            v.tau[b, c] += tau[c]
+        power[power.shape[0] - 1] += dot3(tau, v.wW[b])
 
 
 #: Force elements by scene type (contacts are not force elements: ``viz3d.contact.contacts``).

@@ -22,8 +22,9 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
+from viz3d.compiled import Items, compiled_piece, items, row_piece
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, rigid_points
+from viz3d.points import BodyPoints, add_row, bias, rigid_points
 
 
 @dataclass(frozen=True)
@@ -123,6 +124,31 @@ class BallJoint(Joint):
 
     def gamma(self, cfg):
         return self.sides[1].bias(cfg) - self.sides[0].bias(cfg)
+
+    def compiled(self, pack) -> Items:
+        rows = pack.row_start(self) + 3 * np.arange(self.n_joints)
+        i = np.column_stack([rows, pack.points(self.sides[0]), pack.points(self.sides[1])])
+        return items(BallItems, i, k=self.n_joints)
+
+
+class BallItems(Items):
+    """Ball joints: i = [first row, point on body 1, point on body 2]."""
+
+
+@compiled_piece(row_piece, BallItems)
+def _ball(d, t, v):
+    e, a1, a2 = v.v3[8], v.v3[9], v.v3[10]
+    for k in range(d.i.shape[0]):
+        r0, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
+        bias(v, p1, a1)
+        bias(v, p2, a2)
+        for c in range(3):
+            e[0], e[1], e[2] = 0.0, 0.0, 0.0
+            e[c] = 1.0
+            add_row(v, r0 + c, 0, p1, e, 1.0)
+            add_row(v, r0 + c, 1, p2, e, -1.0)
+            v.C[r0 + c] = v.px[p1, c] - v.px[p2, c]
+            v.gam[r0 + c] = a2[c] - a1[c]
 
 
 JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint,)}

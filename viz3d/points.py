@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
+from viz3d.compiled import cross3, inline, jit, matvec3, tmatvec3
 from viz3d.flexible import floating_points as fp
 from viz3d.kinematics import Configuration
 from viz3d.rotations import cross, skew
@@ -188,3 +189,84 @@ def body_points(bodies, body: IntArray, B_s: FloatArray, x: FloatArray | None = 
             groups.append(FlexPoints(which, i, offset, material))
         offset += fb.n
     return BodyPoints(body, B_s, tuple(groups), n_elastic)
+
+
+# ---------------------------------------------------------------------------- compiled kernel pieces
+# The kernel (viz3d.kernel) keeps every material point of a system in one table: ``v.pt_i`` (np, 4)
+# int [body, offset of its N (3, n) in ``v.pt_N``, n (0: rigid or ground), offset of its body's eta
+# in the stacked elastic coordinates] and ``m.pt_s`` (np, 3), the offset s (or s0) in body axes.
+# ``kinematics`` fills, per evaluation, the deformed offsets ``v.ps``, levers ``v.prho``,
+# positions ``v.px``, velocities ``v.pv`` and elastic velocities ``v.pud = R N eta_dot`` (world) of
+# every point; elements then read them and act through ``apply_force``, ``add_row`` and ``bias``,
+# as their NumPy code does through BodyPoints. Scratch rows ``v.v3[0:8]`` are these helpers'.
+
+
+@inline
+def kinematics(m, v, w):
+    """Every point's deformed offset, lever, position, velocity and elastic velocity (see above)."""
+    for p in range(v.pt_i.shape[0]):
+        b, off, n, e0 = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2], v.pt_i[p, 3]
+        s, ud = v.ps[p], v.v3[0]
+        for c in range(3):
+            s[c] = m.pt_s[p, c]
+            ud[c] = 0.0
+            for q in range(n):
+                N = v.pt_N[off + c * n + q]
+                s[c] += N * w.eta[e0 + q]
+                ud[c] += N * w.eta_dot[e0 + q]
+        matvec3(v.R[b], s, v.prho[p])
+        matvec3(v.R[b], ud, v.pud[p])
+        cross3(v.wW[b], v.prho[p], v.v3[1])
+        for c in range(3):
+            v.px[p, c] = w.r[b, c] + v.prho[p, c]
+            v.pv[p, c] = w.vW[b, c] + v.v3[1, c] + v.pud[p, c]
+
+
+@jit
+def apply_force(v, p, f):
+    """Add the world force ``f`` (3,) [N] at point ``p`` to the generalized forces: ``f`` and ``rho x f``
+    on its body's frame (world), ``N^T R^T f`` on its elastic coordinates."""
+    b, off, n, e0 = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2], v.pt_i[p, 3]
+    t = v.v3[2]
+    cross3(v.prho[p], f, t)
+    for c in range(3):
+        v.F[b, c] += f[c]
+        v.tau[b, c] += t[c]
+    if n > 0:
+        fB = v.v3[3]
+        tmatvec3(v.R[b], f, fB)
+        for c in range(3):
+            for q in range(n):
+                v.Qe[e0 + q] += v.pt_N[off + c * n + q] * fB[c]
+
+
+@jit
+def add_row(v, row, side, p, u, sign):
+    """Add ``sign u^T J_p`` to side ``side`` of constraint row ``row``: the velocity Jacobian of point
+    ``p`` along the world vector ``u`` (3,), i.e. ``[u, s x R^T u]`` on the frame twist and
+    ``N^T R^T u`` on the elastic velocities."""
+    b, off, n = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2]
+    uB, t = v.v3[4], v.v3[5]
+    tmatvec3(v.R[b], u, uB)
+    cross3(v.ps[p], uB, t)
+    for c in range(3):
+        v.J[row, side, c] += sign * u[c]
+        v.J[row, side, 3 + c] += sign * t[c]
+    j0 = v.row_je[row, side]
+    for q in range(n):
+        acc = 0.0
+        for c in range(3):
+            acc += v.pt_N[off + c * n + q] * uB[c]
+        v.Je[j0 + q] += sign * acc
+
+
+@jit
+def bias(v, p, out):
+    """``J_dot v`` of point ``p`` (3,) [m/s^2], world: ``w x (w x rho) + 2 w x (R N eta_dot)``."""
+    b = v.pt_i[p, 0]
+    t = v.v3[6]
+    cross3(v.wW[b], v.prho[p], t)
+    cross3(v.wW[b], t, out)
+    cross3(v.wW[b], v.pud[p], t)
+    for c in range(3):
+        out[c] += 2.0 * t[c]

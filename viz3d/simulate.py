@@ -72,8 +72,9 @@ class Simulation:
     controller : adaptive.Controller, optional
         Error control of adaptive steps.
     compiled : bool
-        Take fixed explicit Runge-Kutta steps through the compiled kernel (``viz3d.kernel``) when
-        it covers the system and formulation; the NumPy path otherwise.
+        Evaluate the vector field, and take fixed explicit Runge-Kutta steps, in the compiled
+        kernel (``viz3d.kernel``) when it covers the system and formulation; the NumPy path
+        otherwise (``kernel_note`` says which, and why).
 
     Raises
     ------
@@ -85,6 +86,8 @@ class Simulation:
     state : State
         Current state.
     chart_switches : ndarray of int, shape (nb,)
+    kernel_note : str
+        "compiled kernel", or "NumPy path: ..." with the reason.
     n_steps, n_rejected, n_rhs : int
         Accepted and rejected integration steps, vector-field evaluations so far.
     """
@@ -104,7 +107,8 @@ class Simulation:
         self._span = None       # adaptive: the last accepted step, for dense output
         self._h = None          # adaptive: next step to try [s]
         self._fields: list[VectorField] = []
-        self._kernel = _compiled(system, integrator, formulation, controller) if compiled else None
+        self._kernel, self.kernel_note = (_compiled(system, integrator, formulation) if compiled
+                                          else (None, "NumPy path (compiled = false)"))
         self._contacts = None   # contact events (systems with contacts): viz3d.events.ContactStepping
         self._fired = None      # the event handled last, disarmed for the next step
         #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
@@ -118,7 +122,8 @@ class Simulation:
         if state.w.size != self.system.n_aux or len(state.memory) != len(self.system.contacts):
             state = state.replace(w=np.zeros(self.system.n_aux), memory=tuple(c.initial_phases() for c in self.system.contacts))
         c = self.controller
-        self._contacts = ContactStepping(self.system, self.formulation, c.rtol if c else 0.0, c.atol if c else 0.0)
+        self._contacts = ContactStepping(self.system, self.formulation, c.rtol if c else 0.0, c.atol if c else 0.0,
+                                         kernel=self._kernel)
         self.state = self._inner = self._contacts.start(state)
 
     @property
@@ -363,7 +368,7 @@ class Simulation:
         if self._kernel is not None:  # evaluations in the compiled kernel (same interface)
             from viz3d.kernel import CompiledField
 
-            return CompiledField(rhs, self._kernel.data, self._kernel.ws)
+            return CompiledField(rhs, self._kernel)
         return rhs
 
     def _singular_message(self, s: State) -> str:
@@ -405,15 +410,18 @@ class _Span:
         return _state_at(self.system, t, self._interp(t), self.start)
 
 
-def _compiled(system, integrator, formulation, controller):
-    """A ``KernelStepper`` when the kernel covers this system and formulation, else None. Its
-    whole-step path serves fixed explicit RK steps; its right-hand side serves every method."""
-    from viz3d.kernel import KernelStepper, kernel_for
+def _compiled(system, integrator, formulation):
+    """``(KernelStepper, "compiled kernel")`` when the kernel covers this system and formulation, else
+    ``(None, "NumPy path: <why>")``. Its whole-step path serves fixed explicit RK steps; its
+    right-hand side serves every method."""
+    from viz3d.kernel import KernelStepper, kernel_coverage
 
     if formulation.integrator is not None:
-        return None
-    data = kernel_for(system, formulation)
-    return None if data is None else KernelStepper(data, getattr(integrator, "tableau", None))
+        return None, f"NumPy path: formulation {formulation.name!r} steps itself"
+    data, why = kernel_coverage(system, formulation)
+    if data is None:
+        return None, f"NumPy path: the compiled kernel lacks {why}"
+    return KernelStepper(data, getattr(integrator, "tableau", None)), "compiled kernel"
 
 
 class FrameRecorder:
@@ -594,7 +602,7 @@ def scene_json(scene: Scene, sim: Simulation) -> str:
     meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": cfg["dt"],
             "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
             "overrides": list(scene.overrides),
-            "conservative": all(e.conservative for e in sim.system.forces)}
+            "conservative": all(e.conservative for e in sim.system.forces), "kernel": sim.kernel_note}
     return json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)
 
 

@@ -16,11 +16,13 @@ A scene never executes code; these five shapes are the whole vocabulary.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.compiled import jit
 
 TIME_FUNCTIONS = ("constant", "sine", "step", "ramp", "pulse")
 
@@ -79,3 +81,31 @@ class TimeFunctions:
     def __call__(self, t: float) -> FloatArray:
         """Values at time ``t`` [s], shape (k, 3)."""
         return self.offset + self.amplitude * self.shape(t)[:, None]
+
+    def table(self) -> tuple[np.ndarray, FloatArray]:
+        """Packed for the compiled ``value``: kinds (k,) and rows (k, 10) ``[offset (3), amplitude (3),
+        frequency, phase, start, duration]``."""
+        rows = np.column_stack([self.offset, self.amplitude, self.frequency, self.phase, self.start, self.duration])
+        return self.kind.astype(np.int64), rows.reshape(-1, 10)
+
+
+@jit
+def value(kind, f, t, out):
+    """Compiled ``TimeFunctions.__call__`` of one function: ``out = offset + amplitude shape(t)`` (3,)
+    from its kind and packed row ``f`` (10,) (``TimeFunctions.table``)."""
+    tau = t - f[8]
+    if kind == 1:
+        shape = math.sin(2.0 * math.pi * f[6] * t + f[7])
+    elif kind == 2:
+        shape = 1.0 if tau >= 0.0 else 0.0
+    elif kind == 3:
+        if f[9] > 0.0:
+            shape = min(max(tau / f[9], 0.0), 1.0)
+        else:
+            shape = 1.0 if tau >= 0.0 else 0.0
+    elif kind == 4:
+        shape = 1.0 if (tau >= 0.0 and tau < f[9]) else 0.0
+    else:
+        shape = 0.0
+    for c in range(3):
+        out[c] = f[c] + f[3 + c] * shape

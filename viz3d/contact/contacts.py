@@ -34,9 +34,23 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.contact.laws import ContactMemory, NormalLaw
+from viz3d.compiled import (
+    Items,
+    compiled_piece,
+    cross3,
+    dot3,
+    force_piece,
+    gap_piece,
+    items,
+    jit,
+    matvec3,
+    normal_force,
+    row_piece,
+    tmatvec3,
+)
+from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, NormalLaw
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints
+from viz3d.points import BodyPoints, add_row, apply_force, bias
 from viz3d.rotations import cross
 
 #: Contact treatments.
@@ -308,6 +322,24 @@ class ContactSet:
         on = F > 0.0
         return gp.point[on], F[on, None] * gp.n[on]
 
+    def compiled(self, pack) -> list[Items]:
+        """The geometry of every contact (``ContactGeometry``) and the law contacts per law class
+        (``law_contacts``): i = [point a, point b, body B, global contact index, located], f = [B's
+        normal (3), radius, dashpot, the law's ``params()``]."""
+        a, b, k0 = pack.points(self.sides[0]), pack.points(self.sides[1]), pack.contact_start(self)
+        geometry = items(ContactGeometry, np.column_stack([a, b, self.body[:, 1], k0 + np.arange(self.k)]),
+                         np.column_stack([self.normal, self.radius]), k=self.k)
+        groups: dict[type, list] = {}
+        for j, (model, law) in enumerate(zip(self.models, self.laws)):
+            if model != "law":
+                continue
+            cls = pack.law_items(law)
+            row_i = [a[j], b[j], self.body[j, 1], k0 + j, int(self.located)]
+            row_f = [*self.normal[j], self.radius[j], self.damping[j], *law.params()]
+            groups.setdefault(cls, []).append((row_i, row_f))
+        return [geometry] + [items(cls, [r[0] for r in rows], [r[1] for r in rows], k=len(rows))
+                             for cls, rows in groups.items()]
+
 
 @dataclass(frozen=True)
 class ContactRows:
@@ -360,3 +392,132 @@ class ContactRows:
 
     def gamma(self, cfg):
         return self._rows(cfg)[3][:, None]
+
+    def compiled(self, pack) -> Items:
+        c = self.contacts
+        a, b, k0 = pack.points(c.sides[0]), pack.points(c.sides[1]), pack.contact_start(c)
+        w = self.which
+        i = np.column_stack([pack.row_start(self) + np.arange(len(w)), a[w], b[w], c.body[w, 1], k0 + w])
+        return items(RigidContactItems, i, np.column_stack([c.normal[w], c.radius[w]]), k=len(w))
+
+
+def memory_rows(phases: tuple[ContactPhase, ...]) -> FloatArray:
+    """The contacts' memory as the compiled pieces read it, shape (k, 3): ``[touching, approach speed
+    [m/s], largest indentation [m]]``."""
+    out = np.zeros((len(phases), 3))
+    for j, p in enumerate(phases):
+        out[j, 0] = float(p.touching)
+        if p.memory is not None:
+            out[j, 1], out[j, 2] = p.memory.approach_speed, p.memory.alpha_max
+    return out
+
+
+# ---------------------------------------------------------------------------- compiled pieces
+# Memory rows ``w.mem`` (``memory_rows``) and the power slots of the ledger are indexed by the
+# global contact index (contacts of all sets in order).
+
+#: Column of the law parameters in ``LawContacts.f``.
+LAW_COLUMN = 5
+
+
+class ContactGeometry(Items):
+    """Every contact's geometry: i = [point a, point b, body B, global index]; f = [normal (3), radius]."""
+
+
+class RigidContactItems(Items):
+    """Kinematic contacts: i = [row, point a, point b, body B, global index]; f = [normal (3), radius]."""
+
+
+@jit
+def _gap(v, pa, pb, bB, normal, radius, n, d):
+    """Indentation and its rate of one contact; its world normal and ``a - b`` into ``n``, ``d``."""
+    matvec3(v.R[bB], normal, n)
+    for c in range(3):
+        d[c] = v.px[pa, c] - v.px[pb, c]
+    t = v.v3[14]
+    cross3(v.wW[bB], n, t)
+    g_dot = dot3(t, d)
+    for c in range(3):
+        g_dot += n[c] * (v.pv[pa, c] - v.pv[pb, c])
+    return radius - dot3(n, d), -g_dot
+
+
+@compiled_piece(gap_piece, ContactGeometry)
+def _contact_gaps(d, v, out):
+    n, dv = v.v3[8], v.v3[9]
+    for k in range(d.i.shape[0]):
+        alpha, alpha_dot = _gap(v, d.i[k, 0], d.i[k, 1], d.i[k, 2], d.f[k, 0:3], d.f[k, 3], n, dv)
+        out[d.i[k, 3], 0] = alpha
+        out[d.i[k, 3], 1] = alpha_dot
+
+
+def _law_contacts(d, t, v, power):
+    n, dv, f = v.v3[8], v.v3[9], v.v3[10]
+    for k in range(d.i.shape[0]):
+        pa, pb, bB, kg = d.i[k, 0], d.i[k, 1], d.i[k, 2], d.i[k, 3]
+        alpha, alpha_dot = _gap(v, pa, pb, bB, d.f[k, 0:3], d.f[k, 3], n, dv)
+        acting = v.mem[kg, 0] == 1.0 if d.i[k, 4] == 1 else alpha > 0.0
+        if not acting or alpha <= 0.0:
+            continue
+        elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2])
+        F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
+        for c in range(3):
+            f[c] = F * n[c]
+        apply_force(v, pa, f)
+        for c in range(3):
+            f[c] = -f[c]
+        apply_force(v, pb, f)
+        cross3(n, dv, f)
+        for c in range(3):
+            v.tau[bB, c] += F * f[c]
+        power[kg] += F * alpha_dot
+
+
+_LAW_CONTACTS: dict[type, type[Items]] = {}
+
+
+def law_contacts(items_cls: type[Items]) -> type[Items]:
+    """The packed data class of law contacts (``ContactSet.compiled``) whose law has the compiled data
+    class ``items_cls``: a subclass of it (the law's piece reads its parameters), created and
+    registered as a force piece on first use."""
+    if items_cls not in _LAW_CONTACTS:
+        cls = type(f"Contacts{items_cls.__name__}", (items_cls,), {"__module__": __name__})
+        globals()[cls.__name__] = cls  # importable by name: numba's cache pickles types by reference
+        compiled_piece(force_piece, cls)(_law_contacts)
+        _LAW_CONTACTS[items_cls] = cls
+    return _LAW_CONTACTS[items_cls]
+
+
+@compiled_piece(row_piece, RigidContactItems)
+def _rigid_contacts(d, t, v):
+    n, dv, a1, a2 = v.v3[8], v.v3[9], v.v3[10], v.v3[11]
+    for k in range(d.i.shape[0]):
+        row, pa, pb, bB, kg = d.i[k, 0], d.i[k, 1], d.i[k, 2], d.i[k, 3], d.i[k, 4]
+        if v.mem[kg, 0] != 1.0:
+            v.inactive[row] = 1
+            continue
+        alpha, _ = _gap(v, pa, pb, bB, d.f[k, 0:3], d.f[k, 3], n, dv)
+        add_row(v, row, 0, pa, n, -1.0)
+        add_row(v, row, 1, pb, n, 1.0)
+        cross3(n, dv, a1)
+        tmatvec3(v.R[bB], a1, a2)
+        for c in range(3):
+            v.J[row, 1, 3 + c] -= a2[c]
+        # gamma = (w x (w x n)) . d + 2 (w x n) . d_dot + n . (bias_a - bias_b)
+        om = v.wW[bB]
+        cross3(om, n, a1)
+        cross3(om, a1, a2)
+        g = dot3(a2, dv)
+        for c in range(3):
+            g += 2.0 * a1[c] * (v.pv[pa, c] - v.pv[pb, c])
+        bias(v, pa, a1)
+        bias(v, pb, a2)
+        for c in range(3):
+            g += n[c] * (a1[c] - a2[c])
+        v.C[row] = alpha
+        v.gam[row] = g
+
+
+for _law in NORMAL_LAWS.values():  # one data class per law known now: the kernel's types do not depend on run order
+    if _law.compiled_items is not None:
+        law_contacts(_law.compiled_items)

@@ -26,6 +26,7 @@ Every law is a frozen dataclass registered in ``NORMAL_LAWS``; tests iterate ove
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
 from typing import ClassVar, Self
@@ -33,6 +34,7 @@ from typing import ClassVar, Self
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.compiled import Items, compiled_piece, jit, normal_force
 from viz3d.contact.parameters import (
     flores_factor,
     fully_plastic_indentation,
@@ -97,11 +99,32 @@ class NormalLaw(ABC):
     base clips it); ``elastic_energy``; elastoplastic laws also ``residual_indentation``; laws with a
     damping parameter ``calibrated``. Then add the class to ``NORMAL_LAWS`` and an example instance
     to ``tests/contact/law_examples.py``: the parametrised tests (force >= 0, restitution, energy
-    ledger, and for viscoelastic laws a stated calibration accuracy) then cover it.
+    ledger, and for viscoelastic laws a stated calibration accuracy) then cover it. Its compiled
+    piece: an ``Items`` subclass as ``compiled_items``, ``params`` and the force registered with
+    ``compiled_piece(normal_force, ...)``, checked against ``force`` by ``tests/contact/test_law_pieces.py``.
     """
 
     name: ClassVar[str]
     kind: ClassVar[str]
+    #: The packed data class of the law's compiled piece (``viz3d.compiled.normal_force``), None
+    #: when it has none (its contacts then run on the NumPy path).
+    compiled_items: ClassVar[type[Items] | None] = None
+    #: Methods whose formulas the compiled pieces re-implement: a subclass that overrides one of them
+    #: without declaring its own ``compiled_items`` loses the inherited piece (NumPy path), since
+    #: that piece would compute its parent's force.
+    _PIECE_FORMULAS: ClassVar[tuple[str, ...]] = (
+        "force", "_magnitude", "loading_force", "unloading_force", "unloading_stiffness",
+        "residual_indentation", "contact_radius_squared", "_offset",
+    )
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "compiled_items" not in vars(cls) and any(name in vars(cls) for name in NormalLaw._PIECE_FORMULAS):
+            cls.compiled_items = None
+
+    def params(self) -> FloatArray:
+        """The law's parameters in the order its compiled piece reads them (columns from ``p0``)."""
+        raise NotImplementedError(f"{self.name!r} has no compiled piece")
 
     @abstractmethod
     def _magnitude(self, alpha: FloatArray, alpha_dot: FloatArray, memory: ContactMemory) -> FloatArray:
@@ -182,6 +205,23 @@ class Linear(NormalLaw):
     def calibrated(self, restitution, m_eff):
         return replace(self, damping=linear_damping(self.stiffness, m_eff, restitution))
 
+    def params(self):
+        return np.array([self.stiffness, self.damping])
+
+
+class LinearItems(Items):
+    """Contacts with a ``Linear`` law: f[p0:] = [K, D]."""
+
+
+Linear.compiled_items = LinearItems
+
+
+@compiled_piece(normal_force, LinearItems)
+def _linear(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    return max(d.f[k, p0] * alpha + d.f[k, p0 + 1] * alpha_dot, 0.0)
+
 
 @dataclass(frozen=True)
 class PowerLawElastic(NormalLaw):
@@ -220,6 +260,23 @@ class Hertz(PowerLawElastic):
 
     def _magnitude(self, alpha, alpha_dot, memory):
         return self.stiffness * alpha**self.exponent
+
+    def params(self):
+        return np.array([self.stiffness, self.exponent])
+
+
+class HertzItems(Items):
+    """Contacts with a ``Hertz`` law: f[p0:] = [K, n]."""
+
+
+Hertz.compiled_items = HertzItems
+
+
+@compiled_piece(normal_force, HertzItems)
+def _hertz(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    return d.f[k, p0] * alpha ** d.f[k, p0 + 1]
 
 
 @dataclass(frozen=True)
@@ -260,6 +317,26 @@ class HysteresisLaw(PowerLawElastic):
 
     def calibrated(self, restitution, m_eff):
         return replace(self, restitution=restitution)
+
+    def params(self):
+        return np.array([self.stiffness, self.exponent, self.factor()])
+
+
+class HysteresisItems(Items):
+    """Contacts with a ``HysteresisLaw``: f[p0:] = [K, n, chi]."""
+
+
+HysteresisLaw.compiled_items = HysteresisItems
+
+
+@compiled_piece(normal_force, HysteresisItems)
+def _hysteresis(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    if not approach_speed > 0.0:
+        return math.nan  # no onset in the memory: the step's health check reports it
+    F = d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 2] * alpha_dot / approach_speed)
+    return max(F, 0.0)
 
 
 @dataclass(frozen=True)
@@ -370,6 +447,18 @@ class YieldThenLinear(ElastoplasticLaw):
         plastic = self.F_Y + self.K_Y * (alpha - self.alpha_Y)
         return np.where(alpha <= self.alpha_Y, self.K_h * alpha**1.5, plastic)
 
+    def params(self):
+        """``[K_h, alpha_Y, F_Y, K_Y]`` (subclasses append their unloading constants)."""
+        return np.array([self.K_h, self.alpha_Y, self.F_Y, self.K_Y])
+
+
+@jit
+def _yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y):
+    """``YieldThenLinear.loading_force`` [N] at ``alpha >= 0`` [m]."""
+    if alpha <= alpha_Y:
+        return K_h * alpha**1.5
+    return F_Y + K_Y * (alpha - alpha_Y)
+
 
 @dataclass(frozen=True)
 class YigitChristoforou(YieldThenLinear):
@@ -397,6 +486,25 @@ class YigitChristoforou(YieldThenLinear):
         return self._offset(alpha_max) * (alpha - a_r) + 0.4 * self.K_h * (alpha**2.5 - a_r**2.5)
 
 
+class YigitChristoforouItems(Items):
+    """Contacts with a ``YigitChristoforou`` law: f[p0:] = [K_h, alpha_Y, F_Y, K_Y]."""
+
+
+YigitChristoforou.compiled_items = YigitChristoforouItems
+
+
+@compiled_piece(normal_force, YigitChristoforouItems)
+def _yigit_christoforou(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    K_h, alpha_Y, F_Y, K_Y = d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3]
+    if alpha >= alpha_max:
+        return max(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), 0.0)
+    # below alpha_m (> alpha > 0): the Hertz curve shifted by F_m - K_h alpha_m^1.5 <= 0 (eq. 7.10)
+    offset = _yield_then_linear(alpha_max, K_h, alpha_Y, F_Y, K_Y) - K_h * alpha_max**1.5
+    return max(offset + K_h * alpha**1.5, 0.0)
+
+
 @dataclass(frozen=True)
 class HertzianUnloading(ElastoplasticLaw):
     """Unloading ``F = K_u (alpha - alpha_r)^1.5`` through ``(alpha_m, F_m)``: ``alpha_r = alpha_m - (F_m/K_u)^(2/3)``.
@@ -417,6 +525,13 @@ class HertzianUnloading(ElastoplasticLaw):
 
     def unloading_energy(self, alpha, alpha_max):
         return 0.4 * self.unloading_stiffness(alpha_max) * _pos(alpha - self.residual_indentation(alpha_max)) ** 2.5
+
+
+@jit
+def _hertzian_unloading(alpha, alpha_max, F_m, K_u):
+    """``K_u (alpha - alpha_r)^1.5`` [N], ``alpha_r = alpha_m - (F_m/K_u)^(2/3)`` [m] (both held >= 0)."""
+    alpha_r = max(alpha_max - (F_m / K_u) ** (2.0 / 3.0), 0.0)
+    return K_u * max(alpha - alpha_r, 0.0) ** 1.5
 
 
 @dataclass(frozen=True)
@@ -443,6 +558,29 @@ class LinearPlastic(HertzianUnloading, YieldThenLinear):
     def unloading_stiffness(self, alpha_max):
         K_h2 = self.K_h if self.K_h2 is None else self.K_h2
         return np.where(np.asarray(alpha_max) > self.alpha_Y, K_h2, self.K_h)
+
+    def params(self):
+        """``[K_h, alpha_Y, F_Y, K_Y, K_h2]``, ``K_h2 = K_h`` when None."""
+        return np.append(super().params(), self.K_h if self.K_h2 is None else self.K_h2)
+
+
+class LinearPlasticItems(Items):
+    """Contacts with a ``LinearPlastic`` law: f[p0:] = [K_h, alpha_Y, F_Y, K_Y, K_h2]."""
+
+
+LinearPlastic.compiled_items = LinearPlasticItems
+
+
+@compiled_piece(normal_force, LinearPlasticItems)
+def _linear_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    K_h, alpha_Y, F_Y, K_Y = d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3]
+    if alpha >= alpha_max:
+        return max(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), 0.0)
+    K_u = d.f[k, p0 + 4] if alpha_max > alpha_Y else K_h
+    F_m = _yield_then_linear(alpha_max, K_h, alpha_Y, F_Y, K_Y)
+    return max(_hertzian_unloading(alpha, alpha_max, F_m, K_u), 0.0)
 
 
 @dataclass(frozen=True)
@@ -504,6 +642,51 @@ class PowerPlastic(HertzianUnloading):
         a_m = np.maximum(np.asarray(alpha_max, dtype=float), self.alpha_Y)
         R_star = 4.0 * self.E_star * self.contact_radius_squared(a_m) ** 1.5 / (3.0 * self.loading_force(a_m))
         return np.where(np.asarray(alpha_max) > self.alpha_Y, hertz_stiffness(self.E_star, R_star), self.K_h)
+
+    def params(self):
+        """``[K_h, alpha_Y, F_Y, K_hY, n, alpha_Y^n, alpha_fp, E_star, R]``."""
+        return np.array([self.K_h, self.alpha_Y, self.F_Y, self.K_hY, self.n, self.alpha_Y**self.n,
+                         self.alpha_fp, self.E_star, self.R])
+
+
+class PowerPlasticItems(Items):
+    """Contacts with a ``PowerPlastic`` law: f[p0:] = [K_h, alpha_Y, F_Y, K_hY, n, alpha_Y^n, alpha_fp, E*, R]."""
+
+
+PowerPlastic.compiled_items = PowerPlasticItems
+
+
+@jit
+def _yield_then_power(alpha, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n):
+    """``PowerPlastic.loading_force`` [N] at ``alpha >= 0`` [m] (7.33)."""
+    if alpha <= alpha_Y:
+        return K_h * alpha**1.5
+    return K_hY * (alpha**n - alpha_Y_n) + F_Y
+
+
+@jit
+def _power_plastic_unloading_stiffness(alpha_m, F_m, alpha_Y, alpha_fp, E_star, R):
+    """``K_h2 = 4/3 E* sqrt(R*)`` [N/m^1.5] after yield, ``alpha_m > alpha_Y`` [m], ``F_m`` [N] (7.35-7.38)."""
+    ratio = min(max(1.0 + (alpha_m - alpha_Y) / (alpha_fp - alpha_Y), 1.0), 2.0)
+    a_m2 = ratio * alpha_m * R  # contact radius squared (7.25) [m^2]
+    R_star = 4.0 * E_star * a_m2**1.5 / (3.0 * F_m)
+    return 4.0 / 3.0 * E_star * math.sqrt(R_star)
+
+
+@compiled_piece(normal_force, PowerPlasticItems)
+def _power_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    if alpha <= 0.0:
+        return 0.0
+    K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n = (d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3],
+                                             d.f[k, p0 + 4], d.f[k, p0 + 5])
+    if alpha >= alpha_max:
+        return max(_yield_then_power(alpha, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n), 0.0)
+    F_m = _yield_then_power(alpha_max, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n)
+    if alpha_max > alpha_Y:
+        K_u = _power_plastic_unloading_stiffness(alpha_max, F_m, alpha_Y, d.f[k, p0 + 6], d.f[k, p0 + 7], d.f[k, p0 + 8])
+    else:
+        K_u = K_h  # never yielded: R* = R, Hertz both ways
+    return max(_hertzian_unloading(alpha, alpha_max, F_m, K_u), 0.0)
 
 
 NORMAL_LAWS: dict[str, type[NormalLaw]] = {

@@ -1,0 +1,214 @@
+"""The compiled kernel against the NumPy reference on a random system holding every registered element.
+
+Registry-driven: the system below is built from the registries (force elements, joints, normal
+laws, contact treatments, time functions, body kinds), and ``test_the_system_exercises_every_piece``
+fails when a registered compiled piece has no item in it, so a new element type must be added
+here (one line in ``ELEMENT_BUILDERS`` or in the contact table). The right-hand sides (positions,
+velocities, accelerations, the ledger's work rates) must agree to the computation's round-off at
+several times (every branch of every time function) and for every formulation the kernel covers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viz3d import compiled
+from viz3d import kernel as K
+from viz3d.constraints import build_layout
+from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
+from viz3d.contact.laws import NORMAL_LAWS
+from viz3d.dynamics import VectorField, body_state
+from viz3d.formulation import Baumgarte, Index1, Penalty
+from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, SpringDamper
+from viz3d.kernel.model import FORMULATIONS
+from viz3d.system import System
+from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
+
+from contact.law_examples import EXAMPLES
+from systems import _sides, random_state, random_system
+
+#: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
+#: computation's round-off, eps times its condition number, measured as the NumPy result's change
+#: under relative perturbations of eps of the state (max over SAMPLES); allowed: FACTOR times that.
+FACTOR = 10.0
+SAMPLES = 4
+#: Times at which the loads are compared: before the starts (0.02 s), inside the ramps and pulses,
+#: after them (every branch of every time function; starts in [0.05, 0.1] s, durations [0.1, 0.2] s).
+TIMES = (0.02, 0.12, 0.4)
+#: Indentation of the touching contacts [m] (about 0.1-1 kN with the laws' examples).
+ALPHA = 2e-5
+
+
+def _time_functions(rng, k: int) -> TimeFunctions:
+    """k functions cycling through every kind of ``TIME_FUNCTIONS``."""
+    kinds = [TIME_FUNCTIONS[i % len(TIME_FUNCTIONS)] for i in range(k)]
+    entries = [{"kind": kind, "offset": rng.normal(size=3), "amplitude": rng.normal(size=3), "frequency": rng.uniform(1, 5),
+                "phase": rng.uniform(0, 6), "start": rng.uniform(0.05, 0.1), "duration": rng.uniform(0.1, 0.2)}
+               for kind in kinds]
+    return TimeFunctions.from_entries(entries)
+
+
+def _pairs(rng, bodies, k):
+    """k random (body, other) pairs among all bodies and ground, flexible ones included."""
+    nb = bodies.n_bodies
+    first = rng.integers(0, nb, k)
+    second = (first + rng.integers(1, nb + 1, k)) % (nb + 1)
+    return np.column_stack([first, second])
+
+
+def _damped_springs(rng, bodies):
+    pairs = _pairs(rng, bodies, 4)
+    B_s, sides = _sides(rng, bodies, pairs)
+    return SpringDamper(("d0", "d1", "d2", "d3"), pairs, B_s, rng.uniform(10, 100, 4), rng.uniform(0.5, 2, 4),
+                        rng.uniform(0.1, 0.5, 4), sides)
+
+
+def _loads(cls, rng, bodies):
+    k = 2 * len(TIME_FUNCTIONS)
+    pairs = _pairs(rng, bodies, k)
+    B_s, sides = _sides(rng, bodies, pairs)
+    body_frame = np.arange(k) % 2 == 1
+    if cls is AppliedTorque:
+        return AppliedTorque(tuple(f"t{i}" for i in range(k)), pairs[:, 0], np.zeros((k, 3)), body_frame,
+                             _time_functions(rng, k))
+    return AppliedForce(tuple(f"f{i}" for i in range(k)), pairs[:, 0], B_s[:, 0], body_frame, _time_functions(rng, k),
+                        sides[0])
+
+
+#: Force elements beyond the gravity and springs of ``random_system``: one builder per element type.
+ELEMENT_BUILDERS = {
+    "damped springs": _damped_springs,
+    "forces (every time function, world and body axes)": lambda rng, b: _loads(AppliedForce, rng, b),
+    "torques (every time function, world and body axes)": lambda rng, b: _loads(AppliedTorque, rng, b),
+}
+
+
+def _touching(system, state, sides, alpha):
+    """Normals (B axes) and radii putting each contact's sphere ``alpha`` into its surface at ``state``."""
+    cfg = body_state(system, state.q, state.v, state.chart)
+    d = sides[0].positions(cfg) - sides[1].positions(cfg)
+    dist = np.linalg.norm(d, axis=1)
+    n_W = d / dist[:, None]
+    normal = np.einsum("kji,kj->ki", cfg.pose.R_WB[sides[1].body], n_W)
+    return normal, dist + alpha
+
+
+def _contacts(rng, system, state):
+    """Located law contacts, one per registered law (touching, with a memory), plus one that is not
+    touching; kinematic contacts, one touching and one not; a set of stepped-through contacts."""
+    bodies = system.bodies
+    laws = [EXAMPLES[name] for name in NORMAL_LAWS] + [EXAMPLES["hertz"]]
+    models = ("law",) * len(laws) + ("rigid", "rigid")
+    k = len(models)
+    pairs = _pairs(rng, bodies, k)
+    B_s, sides = _sides(rng, bodies, pairs)
+    normal, radius = _touching(system, state, sides, rng.uniform(0.5, 2.0, k) * ALPHA)
+    located = ContactSet(tuple(f"c{i}" for i in range(k)), pairs, sides, normal, radius, models,
+                         tuple(laws) + (None, None), damping=rng.uniform(0, 50, k))
+    phases = []
+    for i, (model, law) in enumerate(zip(models, located.laws)):
+        touching = i not in (len(laws) - 1, k - 1)
+        memory = None
+        if law is not None:
+            memory = law.update(law.onset(rng.uniform(0.2, 2.0)), ALPHA * rng.uniform(0.5, 3.0), 0.1)
+        phases.append(ContactPhase(touching=touching, memory=memory))
+    k2 = 3
+    pairs2 = _pairs(rng, bodies, k2)
+    B2, sides2 = _sides(rng, bodies, pairs2)
+    normal2, radius2 = _touching(system, state, sides2, np.array([ALPHA, -ALPHA, 0.5 * ALPHA]))
+    stepped = ContactSet(("s0", "s1", "s2"), pairs2, sides2, normal2, radius2, ("law",) * k2,
+                         (EXAMPLES["linear"], EXAMPLES["hertz"], EXAMPLES["linear"]), damping=np.array([0.0, 0.0, 30.0]),
+                         located=False)
+    return (located, stepped), (tuple(phases), stepped.initial_phases())
+
+
+def every_element_system(seed: int = 3):
+    """(system, state, memory) with every registered element type, on rigid bodies and flexible
+    bars on floating and fixed frames (``tests.systems.random_system(flexible=True)``)."""
+    rng = np.random.default_rng(seed)
+    base = random_system(flexible=True, seed=seed)
+    state = random_state(base, seed=seed + 1)
+    forces = base.forces + tuple(build(rng, base.bodies) for build in ELEMENT_BUILDERS.values())
+    contacts, memory = _contacts(rng, base, state)
+    rows = ContactRows(contacts[0], contacts[0].rigid_rows(), 0)
+    joints = base.joints.joints + (rows,)
+    system = System(base.bodies, build_layout(joints, base.bodies), forces, base.rotation, contacts)
+    n_aux = system.n_aux
+    state = state.replace(w=rng.normal(size=n_aux), memory=memory)
+    return system, state
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return every_element_system()
+
+
+def test_the_system_exercises_every_piece(setup):
+    system, state = setup
+    data = K.kernel_for(system, Index1())
+    assert data is not None, K.kernel_coverage(system, Index1())[1]
+    for target, packed in ((compiled.force_piece, data.forces), (compiled.row_piece, data.rows)):
+        classes = compiled.registered(target)
+        assert len(packed) == len(classes)
+        empty = [cls.__name__ for cls, d in zip(classes, packed) if d.i.shape[0] == 0 and d.f.shape[0] == 0]
+        assert not empty, f"registered pieces with no item in the test system: {empty}"
+    kinds = {fb.floating for fb in system.bodies.flexible}
+    assert kinds == {True, False} and system.bodies.is_rigid.any()
+
+
+@pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0), Penalty(1e5, 1.0, 9.0)], ids=lambda f: f.name)
+def test_compiled_equals_numpy_right_hand_side(setup, formulation):
+    system, state = setup
+    assert set(FORMULATIONS) == {"index1", "baumgarte", "penalty"}
+    data = K.kernel_for(system, formulation)
+    rhs = VectorField(system, formulation, state.chart, state.memory)
+    for t in TIMES:
+        ref = rhs(t, state.y)
+        out = K.kernel_rhs(data, t, state.y, state.chart, state.memory)
+        err = np.abs(out - ref)
+        tol = FACTOR * _roundoff(rhs, t, state.y, ref)
+        assert err.max() <= tol, f"t = {t}: worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
+
+
+def _roundoff(rhs, t, y, ref):
+    """Round-off scale of ``rhs`` at ``y``: max |rhs(y (1 + eps s)) - rhs(y)| over random signs s, at
+    least eps |rhs|."""
+    eps = np.finfo(float).eps
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SAMPLES, len(y)))
+    change = max(np.abs(rhs(t, y * (1 + eps * s)) - ref).max() for s in signs)
+    return max(change, eps * np.abs(ref).max())
+
+
+def test_the_comparison_can_fail(setup):
+    """A wrong law parameter is caught: the test above compares the contact forces."""
+    system, state = setup
+    data = K.kernel_for(system, Index1())
+    ref = K.kernel_rhs(data, TIMES[1], state.y, state.chart, state.memory)
+    for d in data.forces:
+        if d.i.shape[0] and "Hertz" in type(d).__name__:
+            d.f[:, -1] *= 1.0 + 1e-6
+    out = K.kernel_rhs(data, TIMES[1], state.y, state.chart, state.memory)
+    assert np.abs(out - ref).max() > 1e3 * np.finfo(float).eps * np.abs(ref).max()
+
+
+class _Uncompiled(ForceElement):
+    """A force element without a compiled piece."""
+
+    type_name = "uncompiled_test_element"
+
+    def wrench(self, cfg):
+        return np.zeros_like(cfg.pose.W_r), np.zeros_like(cfg.pose.W_r), None
+
+
+def test_an_element_without_a_compiled_piece_falls_back_visibly():
+    from viz3d.integrators import make_integrator
+    from viz3d.simulate import Simulation
+
+    base = random_system()
+    system = System(base.bodies, base.joints, base.forces + (_Uncompiled(),), base.rotation)
+    data, why = K.kernel_coverage(system, Index1())
+    assert data is None and "uncompiled_test_element" in why
+    sim = Simulation(system, random_state(system), make_integrator("rk4"), Index1(), 1e-3)
+    assert sim.kernel_note.startswith("NumPy path") and "uncompiled_test_element" in sim.kernel_note
+    assert Simulation(base, random_state(base), make_integrator("rk4"), Index1(), 1e-3).kernel_note == "compiled kernel"

@@ -1,0 +1,293 @@
+"""Compiled pieces: numba's ``njit`` with viz3d's options, and the registry that composes the kernel.
+
+The compiled kernel (``viz3d.kernel``) keeps what is generic: the bodies' kinematics and mass
+blocks, the assembly and banded solve of the constraint rows, the Runge-Kutta loop. What an element
+does (a spring's force, a ball joint's rows, a normal law's magnitude) is its **compiled piece**,
+written next to its NumPy code and registered here for one of four **targets**:
+
+* ``force_piece(d, t, v, power)``: force elements and law contacts add their generalized forces to
+  ``v`` and the power that is not in a potential energy to ``power`` (the ledger's work rates);
+* ``row_piece(d, t, v)``: a row provider (joint set, kinematic contacts) fills its constraint rows;
+* ``gap_piece(d, v, out)``: contacts write their indentation and its rate (the event functions);
+* ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max)``: a normal law's magnitude
+  (its parameters in ``d.f[k, p0:]``).
+
+``d`` is the element's packed data: an instance of its own ``Items`` subclass (a named tuple of an
+int64 table ``i`` and a float64 table ``f``, one row per item; the columns are the piece's
+business), or of a subclass of it. The target dispatches on that class at compile time
+(``numba.extending.overload``; a class and its subclass may not both register for one target), so
+the kernel loops over a tuple of data, one entry per registered class, without knowing the
+elements. ``v`` is the kernel's ``View`` (``viz3d.kernel.model``): the material points' kinematics,
+the frames' rotations, the generalized forces and the constraint rows; pieces never see bodies,
+they read points and write through the helpers of ``viz3d.points``.
+
+Compiled functions are cached on disk (numba ``cache=True``). numba checks a cache entry against
+the source file of the function itself only, so an edit of a piece would leave the kernel that
+inlines it stale; here every compiled function of viz3d (and of registered pieces elsewhere) is
+keyed by one stamp of all those source files instead. Compiled with ``error_model="numpy"``: a
+division by zero gives inf or nan, which the step's health checks report (numba's default would
+raise out of the run and lose its frames).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+try:  # numba is optional: without it every run takes the NumPy path
+    import numba
+    from numba import types
+    from numba.extending import overload
+except ImportError:  # pragma: no cover - exercised only where numba is missing
+    numba = None
+
+#: Options of every compiled function of viz3d.
+JIT_OPTIONS = {"cache": True, "error_model": "numpy"}
+#: ... and of those called only from compiled code: no wrappers for calls from Python (the wrapper
+#: that unboxes the kernel's named tuples of arrays costs more to compile than most functions).
+INNER_OPTIONS = dict(JIT_OPTIONS, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+def jit(fn):
+    """``fn`` compiled by numba, to be called from compiled code only (``INNER_OPTIONS``; ``fn``
+    itself without numba)."""
+    if numba is None:
+        return fn
+    return numba.njit(**INNER_OPTIONS)(fn)
+
+
+def inline(fn):
+    """``fn`` inlined into its callers by numba (for a stage called once: a separate compiled
+    function taking the kernel's named tuples costs more to compile than its body)."""
+    if numba is None:
+        return fn
+    return numba.njit(inline="always", **INNER_OPTIONS)(fn)
+
+
+def entry(fn):
+    """``fn`` compiled by numba, callable from Python too (``JIT_OPTIONS``)."""
+    if numba is None:
+        return fn
+    return numba.njit(**JIT_OPTIONS)(fn)
+
+
+class Items(NamedTuple):
+    """Packed data of one element type: ``i`` (k, ni) int64 and ``f`` (k, nf) float64, one row per
+    item. Each element type subclasses it (the subclass is what selects its compiled piece)."""
+
+    i: np.ndarray
+    f: np.ndarray
+
+
+def items(cls: type[Items], i=None, f=None, k: int = 0) -> Items:
+    """An instance of ``cls`` from tables (rows = items); missing tables are empty (k, 0)."""
+    i = np.zeros((k, 0), np.int64) if i is None else np.ascontiguousarray(np.asarray(i, dtype=np.int64).reshape(k, -1))
+    f = np.zeros((k, 0)) if f is None else np.ascontiguousarray(np.asarray(f, dtype=float).reshape(k, -1))
+    return cls(i, f)
+
+
+def concat(cls: type[Items], parts: list[Items]) -> Items:
+    """Items of several element sets of one type as one (rows stacked)."""
+    if not parts:
+        return items(cls)
+    if len(parts) == 1:
+        return parts[0]
+    return cls(np.ascontiguousarray(np.concatenate([p.i for p in parts])),
+               np.ascontiguousarray(np.concatenate([p.f for p in parts])))
+
+
+# ---------------------------------------------------------------------------- targets
+
+
+def force_piece(d, t, v, power):
+    """Add the generalized forces of the elements ``d`` at time ``t`` to ``v`` and their
+    non-potential power to ``power``."""
+    raise NotImplementedError  # dispatched at compile time
+
+
+def row_piece(d, t, v):
+    """Fill the constraint rows of the row provider ``d`` in ``v``."""
+    raise NotImplementedError
+
+
+def gap_piece(d, v, out):
+    """Write ``[alpha, alpha_dot]`` of the contacts ``d`` into their rows of ``out`` (n_contacts, 2)."""
+    raise NotImplementedError
+
+
+def normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+    """Normal force magnitude of contact ``k`` of ``d`` (``viz3d.contact.laws``) [N], >= 0, the law's
+    parameters in ``d.f[k, p0:]``."""
+    raise NotImplementedError
+
+
+TARGETS = (force_piece, row_piece, gap_piece, normal_force)
+
+#: Registered data classes per target, in registration order.
+REGISTRY: dict[str, list[type[Items]]] = {t.__name__: [] for t in TARGETS}
+#: Source files of the registered pieces (part of the cache stamp).
+_SOURCES: set[str] = set()
+
+
+def compiled_piece(target, data_class: type[Items]):
+    """Decorator: register ``fn`` as the compiled piece of ``target`` for data of ``data_class``.
+
+    ``fn`` takes the target's arguments. Returns ``fn`` compiled (or unchanged without numba).
+    """
+    if not (isinstance(data_class, type) and issubclass(data_class, Items)):
+        raise TypeError(f"{data_class!r} must subclass viz3d.compiled.Items")
+
+    def register(fn):
+        for other in REGISTRY[target.__name__]:
+            if issubclass(other, data_class) or issubclass(data_class, other):
+                raise TypeError(f"{data_class.__name__} and {other.__name__} would both select {target.__name__}")
+        REGISTRY[target.__name__].append(data_class)
+        _SOURCES.add(inspect.getfile(fn))
+        if numba is None:
+            return fn
+        compiled = jit(fn)
+
+        def choose(d):
+            if isinstance(d, types.BaseNamedTuple) and issubclass(d.instance_class, data_class):
+                return fn  # compiled as the implementation itself (no wrapper layer)
+            return None
+
+        overload(target, jit_options=INNER_OPTIONS)(_typer(target, choose))
+        return compiled
+
+    return register
+
+
+def _typer(target, choose):
+    """An overload typing function with exactly the parameters of ``target`` (numba requires the
+    typer's signature to be the implementation's) that returns ``choose(first argument)``."""
+    params = list(inspect.signature(target).parameters)
+    namespace = {"choose": choose}
+    exec(f"def select({', '.join(params)}):\n    return choose({params[0]})\n", namespace)
+    return namespace["select"]
+
+
+def target_of(data_class: type[Items]):
+    """The target ``data_class`` (or a base of it) is registered for, or None."""
+    for target in TARGETS:
+        if any(issubclass(data_class, c) for c in REGISTRY[target.__name__]):
+            return target
+    return None
+
+
+def registered(target) -> tuple[type[Items], ...]:
+    """The data classes with a compiled piece for ``target``, in a canonical order (module and name:
+    the kernel's argument types, hence its compiled code, do not depend on import order)."""
+    return tuple(sorted(REGISTRY[target.__name__], key=lambda c: (c.__module__, c.__qualname__)))
+
+
+# ---------------------------------------------------------------------------- small 3-vector helpers
+
+
+@jit
+def cross3(a, b, out):
+    """``out = a x b`` (3,)."""
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@jit
+def matvec3(A, x, out):
+    """``out = A x`` for A (3, 3)."""
+    for i in range(3):
+        out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
+
+
+@jit
+def tmatvec3(A, x, out):
+    """``out = A^T x`` for A (3, 3)."""
+    for i in range(3):
+        out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
+
+
+@jit
+def dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+# ---------------------------------------------------------------------------- cache stamp
+
+
+def _stamp(files: tuple[str, ...]) -> str:
+    h = hashlib.sha256()
+    for name in files:
+        try:
+            h.update(Path(name).read_bytes())
+        except OSError:
+            h.update(name.encode())
+    return h.hexdigest()
+
+
+def source_stamp() -> str:
+    """One hash of the source files with compiled code: this module, every module of viz3d that
+    imports it, and the files of pieces registered from elsewhere (independent of import order)."""
+    ours = {str(p) for p in PACKAGE.rglob("*.py") if p.name == "compiled.py" or _uses_compiled(p)}
+    return _stamp(tuple(sorted(ours | _SOURCES)))
+
+
+@functools.lru_cache(maxsize=None)
+def _uses_compiled_cached(path: str, mtime: float) -> bool:
+    try:
+        return "viz3d.compiled import" in Path(path).read_text(encoding="utf-8")
+    except OSError:
+        return False
+
+
+def _uses_compiled(path: Path) -> bool:
+    try:
+        return _uses_compiled_cached(str(path), path.stat().st_mtime)
+    except OSError:
+        return False
+
+
+def _install_stamp_locators() -> None:
+    """Make numba key the cache of viz3d's compiled functions on ``source_stamp``.
+
+    Wraps numba's own file-system locators (the user's ``NUMBA_CACHE_DIR``, ``__pycache__`` next to
+    the source, the user-wide cache); other files keep numba's behaviour. Without these private
+    classes (another numba) nothing changes: caches are then keyed per file, as numba does.
+    """
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover
+        return
+    impl = getattr(caching, "_CacheImpl", None)
+    bases = [getattr(caching, name, None) or getattr(caching, "_" + name, None)
+             for name in ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
+    if impl is None or not hasattr(impl, "_locator_classes") or None in bases:
+        return
+    ours = []
+    for base in bases:
+        def from_function(cls, py_func, py_file):
+            if not _is_ours(py_file):
+                return None
+            return super(cls, cls).from_function(py_func, py_file)
+
+        ours.append(type("Viz3d" + base.__name__.lstrip("_"), (base,), {
+            "get_source_stamp": lambda self: source_stamp(),
+            "from_function": classmethod(from_function),
+        }))
+    if not any(c.__name__.startswith("Viz3d") for c in impl._locator_classes):
+        impl._locator_classes[:0] = ours
+
+
+def _is_ours(py_file: str) -> bool:
+    path = Path(py_file).resolve()
+    return PACKAGE in path.parents or str(path) in _SOURCES
+
+
+if numba is not None:
+    _install_stamp_locators()

@@ -1,0 +1,149 @@
+"""Compiled fast path (numba) of the vector field and of explicit Runge-Kutta stepping.
+
+The NumPy implementation (``viz3d.dynamics`` and the elements) is the reference; the kernel computes
+the same quantities with compiled loops, because for small systems NumPy's per-call overhead
+dominates. It is composed, not copied: the generic parts (bodies' kinematics and mass blocks, rigid
+or flexible; the constraint assembly and banded solve; the RK loop) live here and in
+``viz3d.flexible.floating_kernel``, and each element type adds its compiled piece next to its NumPy
+code (``viz3d.compiled``). ``kernel_coverage`` says why a system is not covered (an element without
+a compiled piece, a formulation or orientation coordinates the kernel lacks); such a run takes the
+NumPy path and reports it. tests/numerics/test_kernel.py compares the two on a random system
+holding every registered element type.
+
+Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viz3d.compiled import numba
+from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, gaps
+from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
+from viz3d.kernel.stepping import advance
+
+__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "KernelData", "kernel_for", "kernel_coverage",
+           "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
+
+
+def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
+    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``."""
+    if numba is None:
+        return None, "numba is not installed"
+    try:
+        return pack(system, formulation), None
+    except Unsupported as e:
+        return None, str(e)
+
+
+def kernel_for(system, formulation) -> KernelData | None:
+    """Packed data when the kernel covers ``system`` with ``formulation``, else None."""
+    return kernel_coverage(system, formulation)[0]
+
+
+def memory_table(data: KernelData, memory: tuple) -> np.ndarray:
+    """The contacts' memory rows (``viz3d.contact.contacts.memory_rows``) of all sets, (n_contacts, 3)."""
+    from viz3d.contact.contacts import memory_rows
+
+    if not memory:
+        return np.zeros((data.n_contacts, 3))
+    return np.concatenate([memory_rows(phases) for phases in memory]) if data.n_contacts else np.zeros((0, 3))
+
+
+def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple = ()) -> np.ndarray:
+    """The compiled right-hand side (for tests and diagnostics)."""
+    v, w = workspace(data)
+    v = v._replace(mem=memory_table(data, memory))
+    out = np.empty_like(y)
+    if evaluate(t, y, chart, data.model, v, w, data.forces, data.rows, out) != OK:
+        raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
+    return out
+
+
+class CompiledField:
+    """A ``dynamics.VectorField`` whose evaluations run in the kernel (same interface); the contact
+    memory is the field's own (its ``memory``)."""
+
+    def __init__(self, field, stepper: "KernelStepper"):
+        self.field, self.stepper = field, stepper
+        self.n_q, self.chart = field.n_q, field.chart
+        self.v = stepper.view(field.memory)
+
+    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.field.n_evals += 1
+        out = np.empty_like(y)
+        if self.stepper.evaluate(t, y, self.chart, self.v, out) != OK:
+            return self.field(t, y)  # the NumPy path raises the detailed error
+        return out
+
+    def retract(self, q, w):
+        return self.field.retract(q, w)
+
+
+def _entry_point(dispatcher, args):
+    """The compiled entry of ``dispatcher`` for these argument types (skips the per-call type
+    dispatch, a few microseconds for tuples of arrays); the dispatcher itself if unavailable."""
+    try:
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        return dispatcher.overloads[sig].entry_point
+    except (AttributeError, KeyError):
+        return dispatcher
+
+
+class KernelStepper:
+    """One system in the kernel: its packed data, workspace, compiled entries (looked up once) and
+    explicit RK steps."""
+
+    def __init__(self, data: KernelData, tableau):
+        self.data, self.tableau = data, tableau
+        self.ws = workspace(data)
+        self._entries: dict = {}
+        self._memory_id, self._view = None, self.ws[0]
+
+    def view(self, memory: tuple):
+        """The workspace's view with the contacts' memory ``memory`` (a ``State.memory``)."""
+        if memory is not self._memory_id:
+            self._memory_id, self._view = memory, self.ws[0]._replace(mem=memory_table(self.data, memory))
+        return self._view
+
+    def _call(self, dispatcher, *args):
+        fn = self._entries.get(dispatcher)
+        if fn is None:
+            result = dispatcher(*args)
+            self._entries[dispatcher] = _entry_point(dispatcher, args)
+            return result
+        return fn(*args)
+
+    def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
+        """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""
+        d = self.data
+        return self._call(evaluate, t, y, chart, d.model, v, self.ws[1], d.forces, d.rows, out)
+
+    def multipliers(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> np.ndarray:
+        """The constraint multipliers at ``(t, y)`` (n_c,) (those of kinematic contacts included)."""
+        out = np.empty_like(y)
+        if self.evaluate(t, y, chart, self.view(memory), out) != OK:
+            raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
+        return self.ws[1].lam.copy()
+
+    def gaps(self, t: float, y: np.ndarray, chart: np.ndarray) -> np.ndarray:
+        """``[alpha, alpha_dot]`` of every contact (n_contacts, 2) [m, m/s]."""
+        d = self.data
+        out = np.empty((d.n_contacts, 2))
+        self._call(gaps, t, y, chart, d.model, self.ws[0], self.ws[1], d.geometry, out)
+        return out
+
+    def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
+             max_speed: float, n_steps: int = 1) -> tuple[int, int]:
+        """``n_steps`` steps of ``y``, ``chart`` in place; returns (steps done, status code, ``OK`` =
+        0). On a failure ``y`` holds the failed step's result."""
+        tab, d = self.tableau, self.data
+        v, w = self.ws
+        return advance(n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w, d.forces,
+                       d.rows)
+
+
+def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
+                   switches: np.ndarray, max_speed: float) -> tuple[int, int]:
+    """Advance ``y`` and ``chart`` in place by up to ``n_steps`` steps; (steps done, status)."""
+    return KernelStepper(data, tableau).step(t0, h, y, chart, switches, max_speed, n_steps)

@@ -1,0 +1,330 @@
+"""The compiled vector field ``y_dot = f(t, y)``: the recipe of ``viz3d.dynamics.accelerations``,
+generic over the elements, which act through their compiled pieces (``viz3d.compiled``).
+
+    frames -> material points -> force elements and contacts (pieces) -> generalized forces
+    (gyroscopic, flexible velocity and elastic forces) -> free accelerations M^-1 Q ->
+    constraint rows (pieces) -> Schur complement, banded Cholesky -> accelerations -> rates
+
+Nothing is allocated during an evaluation (allocation, not arithmetic, dominated the cost of small
+systems): ``m``, ``v``, ``w`` are the model, view and workspace of ``viz3d.kernel.model``. Stages
+called once are inlined (``viz3d.compiled.inline``); functions called from several places take
+the arrays they need (each compiled function taking the whole named tuples costs about a second
+to compile).
+"""
+
+from __future__ import annotations
+
+import math
+
+from viz3d.compiled import cross3, entry, force_piece, gap_piece, inline, jit, matvec3, row_piece, tmatvec3
+from viz3d.flexible.floating_kernel import FX_BODY, FX_E0, FX_N, body_forces, factor, solve
+from viz3d.kernel.model import FIXED_FLEXIBLE, FLOATING_FLEXIBLE, GROUND, RIGID
+from viz3d.points import kinematics
+
+try:
+    from numba import literal_unroll
+except ImportError:  # pragma: no cover
+    def literal_unroll(x):
+        return x
+
+#: Status codes of ``evaluate`` and ``viz3d.kernel.stepping.advance``.
+OK, NONFINITE, SINGULAR, SPEED, ROTATION = 0, 1, 2, 3, 4
+
+
+@jit
+def rotation(chart, a, out):
+    """``out = chart @ Rz(a0) Rx(a1) Rz(a2)`` (ZXZ Euler angles in a chart, docs/notation.md)."""
+    c1, s1 = math.cos(a[0]), math.sin(a[0])
+    c2, s2 = math.cos(a[1]), math.sin(a[1])
+    c3, s3 = math.cos(a[2]), math.sin(a[2])
+    r00, r01, r02 = c1 * c3 - s1 * c2 * s3, -c1 * s3 - s1 * c2 * c3, s1 * s2
+    r10, r11, r12 = s1 * c3 + c1 * c2 * s3, -s1 * s3 + c1 * c2 * c3, -c1 * s2
+    r20, r21, r22 = s2 * s3, s2 * c3, c2
+    for i in range(3):
+        x, y, z = chart[i, 0], chart[i, 1], chart[i, 2]
+        out[i, 0] = x * r00 + y * r10 + z * r20
+        out[i, 1] = x * r01 + y * r11 + z * r21
+        out[i, 2] = x * r02 + y * r12 + z * r22
+
+
+@inline
+def frames(m, v, w, y, chart):
+    """Poses and twists of every body (fixed frames and ground at rest) and the elastic coordinates."""
+    nf = m.frame_body.shape[0]
+    for b in range(m.nb + 1):
+        k = m.body_frame[b]
+        if k < 0:
+            for i in range(3):
+                w.r[b, i] = m.r0[b, i]
+                w.vW[b, i] = 0.0
+                w.wB[b, i] = 0.0
+                v.wW[b, i] = 0.0
+                for j in range(3):
+                    v.R[b, i, j] = m.R0[b, i, j]
+            continue
+        rotation(chart[k], y[6 * k + 3:6 * k + 6], v.R[b])
+        for i in range(3):
+            w.r[b, i] = y[6 * k + i]
+            w.vW[b, i] = y[m.n_q + 6 * k + i]
+            w.wB[b, i] = y[m.n_q + 6 * k + 3 + i]
+        matvec3(v.R[b], w.wB[b], v.wW[b])
+    for e in range(m.n_e):
+        w.eta[e] = y[6 * nf + e]
+        w.eta_dot[e] = y[m.n_q + 6 * nf + e]
+
+
+@inline
+def clear(m, v, w):
+    """Zero the generalized forces and the work rates."""
+    for b in range(m.nb + 1):
+        for i in range(3):
+            v.F[b, i] = 0.0
+            v.tau[b, i] = 0.0
+    for e in range(m.n_e):
+        v.Qe[e] = 0.0
+    for k in range(w.aux.shape[0]):
+        w.aux[k] = 0.0
+
+
+@inline
+def generalized_forces(m, v, w):
+    """``Q`` per body: ``[W_F, R^T W_tau]``, rigid bodies minus ``w x I w``; flexible bodies' velocity
+    and elastic forces; zero rows for fixed frames and ground."""
+    t1, t2 = v.v3[8], v.v3[9]
+    for b in range(m.nb + 1):
+        kind = m.body_kind[b]
+        if kind == GROUND or kind == FIXED_FLEXIBLE:
+            for i in range(6):
+                w.Q[b, i] = 0.0
+            continue
+        tmatvec3(v.R[b], v.tau[b], t1)
+        for i in range(3):
+            w.Q[b, i] = v.F[b, i]
+            w.Q[b, 3 + i] = t1[i]
+        if kind == RIGID:
+            matvec3(m.inertia[b], w.wB[b], t1)
+            cross3(w.wB[b], t1, t2)
+            for i in range(3):
+                w.Q[b, 3 + i] -= t2[i]
+    for fx in range(m.fx_i.shape[0]):
+        body_forces(m, v, w, fx)
+
+
+@jit
+def _rigid_solve(mass, inertia_inv, b, x, out):
+    """``out = M_b^-1 x`` (6,) for a rigid body."""
+    for i in range(3):
+        out[i] = x[i] / mass[b]
+        out[3 + i] = inertia_inv[b, i, 0] * x[3] + inertia_inv[b, i, 1] * x[4] + inertia_inv[b, i, 2] * x[5]
+
+
+@inline
+def free_accelerations(m, v, w):
+    """``a = M^-1 Q`` (factorizing the flexible blocks); False if a block is not positive definite."""
+    for fx in range(m.fx_i.shape[0]):
+        if not factor(m.fx_i, m.fx_f, m.fx_pool, w.fx_work, w.fx_sc, fx, v.R[m.fx_i[fx, FX_BODY]], w.eta, v.v3, w.m3):
+            return False
+    for b in range(m.nb + 1):
+        kind = m.body_kind[b]
+        if kind == RIGID:
+            _rigid_solve(m.mass, m.inertia_inv, b, w.Q[b], w.a[b])
+        elif kind == GROUND:
+            for i in range(6):
+                w.a[b, i] = 0.0
+        else:
+            fx = m.body_flex[b]
+            e0 = m.fx_i[fx, FX_E0]
+            solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, fx, w.Q[b], v.Qe, e0, w.a[b], w.ae, e0)
+    return True
+
+
+@jit
+def _row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
+    """``C_v[row] . x`` for per-body frame vectors ``x6`` (nb + 1, 6) and elastic ``xe`` (n_e,)."""
+    acc = 0.0
+    for s in range(2):
+        b = row_body[row, s]
+        if body_kind[b] == RIGID or body_kind[b] == FLOATING_FLEXIBLE:
+            for i in range(6):
+                acc += J[row, s, i] * x6[b, i]
+        j0 = row_je[row, s]
+        if j0 >= 0:
+            fx = body_flex[b]
+            n, e0 = fx_i[fx, FX_N], fx_i[fx, FX_E0]
+            for q in range(n):
+                acc += Je[j0 + q] * xe[e0 + q]
+    return acc
+
+
+@jit
+def constrain(m, v, w, t, rows):
+    """Rows from the pieces, then ``(C M^-1 C^T + compliance I) lam = C a - gamma_s`` and
+    ``a -= M^-1 C^T lam``; False if the matrix is not positive definite."""
+    n_c = m.row_body.shape[0]
+    for r in range(n_c):
+        v.C[r] = 0.0
+        v.gam[r] = 0.0
+        v.inactive[r] = 0
+        for s in range(2):
+            for i in range(6):
+                v.J[r, s, i] = 0.0
+    for k in range(v.Je.shape[0]):
+        v.Je[k] = 0.0
+    for d in literal_unroll(rows):
+        row_piece(d, t, v)
+    for b in range(m.nb + 1):
+        for i in range(3):
+            w.tw[b, i] = w.vW[b, i]
+            w.tw[b, 3 + i] = w.wB[b, i]
+    _schur_rhs(m, v, w)
+    _schur_matrix(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, m.pair, v.J, v.Je, w.W6, w.We, w.ab)
+    for i in range(n_c):
+        w.ab[m.kd * n_c + i] += m.form[2] + (1.0 if v.inactive[m.perm[i]] == 1 else 0.0)
+        w.x[i] = w.lam[m.perm[i]]
+    if not banded_cholesky_solve(w.ab, n_c, m.kd, w.x):
+        return False
+    for i in range(n_c):
+        w.lam[m.perm[i]] = w.x[i]
+    _correct(m, v, w)
+    return True
+
+
+@inline
+def _schur_rhs(m, v, w):
+    """``W = M^-1 C^T`` per (row, side) and ``C a - gamma + 2 damping C_d + frequency^2 C`` into ``w.lam``."""
+    for r in range(m.row_body.shape[0]):
+        for s in range(2):
+            b = m.row_body[r, s]
+            kind = m.body_kind[b]
+            if kind == RIGID:
+                _rigid_solve(m.mass, m.inertia_inv, b, v.J[r, s], w.W6[r, s])
+            elif kind == GROUND:
+                for i in range(6):
+                    w.W6[r, s, i] = 0.0
+            else:
+                j0 = v.row_je[r, s]
+                solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, m.body_flex[b], v.J[r, s], v.Je, j0, w.W6[r, s], w.We, j0)
+        C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot)
+        Ca = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.a, w.ae)
+        w.lam[r] = Ca - (v.gam[r] - 2.0 * m.form[0] * C_d - m.form[1] ** 2 * v.C[r])
+
+
+@jit
+def _schur_matrix(row_body, row_je, body_kind, body_flex, fx_i, pair, J, Je, W6, We, ab):
+    """``C M^-1 C^T`` in band storage from the couplings through shared bodies."""
+    for k in range(ab.shape[0]):
+        ab[k] = 0.0
+    for p in range(pair.shape[0]):
+        r, s, k, l = pair[p, 0], pair[p, 1], pair[p, 2], pair[p, 3]
+        b = row_body[r, s]
+        val = 0.0
+        if body_kind[b] == RIGID or body_kind[b] == FLOATING_FLEXIBLE:
+            for i in range(6):
+                val += W6[r, s, i] * J[k, l, i]
+        j0, j1 = row_je[r, s], row_je[k, l]
+        if j0 >= 0:
+            for q in range(fx_i[body_flex[b], FX_N]):
+                val += We[j0 + q] * Je[j1 + q]
+        ab[pair[p, 4]] += val
+
+
+@inline
+def _correct(m, v, w):
+    """``a -= W lam`` (frame and elastic parts)."""
+    for r in range(m.row_body.shape[0]):
+        lam = w.lam[r]
+        for s in range(2):
+            b = m.row_body[r, s]
+            if m.body_kind[b] == RIGID or m.body_kind[b] == FLOATING_FLEXIBLE:
+                for i in range(6):
+                    w.a[b, i] -= w.W6[r, s, i] * lam
+            j0 = v.row_je[r, s]
+            if j0 >= 0:
+                fx = m.body_flex[b]
+                n, e0 = m.fx_i[fx, FX_N], m.fx_i[fx, FX_E0]
+                for q in range(n):
+                    w.ae[e0 + q] -= w.We[j0 + q] * lam
+
+
+@jit
+def banded_cholesky_solve(ab, n, kd, b):
+    """Solve ``A x = b`` in place (``b``), A SPD in upper band storage ``ab[(kd + i - j) n + j]``;
+    False if not positive definite."""
+    for j in range(n):
+        s = ab[kd * n + j]
+        for k in range(max(0, j - kd), j):
+            u = ab[(kd + k - j) * n + j]
+            s -= u * u
+        if not s > 0.0:
+            return False
+        d = math.sqrt(s)
+        ab[kd * n + j] = d
+        for i in range(j + 1, min(n, j + kd + 1)):
+            s = ab[(kd + j - i) * n + i]
+            for k in range(max(0, i - kd), j):
+                s -= ab[(kd + k - j) * n + j] * ab[(kd + k - i) * n + i]
+            ab[(kd + j - i) * n + i] = s / d
+    for i in range(n):  # U^T z = b
+        s = b[i]
+        for k in range(max(0, i - kd), i):
+            s -= ab[(kd + k - i) * n + i] * b[k]
+        b[i] = s / ab[kd * n + i]
+    for i in range(n - 1, -1, -1):  # U x = z
+        s = b[i]
+        for k in range(i + 1, min(n, i + kd + 1)):
+            s -= ab[(kd + i - k) * n + k] * b[k]
+        b[i] = s / ab[kd * n + i]
+    return True
+
+
+@inline
+def rates(m, v, w, y, ydot):
+    """``y_dot = [W_v, theta_dot(theta, B_omega), eta_dot, v_dot, work rates]``."""
+    nf = m.frame_body.shape[0]
+    n_q = m.n_q
+    for k in range(nf):
+        b = m.frame_body[k]
+        for i in range(3):
+            ydot[6 * k + i] = w.vW[b, i]
+            ydot[n_q + 6 * k + i] = w.a[b, i]
+            ydot[n_q + 6 * k + 3 + i] = w.a[b, 3 + i]
+        s2, c2 = math.sin(y[6 * k + 4]), math.cos(y[6 * k + 4])
+        s3, c3 = math.sin(y[6 * k + 5]), math.cos(y[6 * k + 5])
+        w1, w2, w3 = w.wB[b, 0], w.wB[b, 1], w.wB[b, 2]
+        psi_d = (w1 * s3 + w2 * c3) / s2
+        ydot[6 * k + 3] = psi_d
+        ydot[6 * k + 4] = w1 * c3 - w2 * s3
+        ydot[6 * k + 5] = w3 - psi_d * c2
+    for e in range(m.n_e):
+        ydot[6 * nf + e] = w.eta_dot[e]
+        ydot[n_q + 6 * nf + e] = w.ae[e]
+    for k in range(m.n_aux):
+        ydot[n_q + m.n_v + k] = w.aux[k]
+
+
+@entry
+def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
+    """``ydot = f(t, y)`` for the charts ``chart`` (nf, 3, 3) and the contacts' memory in ``v.mem``;
+    returns ``OK`` or ``SINGULAR`` (a mass block or the constraint matrix not positive definite)."""
+    frames(m, v, w, y, chart)
+    kinematics(m, v, w)
+    clear(m, v, w)
+    for d in literal_unroll(forces):
+        force_piece(d, t, v, w.aux)
+    generalized_forces(m, v, w)
+    if not free_accelerations(m, v, w):
+        return SINGULAR
+    if m.row_body.shape[0] > 0 and not constrain(m, v, w, t, rows):
+        return SINGULAR
+    rates(m, v, w, y, ydot)
+    return OK
+
+
+@entry
+def gaps(t, y, chart, m, v, w, geometry, out):
+    """``out[k] = [alpha, alpha_dot]`` of every contact at ``(t, y)`` (kinematics only: the event
+    functions of ``viz3d.events``)."""
+    frames(m, v, w, y, chart)
+    kinematics(m, v, w)
+    for d in literal_unroll(geometry):
+        gap_piece(d, v, out)

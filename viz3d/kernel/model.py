@@ -1,0 +1,327 @@
+"""A system packed for the compiled kernel: the model ``Model`` (frozen, per system), the workspace
+``Work`` (written by every evaluation) and the elements' packed data, one entry per registered
+compiled piece (``viz3d.compiled``).
+
+Packing asks every force element, row provider and contact set for its ``compiled(pack)`` data;
+``Packer`` gives them global indices: material points (one table for the whole system), the first
+constraint row of a row provider, the first global index of a contact set (its memory rows and its
+power slots in the ledger). An element without a compiled piece makes ``pack`` raise
+``Unsupported`` naming it: the run then takes the NumPy path and says so.
+
+Layout of ``y = [q, v, w]`` as in ``viz3d.system``: nf floating frames ``[W_r, theta (3)]`` and
+``[W_v, B_omega]``, then the stacked elastic coordinates and rates, then the ledger's work integrals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from viz3d.compiled import Items, concat, force_piece, gap_piece, items, registered, row_piece, target_of
+from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ
+from viz3d.flexible.floating_kernel import pack_flexible
+from viz3d.rotations import matrix_from_euler
+
+#: ``Model.body_kind`` codes.
+RIGID, FLOATING_FLEXIBLE, FIXED_FLEXIBLE, GROUND = 0, 1, 2, 3
+#: Formulations the kernel evaluates, and their ``Model.form`` = [damping, frequency, compliance]:
+#: ``gamma - 2 damping C_d - frequency^2 C`` and ``compliance`` added to the Schur diagonal.
+FORMULATIONS = {
+    "index1": lambda f: (0.0, 0.0, 0.0),
+    "baumgarte": lambda f: (f.alpha, f.beta, 0.0),
+    "penalty": lambda f: (f.xi * f.omega, f.omega, 1.0 / f.alpha),
+}
+#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies.
+N_V3 = 16
+
+
+class Unsupported(Exception):
+    """The kernel does not cover something in the system (the message says what)."""
+
+
+class Model(NamedTuple):
+    """What the compiled functions know of a system (shapes: nb bodies, nf floating frames, nx
+    flexible bodies, np material points, n_c constraint rows, n_e elastic coordinates)."""
+
+    nb: int
+    body_kind: np.ndarray     # (nb + 1,) int: RIGID, FLOATING_FLEXIBLE, FIXED_FLEXIBLE, GROUND
+    body_frame: np.ndarray    # (nb + 1,) int: floating-frame index, -1
+    body_flex: np.ndarray     # (nb + 1,) int: flexible index, -1
+    mass: np.ndarray          # (nb + 1,) [kg] (ground 0)
+    inertia: np.ndarray       # (nb + 1, 3, 3) rigid bodies [kg m^2]
+    inertia_inv: np.ndarray   # (nb + 1, 3, 3)
+    r0: np.ndarray            # (nb + 1, 3) frame origins of fixed frames (and ground) [m]
+    R0: np.ndarray            # (nb + 1, 3, 3) their orientations
+    frame_body: np.ndarray    # (nf,) int
+    n_q: int
+    n_v: int
+    n_e: int
+    fx_i: np.ndarray          # flexible bodies (viz3d.flexible.floating_kernel)
+    fx_f: np.ndarray
+    fx_pool: np.ndarray
+    fx_bij: np.ndarray
+    pt_s: np.ndarray          # (np, 3) points' offsets in body axes [m] (viz3d.points)
+    row_body: np.ndarray      # (n_c, 2) int
+    perm: np.ndarray          # (n_c,) int: solve order of the rows
+    pair: np.ndarray          # (n_pairs, 5) int: row, side, row, side, slot in Work.ab
+    kd: int                   # half-bandwidth of the Schur complement in solve order
+    form: np.ndarray          # (3,): damping, frequency, compliance (FORMULATIONS)
+    switching: int            # Euler charts re-centred near gimbal lock
+    centre: np.ndarray        # (3,) chart centre angles
+    centre_R: np.ndarray      # (3, 3) its rotation
+    n_aux: int                # work integrals in y
+
+
+class View(NamedTuple):
+    """What the compiled pieces see (``viz3d.compiled``): material points (tables and, per
+    evaluation, kinematics), the frames' rotations and world angular velocities, the generalized
+    forces, the constraint rows, scratch vectors and the contacts' memory."""
+
+    pt_i: np.ndarray          # (np, 4) int: body, N offset, n, eta offset (viz3d.points)
+    pt_N: np.ndarray          # pool of the points' N (3, n)
+    R: np.ndarray             # (nb + 1, 3, 3)
+    wW: np.ndarray            # (nb + 1, 3) [rad/s]
+    ps: np.ndarray            # (np, 3) deformed offsets, body axes [m]
+    prho: np.ndarray          # (np, 3) levers, world [m]
+    px: np.ndarray            # (np, 3) positions [m]
+    pv: np.ndarray            # (np, 3) velocities [m/s]
+    pud: np.ndarray           # (np, 3) elastic velocities R N eta_dot [m/s]
+    F: np.ndarray             # (nb + 1, 3) world forces at the frame origins [N]
+    tau: np.ndarray           # (nb + 1, 3) world torques about them [N m]
+    Qe: np.ndarray            # (n_e,) elastic generalized forces
+    row_je: np.ndarray        # (n_c, 2) int: offset of the side's elastic Jacobian in Je, -1
+    J: np.ndarray             # (n_c, 2, 6) frame Jacobian blocks
+    Je: np.ndarray            # elastic Jacobian parts (pool)
+    C: np.ndarray             # (n_c,) residuals
+    gam: np.ndarray           # (n_c,) gamma
+    inactive: np.ndarray      # (n_c,) int: rows that do not act now
+    v3: np.ndarray            # (N_V3, 3) scratch
+    mem: np.ndarray           # (n_contacts, 3) contacts' memory (viz3d.contact.contacts.memory_rows)
+
+
+class Work(NamedTuple):
+    """Scratch of the generic stages of one evaluation (see ``workspace``)."""
+
+    r: np.ndarray
+    vW: np.ndarray
+    wB: np.ndarray
+    eta: np.ndarray
+    eta_dot: np.ndarray
+    Q: np.ndarray
+    a: np.ndarray
+    ae: np.ndarray
+    tw: np.ndarray
+    fx_work: np.ndarray
+    fx_sc: np.ndarray
+    W6: np.ndarray
+    We: np.ndarray
+    lam: np.ndarray
+    x: np.ndarray
+    ab: np.ndarray
+    aux: np.ndarray
+    m3: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class KernelData:
+    """A packed system: model, the elements' data per registered piece, workspace sizes."""
+
+    model: Model
+    forces: tuple
+    rows: tuple
+    geometry: tuple
+    n_contacts: int
+    work_sizes: tuple
+    pt_i: np.ndarray
+    pt_N: np.ndarray
+    row_je: np.ndarray
+
+
+class Packer:
+    """Global indices handed to the elements while they pack themselves (see module docstring)."""
+
+    Unsupported = Unsupported
+
+    def __init__(self, system):
+        self.system, self.bodies = system, system.bodies
+        self._pt_i: list = []
+        self._pt_s: list = []
+        self._pt_N: list = []
+        self._N_size = 0
+        starts = [s.start for s in system.joints.row_slices()]
+        self._row_start = {id(js): start for js, start in zip(system.joints.joints, starts)}
+        k0 = np.cumsum([0] + [c.k for c in system.contacts])
+        self._contact_start = {id(c): int(k) for c, k in zip(system.contacts, k0)}
+
+    @property
+    def n_points(self) -> int:
+        return len(self._pt_i)
+
+    def points(self, bp) -> np.ndarray:
+        """Register the material points of ``bp`` (``viz3d.points.BodyPoints``); their global indices (k,)."""
+        N_of: dict[int, np.ndarray] = {}
+        for g in bp.flex:
+            for j, p in enumerate(g.which):
+                N_of[int(p)] = g.material.N[j]
+        e0 = self._elastic_offsets()
+        return np.array([self._add(int(bp.body[p]), bp.B_s[p], N_of.get(p), e0.get(int(bp.body[p]), 0))
+                         for p in range(bp.k)], dtype=np.int64)
+
+    def centres_of_mass(self) -> np.ndarray:
+        """A point at every body's centre of mass, (nb,): the frame origin of a rigid body; on a
+        flexible body the deflected centre of mass ``S eta / m`` (N = S / m)."""
+        e0 = self._elastic_offsets()
+        bar = {fb.index: fb.bar for fb in self.bodies.flexible}
+        return np.array([self._add(b, np.zeros(3), bar[b].S / bar[b].mass if b in bar else None, e0.get(b, 0))
+                         for b in range(self.bodies.n_bodies)], dtype=np.int64)
+
+    def _elastic_offsets(self) -> dict[int, int]:
+        offsets = np.cumsum([0] + [fb.n for fb in self.bodies.flexible])
+        return {fb.index: int(o) for fb, o in zip(self.bodies.flexible, offsets)}
+
+    def _add(self, body: int, s, N, e0: int) -> int:
+        off, n = self._N_size, 0
+        if N is not None:
+            N = np.ascontiguousarray(N, dtype=float)
+            n = N.shape[1]
+            self._pt_N.append(N.ravel())
+            self._N_size += N.size
+        self._pt_i.append((body, off, n, e0 if n else 0))
+        self._pt_s.append(np.asarray(s, dtype=float))
+        return len(self._pt_i) - 1
+
+    def row_start(self, provider) -> int:
+        """First constraint row of a row provider of ``System.joints``."""
+        return self._row_start[id(provider)]
+
+    def contact_start(self, contact_set) -> int:
+        """Global index of the first contact of a set of ``System.contacts``."""
+        return self._contact_start[id(contact_set)]
+
+    def law_items(self, law) -> type[Items]:
+        """The packed data class of contacts with ``law`` (its compiled piece), or ``Unsupported``."""
+        from viz3d.contact.contacts import law_contacts
+
+        if type(law).compiled_items is None:
+            raise Unsupported(f"normal law {law.name!r} has no compiled piece")
+        return law_contacts(type(law).compiled_items)
+
+    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pt_i = np.array(self._pt_i, np.int64).reshape(-1, 4)
+        pt_s = np.array(self._pt_s, float).reshape(-1, 3)
+        pt_N = np.concatenate(self._pt_N) if self._pt_N else np.zeros(0)
+        return pt_i, pt_s, pt_N
+
+
+def pack(system, formulation) -> KernelData:
+    """``system`` and ``formulation`` packed for the kernel; ``Unsupported`` names what it lacks."""
+    _check(system, formulation)
+    packer = Packer(system)
+    parts = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
+    forces, rows, geometry = (_by_class(target, parts) for target in (force_piece, row_piece, gap_piece))
+    pt_i, pt_s, pt_N = packer.tables()
+    model, sizes, row_je = _model(system, formulation, pt_s)
+    return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, row_je)
+
+
+def _check(system, formulation) -> None:
+    if formulation.name not in FORMULATIONS or getattr(formulation, "integrator", None) is not None:
+        raise Unsupported(f"formulation {formulation.name!r}")
+    if type(system.rotation) not in (EulerSwitching, EulerZXZ):
+        raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
+
+
+def _parts(elements, packer) -> dict[type, list]:
+    """Every element's packed data (``compiled(packer)``), grouped by data class."""
+    found: dict[type, list] = {}
+    for e in elements:
+        if not hasattr(e, "compiled"):
+            what = getattr(e, "type_name", type(e).__name__)
+            raise Unsupported(f"{what!r} has no compiled piece")
+        out = e.compiled(packer)
+        for part in out if isinstance(out, list) else [out]:
+            if target_of(type(part)) is None:
+                raise Unsupported(f"{type(part).__name__} is not registered for a compiled target")
+            found.setdefault(type(part), []).append(part)
+    return found
+
+
+def _by_class(target, found: dict[type, list]) -> tuple:
+    """One ``Items`` per registered data class of ``target``, in canonical order (empty where the
+    system has none)."""
+    return tuple(concat(cls, found[cls]) if cls in found else items(cls) for cls in registered(target))
+
+
+def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
+    b = system.bodies
+    nb = b.n_bodies
+    kind = np.full(nb + 1, RIGID, np.int64)
+    kind[nb] = GROUND
+    flex = np.full(nb + 1, -1, np.int64)
+    r0, R0 = np.zeros((nb + 1, 3)), np.broadcast_to(np.eye(3), (nb + 1, 3, 3)).copy()
+    for k, fb in enumerate(b.flexible):
+        kind[fb.index] = FLOATING_FLEXIBLE if fb.floating else FIXED_FLEXIBLE
+        flex[fb.index] = k
+        r0[fb.index], R0[fb.index] = fb.W_r0, fb.R0
+    frame = np.full(nb + 1, -1, np.int64)
+    frame[system.frame_body] = np.arange(system.n_frames)
+    mass = np.append(b.mass, 0.0).astype(float)
+    inertia = np.zeros((nb + 1, 3, 3))
+    inertia_inv = np.zeros((nb + 1, 3, 3))
+    inertia[:nb][b.is_rigid] = b.inertia[b.is_rigid]
+    inertia_inv[:nb] = b.M_inv[:nb, 3:, 3:]
+    e_offsets = np.cumsum([0] + [fb.n for fb in b.flexible])[:-1]
+    fx_i, fx_f, fx_pool, fx_bij, fx_work = pack_flexible(b.flexible, e_offsets)
+    row_body, row_je, n_je, perm, pair, kd = _rows(system, flex)
+    form = np.array(FORMULATIONS[formulation.name](formulation), dtype=float)
+    model = Model(nb, kind, frame, flex, mass, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
+                  system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
+                  row_body, perm, pair, kd, form, int(isinstance(system.rotation, EulerSwitching)),
+                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux)
+    n_contacts = sum(c.k for c in system.contacts)
+    return model, (nb, len(b.flexible), pt_s.shape[0], system.n_elastic, fx_work, row_body.shape[0], n_je, kd,
+                   max(system.n_aux, n_contacts + 2), n_contacts), row_je
+
+
+def _rows(system, flex) -> tuple:
+    """Row bodies, elastic-Jacobian offsets, solve order and every coupling of two (row, side)
+    entries through a shared body, with its slot in band storage of half-width kd (a dense
+    layout is a band of half-width n_c - 1)."""
+    lay = system.joints
+    n_c = lay.n_rows
+    row_body = lay.row_body.astype(np.int64).reshape(n_c, 2)
+    width = {fb.index: fb.n for fb in system.bodies.flexible}
+    row_je = np.full((n_c, 2), -1, np.int64)
+    n_je = 0
+    for r in range(n_c):
+        for s in range(2):
+            if int(row_body[r, s]) in width:
+                row_je[r, s] = n_je
+                n_je += width[int(row_body[r, s])]
+    entries = [np.column_stack([lay.pair_row, lay.pair_side, lay.pair_col, lay.pair_colside])]
+    for g in lay.flex_groups:
+        entries.append(np.column_stack([g.row[g.pair_a], g.side[g.pair_a], g.row[g.pair_b], g.side[g.pair_b]]))
+    pair = np.concatenate(entries).astype(np.int64) if n_c else np.zeros((0, 4), np.int64)
+    kd = lay.kd if lay.banded else max(n_c - 1, 0)
+    pos = np.empty(n_c, dtype=np.int64)
+    pos[lay.perm] = np.arange(n_c)
+    i, j = pos[pair[:, 0]], pos[pair[:, 2]]
+    assert np.all(i <= j), "couplings must be in the upper triangle of the solve order"
+    slot = (kd + i - j) * n_c + j
+    return row_body, row_je, n_je, lay.perm.astype(np.int64), np.column_stack([pair, slot]).astype(np.int64), int(kd)
+
+
+def workspace(data: KernelData) -> tuple[View, Work]:
+    """Fresh scratch arrays for ``data`` (contacts' memory zero: nothing touching)."""
+    nb, nx, n_p, n_e, fx_work, n_c, n_je, kd, n_power, n_contacts = data.work_sizes
+    z3 = lambda n: np.zeros((n, 3))  # noqa: E731
+    view = View(data.pt_i, data.pt_N, np.zeros((nb + 1, 3, 3)), z3(nb + 1), z3(n_p), z3(n_p), z3(n_p), z3(n_p),
+                z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je, np.zeros((n_c, 2, 6)), np.zeros(n_je),
+                np.zeros(n_c), np.zeros(n_c), np.zeros(n_c, np.int64), np.zeros((N_V3, 3)), np.zeros((n_contacts, 3)))
+    work = Work(z3(nb + 1), z3(nb + 1), z3(nb + 1), np.zeros(n_e), np.zeros(n_e), np.zeros((nb + 1, 6)),
+                np.zeros((nb + 1, 6)), np.zeros(n_e), np.zeros((nb + 1, 6)), np.zeros(fx_work), np.zeros((nx, 6, 6)),
+                np.zeros((n_c, 2, 6)), np.zeros(n_je), np.zeros(n_c), np.zeros(n_c), np.zeros((kd + 1) * n_c),
+                np.zeros(n_power), np.zeros((4, 3, 3)))
+    return view, work

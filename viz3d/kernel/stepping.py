@@ -1,0 +1,75 @@
+"""Explicit Runge-Kutta steps in the kernel, with the health checks and chart switches of
+``viz3d.simulate`` between steps (as ``viz3d.diagnosis.check_state`` makes them)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from viz3d.compiled import entry, jit
+from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
+from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
+from viz3d.kernel.field import NONFINITE, OK, ROTATION, SPEED, evaluate, rotation
+
+
+@entry
+def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows):
+    """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place; returns (steps done,
+    status). Between steps, frames near gimbal lock are re-charted (``m.switching``) and counted in
+    ``switches`` (per body); the run stops at the first failed evaluation, non-finite state, frame
+    speed above ``max_speed``, or orientation coordinates turning more than ``MAX_TURN`` rad in a
+    step. On a failure ``y`` holds the failed step's result."""
+    n = y.shape[0]
+    s = tb.shape[0]
+    k = np.empty((s, n))
+    yi = np.empty(n)
+    for step in range(n_steps):
+        t = t0 + step * h
+        for i in range(s):
+            for j in range(n):
+                acc = y[j]
+                for l in range(i):
+                    if ta[i, l] != 0.0:
+                        acc += h * ta[i, l] * k[l, j]
+                yi[j] = acc
+            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+            if status != OK:
+                return step, status
+        for j in range(n):
+            acc = y[j]
+            for i in range(s):
+                if tb[i] != 0.0:
+                    acc += h * tb[i] * k[i, j]
+            y[j] = acc
+        for j in range(n):
+            if not math.isfinite(y[j]):
+                return step + 1, NONFINITE
+        status = _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y, chart, switches, h,
+                              max_speed)
+        if status != OK:
+            return step + 1, status
+    return n_steps, OK
+
+
+@jit
+def _check_frames(nq, switching, frame_body, centre, centre_R, R, y, chart, switches, h, max_speed):
+    for f in range(frame_body.shape[0]):
+        v = nq + 6 * f
+        if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
+            return SPEED
+        st = abs(math.sin(y[6 * f + 4]))
+        s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
+        w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
+        psi_d = (w1 * s3 + w2 * c3) / st if st > 0.0 else math.inf
+        turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
+        if turn > MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
+            return ROTATION
+        if switching == 1 and st < SWITCH_SIN:
+            rotation(chart[f], y[6 * f + 3:6 * f + 6], R)
+            for i in range(3):
+                for j in range(3):  # chart = R @ R_centre^T
+                    chart[f, i, j] = R[i, 0] * centre_R[j, 0] + R[i, 1] * centre_R[j, 1] + R[i, 2] * centre_R[j, 2]
+            y[6 * f + 3], y[6 * f + 4], y[6 * f + 5] = centre[0], centre[1], centre[2]
+            switches[frame_body[f]] += 1
+    return OK
