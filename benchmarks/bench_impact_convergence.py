@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import viz3d
-from viz3d.impact.exact import clamped_bar_rigid_mass, saint_venant_free_bar
+from viz3d.contact.exact import clamped_bar_rigid_mass, saint_venant_free_bar
 
 ROOT = Path(__file__).resolve().parents[1]
 E, RHO, L, A = 210e9, 7900.0, 0.3, 9e-4

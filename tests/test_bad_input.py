@@ -244,7 +244,7 @@ def _key_paths(spec, prefix="") -> list[str]:
 
 def _scene_key_paths(scene: str) -> list[str]:
     """Key paths of the scene's own schema, plus a few that no schema has."""
-    from viz3d.impact.spec import IMPACT_FILE
+    from viz3d.scene.shorthand import IMPACT_FILE
     from viz3d.scene.spec import SCENE_FILE
 
     impact = "[impactor]" in (SCENES / f"{scene}.toml").read_text()

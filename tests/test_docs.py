@@ -1,7 +1,6 @@
 """Documentation that is generated from code stays in sync with it."""
 
-from viz3d.scene import spec
-from viz3d.scene.schema import describe
+from viz3d.scene import format_reference
 
 from conftest import ROOT
 
@@ -9,7 +8,7 @@ from conftest import ROOT
 def test_scene_format_reference_is_current():
     text = (ROOT / "docs" / "scene_format.md").read_text()
     block = text.split("```text\n", 1)[1].rsplit("```", 1)[0]
-    assert block.strip() == describe(spec.SCENE_FILE).strip(), "regenerate with: viz3d list --format"
+    assert block.strip() == format_reference().strip(), "regenerate with: viz3d list --format"
 
 
 def test_trajectory_doc_lists_every_saved_field():

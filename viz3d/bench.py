@@ -133,8 +133,9 @@ def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, 
           t_end: float | None = None, progress: bool = True, overrides: list[str] = ()) -> BenchReport:
     """Run the benchmark (see the module docstring); ``overrides`` apply to every run."""
     base = load_scene(path, list(overrides))
-    if base.kind != "rigid":
-        raise ValueError(f"{path}: bench runs multibody scenes (impact scenes: see benchmarks/bench_impact_convergence.py)")
+    if "rtol" in base.data["sim"] and base.data["contacts"]:
+        raise ValueError(f"{path}: bench compares methods on fixed steps and tolerances; runs with contact events are "
+                         f"adaptive (model size: viz3d stability --sweep; see benchmarks/bench_impact_convergence.py)")
     output_dt, t_end = common_grid(dts, base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
     plan = [(m, s) for m in methods for s in settings_for(m, dts, tols)]
     bar = ProgressBar(len(plan) + 2) if progress else None

@@ -56,6 +56,8 @@ class FlexibleBody:
         Position of the frame origin (the undeformed centre of mass) at t = 0 [m]; the fixed one.
     R0 : ndarray, shape (3, 3)
         Orientation of the frame at t = 0; the fixed one.
+    model_choice : str
+        How its model was discretized and why (mode count, truncation estimate), for reports.
     M_ee_inv : ndarray, shape (n, n)
         Inverse of the elastic mass matrix (derived; what a fixed frame's body needs).
     """
@@ -65,6 +67,7 @@ class FlexibleBody:
     floating: bool
     W_r0: FloatArray
     R0: FloatArray
+    model_choice: str = ""
     M_ee_inv: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self):

@@ -81,7 +81,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", type=Path)
     run.add_argument("--t-end", type=_number_flag, help="simulated duration [s] (sim.t_end)")
     run.add_argument("--dt", type=_number_flag,
-                     help="integration step [s] (sim.dt; impact scenes: the output interval sim.output_dt)")
+                     help="integration step [s] (sim.dt; adaptive runs: the interval between frames)")
     _set_arg(run)
     _mesh_dir_arg(run)
     run.add_argument("--out", type=Path, help="trajectory file (.npz); default out/<scene>.npz")
@@ -393,10 +393,10 @@ def _rerun_version() -> str:
 def run_header(scene) -> str:
     """The line ``viz3d run`` prints before it builds and runs (so a long run says what it does)."""
     sim = scene.data["sim"]
-    if scene.kind == "impact":
-        how = f"adaptive dopri5 with event location, rtol = {sim['rtol']:g}, output every {sim['output_dt']:g} s"
-    elif "rtol" in sim:
-        how = f"adaptive {sim['integrator']}, rtol = {sim['rtol']:g}, output every {sim['dt']:g} s"
+    if "rtol" in sim:
+        events = " with contact events" if scene.data["contacts"] else ""
+        how = (f"adaptive {sim['integrator']}{events}, rtol = {sim['rtol']:g}, "
+               f"output every {sim.get('output_dt', sim['dt']):g} s")
     else:
         import math
 
@@ -405,20 +405,24 @@ def run_header(scene) -> str:
 
 
 def summary(traj, out: Path) -> str:
-    """The run summary printed by ``viz3d run``."""
+    """The run summary printed by ``viz3d run`` (with contact, restitution and ledger lines when
+    the scene has contacts)."""
     meta = traj.scene["run"]
-    if meta.get("kind") == "impact":
-        return impact_summary(traj, out)
     sim_time = float(traj.t[-1] - traj.t[0]) if traj.t.size else 0.0
     rtf = sim_time / traj.wall_time if traj.wall_time > 0 else float("inf")
+    sim = traj.scene["scene"]["sim"]
+    step = f"rtol = {sim['rtol']:g}" if "rtol" in sim else f"dt = {meta['dt']:g} s"
+    x = traj.extras
     lines = [
         f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
-        f"method      {meta['integrator']}, dt = {meta['dt']:g} s, {meta['formulation']}, {meta['rotation']}",
-        f"bodies      {len(traj.body_names)}, joints {len(traj.joint_names)}",
+        f"method      {meta['integrator']}, {step}, {meta['formulation']}, {meta['rotation']}",
+        f"bodies      {len(traj.body_names)}, joints {len(traj.joint_names)}"
+        + (f"; {x['model_choice']}" if "model_choice" in x and traj.scene["scene"]["bodies"] and
+           any(b.get("type") == "flexible" for b in traj.scene["scene"]["bodies"]) else ""),
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
         f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, "
         f"{1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",
-        _energy_line(traj, meta),
+        *(contact_lines(traj) if len(x.get("contact_names", ())) else [_energy_line(traj, meta)]),
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
         f"kernel      {meta.get('kernel', 'n/a')}",
@@ -428,30 +432,33 @@ def summary(traj, out: Path) -> str:
     return "\n".join(lines)
 
 
-def impact_summary(traj, out: Path) -> str:
-    """Summary of an impact run: model, contacts as the physics defines them (with what the model
-    cannot resolve), the bodies' restitution, peak force, energy ledger."""
+def contact_lines(traj) -> list[str]:
+    """Contacts as the physics defines them (with what the model cannot resolve), the bodies'
+    approach velocity and restitution, peak force, and the energy ledger."""
     import numpy as np
 
-    meta, x = traj.scene["run"], traj.extras
+    x = traj.extras
     e_req = float(x["restitution_requested"])
     req = f"; requested {e_req:g}" if np.isfinite(e_req) else ""
     per = x["contact_restitution"]
     per_txt = ", ".join(f"{e if abs(e) >= 5e-5 else 0.0:.4f}" for e in per[:6]) + (", ..." if len(per) > 6 else "")
     scale = float(max(np.max(np.abs(traj.energy_total), initial=0.0), np.max(traj.energy_kinetic, initial=0.0)))
     balance = float(np.max(np.abs(x["energy_balance_error"]))) if traj.t.size else 0.0
-    sim_time = float(traj.t[-1]) if traj.t.size else 0.0
     tau = float(x.get("contact_resolution", 0.0))
     breaks, touches = int(np.sum(x.get("contact_breaks_unresolved", 0))), len(x.get("contact_touches_unresolved", ()))
     unresolved = (f" ({breaks} breaks and {touches} touches shorter than {tau * 1e6:.3g} us, the period of the model's "
                   f"highest mode, which it cannot resolve: Gibbs ringing of the truncated modes, merged or left out)"
                   if breaks or touches else "")
-    dv, de = float(x.get("impactor_velocity_uncertainty", 0.0)), float(x.get("restitution_uncertainty", np.nan))
-    v_end = float(x["impactor_velocity"][-1])
-    v_txt = f"{v_end:.4g}" + (f" +- {dv:.2g}" if dv > 0 else "") + " m/s along the normal"
-    if dv > 0:
-        v_txt += (" (+-: velocity jumps of instantaneous impulses on the modal bar, shorter than it can resolve"
-                  + ("; the sign of the final motion is not resolved)" if abs(v_end) < dv else ")"))
+    dv, de = float(x.get("velocity_uncertainty", 0.0)), float(x.get("restitution_uncertainty", np.nan))
+    v = np.asarray(x["approach_velocity"], float)
+    name = str(x["contact_names"][0])
+    v_txt = ""
+    if v.size:
+        v_end = -float(v[-1, 0])
+        v_txt = f"{float(v[0, 0]):.4g} -> {v_end:.4g}" + (f" +- {dv:.2g}" if dv > 0 else "") + " m/s apart"
+        if dv > 0:
+            v_txt += (" (+-: velocity jumps of instantaneous impulses on the modal body, shorter than it can resolve"
+                      + ("; the sign of the final motion is not resolved)" if abs(v_end) < dv else ")"))
     e_txt = f"{float(x['restitution']):.4f}" + (f" +- {de:.2g}" if np.isfinite(de) and de > 0 else "")
     speeds = np.asarray(x.get("impact_speeds", np.zeros((0, 2))), float).reshape(-1, 2)
     if len(speeds):
@@ -459,22 +466,15 @@ def impact_summary(traj, out: Path) -> str:
                   f"before its first contact, {-speeds[0, 1]:.4g} m/s apart after its last)")
     else:
         e_txt += " (no contact)"
-    lines = [
-        f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
-        f"method      {meta['integrator']}, rtol = {meta['rtol']:g}; bar: {x['model_choice']}",
-        f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
-        f"wall time   {traj.wall_time:.3f} s",
+    return [
         f"contacts    {int(x['contact_count'])}{unresolved}; peak force "
         f"{float(np.max(x['contact_force'], initial=0.0)):.4g} N, "
         f"peak indentation {float(np.max(x['penetration'], initial=0.0)):.4g} m",
-        f"impactor    {float(x['impactor_velocity'][0]):.4g} -> {v_txt}",
+        f"approach    {name}: {v_txt} along the normal (centres of mass)",
         f"restitution {e_txt}; per contact {per_txt}{req}",
         f"energy      dissipated {float(x['energy_dissipated'][-1]):.4g} J; balance error {balance:.3g} J "
         f"({balance / scale if scale else 0.0:.2g} of the largest energy, {scale:.4g} J)",
-        f"status      {traj.status}",
-        f"wrote       {out}",
     ]
-    return "\n".join(lines)
 
 
 def _energy_line(traj, meta) -> str:
@@ -494,7 +494,7 @@ def cmd_check(args) -> int:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 scene = load_scene(path, args.overrides, mesh_dirs=args.mesh_dirs)
-                what = _check_impact(scene) if scene.kind == "impact" else _check_rigid(build(scene)[0])
+                what = _check_built(scene)
             extra = "".join(f"\n  warning: {w.message}" for w in caught)
             print(f"ok     {path}: {what}{extra}")
         except SceneError as exc:
@@ -503,16 +503,16 @@ def cmd_check(args) -> int:
     return 2 if bad else 0
 
 
-def _check_rigid(system) -> str:
-    return f"{system.n_bodies} bodies, {len(system.joint_names)} joints"
+def _check_built(scene) -> str:
+    from viz3d.scene.build import build
 
-
-def _check_impact(scene) -> str:
-    from viz3d.impact.build import build_impact
-
-    setup = build_impact(scene)
-    target = "rigid wall" if setup.bar is None else f"bar: {setup.model_choice}"
-    return f"impact, {scene.data['contact']['law']} contact, {target}"
+    system = build(scene)[0]
+    what = f"{system.n_bodies} bodies, {len(system.joint_names)} joints"
+    if scene.data["contacts"]:
+        what += f", {len(scene.data['contacts'])} contacts ({', '.join(c['law'] for c in scene.data['contacts'])})"
+    for fb in system.bodies.flexible:
+        what += f"; {system.bodies.names[fb.index]}: {fb.model_choice}"
+    return what
 
 
 def cmd_list(args) -> int:
@@ -520,13 +520,13 @@ def cmd_list(args) -> int:
     from viz3d.forces import FORCES
     from viz3d.formulation import FORMULATIONS
     from viz3d.integrators import INTEGRATORS
+    from viz3d.contact.laws import NORMAL_LAWS
     from viz3d.joints import JOINTS
-    from viz3d.scene import spec
-    from viz3d.scene.schema import describe
+    from viz3d.scene import format_reference
     from viz3d.timefunctions import TIME_FUNCTIONS
 
     if args.format:
-        print(describe(spec.SCENE_FILE))
+        print(format_reference())
         return 0
     folder = scenes_folder(args.scenes)
     if folder is None:
@@ -537,7 +537,8 @@ def cmd_list(args) -> int:
         for path in sorted(folder.glob("*.toml")):
             print(f"  {path.stem:<28} {_description(path)}")
     for title, names in (("integrators", INTEGRATORS), ("formulations", FORMULATIONS), ("rotations", ROTATIONS),
-                         ("joints", JOINTS), ("forces", FORCES), ("time functions", TIME_FUNCTIONS)):
+                         ("joints", JOINTS), ("forces", FORCES), ("contact laws", NORMAL_LAWS),
+                         ("time functions", TIME_FUNCTIONS)):
         print(f"{title}: {', '.join(names)}")
     return 0
 

@@ -138,9 +138,10 @@ class Accelerations:
 
 
 def accelerations(system: System, formulation, t: float, q: FloatArray, v: FloatArray,
-                  chart: FloatArray, memory: tuple = ()) -> Accelerations:
-    """Accelerations and multipliers at ``(t, q, v)`` with the contact phases ``memory`` (the physics recipe)."""
-    cfg = body_state(system, q, v, chart, t)
+                  chart: FloatArray, memory: tuple = (), cfg: Configuration | None = None) -> Accelerations:
+    """Accelerations and multipliers at ``(t, q, v)`` with the contact phases ``memory`` (the physics
+    recipe); ``cfg``: the configuration at that point if the caller has it."""
+    cfg = body_state(system, q, v, chart, t) if cfg is None else cfg
     mass = system_mass(system, cfg)
     Q = generalized_forces(system, cfg, memory)
     rows = constraint_rows(system.joints, cfg, memory)
@@ -233,10 +234,11 @@ class VectorField:
         return retract(self.system, q, w[: self.n_v], self.chart)
 
 
-def energies(system: System, state: State) -> tuple[float, float]:
+def energies(system: System, state: State, cfg: Configuration | None = None) -> tuple[float, float]:
     """Kinetic and potential energy [J] of a state (potential of all conservative elements, plus the
-    strain energy of flexible bodies and the energy stored in contacts)."""
-    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    strain energy of flexible bodies and the energy stored in contacts); ``cfg``: its configuration
+    if the caller has it."""
+    cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
     T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
     V = sum(e.potential_energy(cfg) for e in system.forces)
     for i, fb in enumerate(system.bodies.flexible):

@@ -90,12 +90,13 @@ class Ledger:
         return self.kinetic + self.potential + self.strain + self.contact_elastic
 
 
-def ledger(system: System, state: State) -> Ledger:
-    """The energy ledger of ``state`` (see ``Ledger``)."""
+def ledger(system: System, state: State, cfg=None, energy: tuple[float, float] | None = None) -> Ledger:
+    """The energy ledger of ``state`` (see ``Ledger``); ``cfg`` and ``energy`` (its configuration
+    and ``dynamics.energies``) if the caller has them."""
     from viz3d.dynamics import energies
 
-    cfg = body_state(system, state.q, state.v, state.chart, state.t)
-    T, V_all = energies(system, state)
+    cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
+    T, V_all = energies(system, state, cfg) if energy is None else energy
     strain = sum(float(0.5 * cfg.eta[i] @ fb.bar.K @ cfg.eta[i]) for i, fb in enumerate(system.bodies.flexible))
     signed = sum(e.potential_energy(cfg) for e in system.forces if isinstance(e, (Gravity, AppliedForce)))
     elastic, dissipated, k0 = 0.0, 0.0, 0

@@ -35,7 +35,8 @@ def run_extras(sim, scene, frames) -> dict:
         "gauge_names": np.array([n for n, _ in gauges], dtype=str),
         "gauge_x": np.array([x for _, x in gauges], float),
         "gauge_strain": _series(frames, [f"strain/{n}" for n, _ in gauges]),
-        "model_choice": np.array("; ".join(_model_choices(scene)) or "rigid bodies"),
+        "model_choice": np.array("; ".join(f"{system.bodies.names[fb.index]}: {fb.model_choice}"
+                                           for fb in system.bodies.flexible) or "rigid bodies"),
     }
     if any(c.located for c in system.contacts):
         out.update({f"energy_{k}": _series(frames, [f"energy/{k}"])[:, 0] for k in LEDGER})
@@ -46,13 +47,6 @@ def run_extras(sim, scene, frames) -> dict:
 def _series(frames, keys: list[str]) -> np.ndarray:
     """Frame scalars ``keys`` as columns, shape (n, len(keys)) (nan where a frame lacks one)."""
     return np.array([[f.scalars.get(k, np.nan) for k in keys] for f in frames], float).reshape(len(frames), len(keys))
-
-
-def _model_choices(scene) -> list[str]:
-    from viz3d.scene.bars import bar_model
-
-    return [f"{b['name']}: {bar_model(b, scene.source(), f'bodies[{i}]')[1]}"
-            for i, b in enumerate(scene.data["bodies"]) if b["type"] == "flexible"]
 
 
 def _contact_fields(sim, scene, frames, names: list[str]) -> dict:

@@ -101,8 +101,6 @@ class SceneVisuals:
         (title, entity prefix under /plots) of the time-series panels recorders lay out.
     display_dt : float
         Simulated time between drawn frames in recordings [s].
-    kind : str
-        "rigid" or "impact".
     statics : tuple of StaticVisual
         Fixed world geometry (posts under the ground ends of springs).
     reach : ndarray, shape (k, 4)
@@ -123,7 +121,6 @@ class SceneVisuals:
     plots: tuple[tuple[str, str], ...] = (("Energy [J]", "energy"), ("Constraint violation [m]", "constraint_violation"),
                                           ("Joint reaction force [N]", "reaction_force"))
     display_dt: float = 1.0 / 30.0
-    kind: str = "rigid"
     statics: tuple[StaticVisual, ...] = ()
     reach: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 
@@ -222,8 +219,8 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``.
     """
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
-    T, V = energies(system, state)
-    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory)
+    T, V = energies(system, state, cfg)
+    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
     reactions, points = [], []
     for js, sl in zip(system.joints.joints, system.joints.row_slices()):
         if not js.is_joint:
@@ -238,7 +235,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         scalars.update(out.values(cfg))
     if system.contacts:
         contacts += _contact_display(system, state, cfg, acc.lam, scalars)
-        scalars.update(_ledger_scalars(system, state, reference_energy))
+        scalars.update(_ledger_scalars(system, state, reference_energy, cfg, (T, V)))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
@@ -271,10 +268,10 @@ def _contact_display(system: System, state: State, cfg, lam, scalars: dict) -> l
     return out
 
 
-def _ledger_scalars(system: System, state: State, reference_energy: float | None) -> dict[str, float]:
+def _ledger_scalars(system: System, state: State, reference_energy: float | None, cfg, energy) -> dict[str, float]:
     from viz3d.events import ledger
 
-    led = ledger(system, state)
+    led = ledger(system, state, cfg, energy)
     out = {"energy/kinetic": led.kinetic, "energy/potential": led.potential, "energy/strain": led.strain,
            "energy/contact_elastic": led.contact_elastic, "energy/dissipated": led.dissipated,
            "energy/work_in": led.work_in}

@@ -8,8 +8,8 @@ actually achieves. When it cannot keep up, it drops the backlog instead of stall
 achieved factor shows it. A viewer can hold the run until someone watches (``wait``, then
 ``connected``): nothing is simulated and the wall clock does not start before that.
 
-Two drivers share one interface: ``RigidDriver`` (multibody scenes, fixed steps of a
-``Simulation``) and ``ImpactDriver`` (impact scenes, the event-driven ``ImpactStepper``).
+One ``Driver`` advances any scene through its ``Simulation`` (fixed steps, or adaptive steps
+with contact events).
 """
 
 from __future__ import annotations
@@ -28,10 +28,10 @@ from viz3d.diagnosis import SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals, frame_from_state
 from viz3d.integrators import INTEGRATORS, make_integrator
-from viz3d.scene.build import build, make_formulation, make_integrator_from
+from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
-from viz3d.scene.visuals import scene_visuals
+from viz3d.scene.visuals import flexible_drawings, scene_visuals
 from viz3d.simulate import Simulation
 
 #: Frames published per second of wall time [Hz].
@@ -47,28 +47,31 @@ MAX_LAG = 0.25
 # ---------------------------------------------------------------------------- drivers
 
 
-class RigidDriver:
-    """A multibody scene advanced by fixed steps (settings: integrator, dt, formulation)."""
+class Driver:
+    """A scene advanced by a ``Simulation``, one frame interval at a time (settings: integrator,
+    dt, formulation, for fixed-step runs; an adaptive run with contact events keeps its own).
 
-    kind = "rigid"
-    #: (title, series labels) of the live plots; ``plot_values`` returns them flattened.
-    plots = (("Energy [J]", ("kinetic", "potential", "total")), ("Constraint violation [m]", ("max |C|",)))
+    What it plots comes from the system, never from a kind of scene: energies, then the contact
+    forces and the energy ledger when there are contacts, else the constraint violation."""
 
     def __init__(self, scene: Scene, sinks=()):
         self.scene, self.sinks = scene, list(sinks)
-        self.settings = {k: scene.data["sim"][k] for k in ("integrator", "dt", "formulation")}
+        sim = scene.data["sim"]
+        self.settings = {} if "rtol" in sim else {k: sim[k] for k in ("integrator", "dt", "formulation")}
         self.system, state = build(scene)
         self.visuals = scene_visuals(scene, self.system)
-        self.speed = 1.0
+        self.speed = float(scene.data["display"]["speed"])
+        self.plots, self._series = plot_series(self.system)
         self._make_sim(state)
 
     def _make_sim(self, state, settings: dict | None = None) -> None:
-        """A fixed-step simulation from ``state`` with ``settings`` (default: the current ones);
-        the driver changes only if it can be built (a refused combination leaves it as it was)."""
+        """A simulation from ``state`` with ``settings`` (default: the current ones); the driver
+        changes only if it can be built (a refused combination leaves it as it was)."""
         settings = self.settings if settings is None else settings
         cfg = {**self.scene.data["sim"], **settings}
         self.sim = Simulation(self.system, state, make_integrator_from(cfg), make_formulation(cfg), float(cfg["dt"]),
-                              cfg["blowup_speed"], compiled=cfg["compiled"])
+                              cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
+        self._drawings = flexible_drawings(self.scene, self.system)
         self.settings = settings
 
     @property
@@ -84,111 +87,63 @@ class RigidDriver:
         return self.scene.data["sim"]["t_end"]
 
     def advance(self, t_target: float, deadline: float, commands: queue.Queue) -> None:
-        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command."""
+        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; full-rate
+        sinks get every step and every contact event."""
         full = [s for s in self.sinks if s.full_rate]
         while self.sim.state.t < t_target and time.perf_counter() < deadline and commands.empty():
             self.sim.step()
-            if full:
-                frame = self.frame()
+            events = self.sim.drain_events(self.sim.state.t)
+            for frame in [self._frame(e) for e in events] + [self.frame()] if full else []:
                 for s in full:
                     s.log(frame)
 
     def step_once(self) -> None:
         self.advance(self.t + 0.5 * self.sim.dt, math.inf, queue.Queue())
 
+    def _frame(self, state) -> Frame:
+        contacts = self.sim.contacts
+        return frame_from_state(self.system, self.formulation, state, self._drawings,
+                                contacts.E0 if contacts is not None else None)
+
     def frame(self) -> Frame:
-        return frame_from_state(self.system, self.formulation, self.sim.state)
+        return self._frame(self.sim.state)
 
     def plot_values(self, frame: Frame) -> tuple[float, ...]:
-        return frame.energy_kinetic, frame.energy_potential, frame.energy_total, frame.constraint_violation
+        return tuple(f(frame) for f in self._series)
 
     def reset(self) -> None:
         self._make_sim(build(self.scene)[1])
 
     def configure(self, name: str, value) -> None:
+        if name not in self.settings:
+            why = "adaptive steps with contact events keep their own" if not self.settings else "not a setting"
+            raise KeyError(f"{name!r} cannot be changed here ({why})")
         if name == "integrator":
             make_integrator(value)  # KeyError lists the valid names
         if name == "dt" and not float(value) > 0:
             raise ValueError(f"dt must be positive, got {value}")
-        if name not in self.settings:
-            raise KeyError(f"{name!r} is not a setting of a multibody scene")
         self._make_sim(self.sim.state, {**self.settings, name: float(value) if name == "dt" else value})
 
 
-class ImpactDriver:
-    """An impact scene advanced by the event-driven stepper, one output interval at a time."""
-
-    kind = "impact"
-    plots = (("Contact force [N]", ("force",)),
-             ("Energy ledger [J]", ("impactor kinetic", "bar kinetic", "bar strain", "dissipated")))
-    settings: dict = {}
-
-    def __init__(self, scene: Scene, sinks=()):
-        from viz3d.impact.build import build_impact
-        from viz3d.impact.display import geometry, impact_visuals
-
-        self.scene, self.sinks = scene, list(sinks)
-        self.setup = build_impact(scene)
-        self.geo = geometry(scene, self.setup)
-        self.visuals = impact_visuals(scene, self.setup, self.geo)
-        self.speed = scene.data["display"]["speed"]
-        self.reset()
-
-    def reset(self) -> None:
-        from viz3d.impact.engine import ImpactStepper
-        from viz3d.integrators.adaptive import Controller
-
-        cfg = self.scene.data["sim"]
-        self.stepper = ImpactStepper(self.setup.problem, cfg["output_dt"],
-                                     Controller(cfg["rtol"], cfg["atol"], cfg.get("max_step", np.inf)), self._sample)
-        self.stepper.samples = self.stepper.samples[-1:]
-
-    def _sample(self, sample) -> None:
-        if hasattr(self, "stepper"):
-            self.stepper.samples = self.stepper.samples[-2:]  # live: keep only the latest
-        if self.sinks:
-            frame = self._frame(sample)
-            for s in self.sinks:
-                s.log(frame)
-
-    @property
-    def t(self) -> float:
-        return self.stepper.t
-
-    @property
-    def t_end(self) -> float:
-        return self.scene.data["sim"]["t_end"]
-
-    def advance(self, t_target: float, deadline: float, commands: queue.Queue) -> None:
-        dt = self.scene.data["sim"]["output_dt"]
-        while self.t < t_target - 1e-15 and time.perf_counter() < deadline and commands.empty():
-            self.stepper.advance(min(t_target, self.t + dt))
-            if self.stepper.status != "ok":
-                raise SimulationFailure(self.stepper.status)
-
-    def step_once(self) -> None:
-        self.advance(self.t + self.scene.data["sim"]["output_dt"], math.inf, queue.Queue())
-
-    def _frame(self, sample) -> Frame:
-        from viz3d.impact.display import impact_frame
-
-        d = self.scene.data
-        return impact_frame(self.setup, self.geo, sample, d["impactor"]["gap"], d["display"]["amplification"])
-
-    def frame(self) -> Frame:
-        return self._frame(self.stepper.last_sample)
-
-    def plot_values(self, frame: Frame) -> tuple[float, ...]:
-        s = frame.scalars
-        return (s["contact/force"], s["energy/impactor_kinetic"], s["energy/bar_kinetic"], s["energy/bar_strain"],
-                s["energy/dissipated"])
-
-    def configure(self, name: str, value) -> None:
-        raise KeyError(f"{name!r} cannot be changed for an impact scene (adaptive stepping with event location)")
+def plot_series(system) -> tuple[tuple, tuple]:
+    """The live plots ``((title, labels), ...)`` and, flattened, a reader of each series from a frame."""
+    plots = [("Energy [J]", ("kinetic", "potential", "total"))]
+    series = [lambda f: f.energy_kinetic, lambda f: f.energy_potential, lambda f: f.energy_total]
+    names = [n for c in system.contacts for n in c.names]
+    if names:
+        plots.append(("Contact force [N]", tuple(names)))
+        series += [lambda f, n=n: f.scalars[f"contact/{n}/force"] for n in names]
+        ledger = ("strain", "dissipated", "work_in")
+        plots.append(("Energy ledger [J]", ledger))
+        series += [lambda f, k=k: f.scalars[f"energy/{k}"] for k in ledger]
+    else:
+        plots.append(("Constraint violation [m]", ("max |C|",)))
+        series.append(lambda f: f.constraint_violation)
+    return tuple(plots), tuple(series)
 
 
-def make_driver(scene: Scene, sinks=()):
-    return ImpactDriver(scene, sinks) if scene.kind == "impact" else RigidDriver(scene, sinks)
+def make_driver(scene: Scene, sinks=()) -> Driver:
+    return Driver(scene, sinks)
 
 
 # ---------------------------------------------------------------------------- the runner
@@ -206,7 +161,7 @@ class Snapshot:
     rtf: float                           # achieved real-time factor
     status: str
     settings: dict
-    kind: str = "rigid"
+    t_end: float = 1.0                   # the scene's duration [s] (sets the time unit shown)
     plots: tuple = ()
     history: np.ndarray = field(default_factory=lambda: np.zeros((0, 1)))  # t, then the plot series
     waiting: bool = False                # held until a client connects (``wait`` / ``connected``)
@@ -247,7 +202,7 @@ class SimRunner(threading.Thread):
 
     @property
     def sim(self):
-        """The rigid ``Simulation`` (multibody scenes only)."""
+        """The driver's ``Simulation``."""
         return self.driver.sim
 
     def command(self, name: str, value=None) -> None:
@@ -405,4 +360,4 @@ class SimRunner(threading.Thread):
         if not self._history or frame.t > self._history[-1][0]:
             self._history.append((frame.t, *d.plot_values(frame)))
         self.snapshot = Snapshot(self.generation, d.visuals, frame, self.playing, self.speed, self._rtf(), self.status,
-                                 dict(d.settings), d.kind, d.plots, np.array(self._history), self.waiting)
+                                 dict(d.settings), d.t_end, d.plots, np.array(self._history), self.waiting)

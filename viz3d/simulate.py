@@ -32,7 +32,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
-from viz3d.viz.sink import Sink
+from viz3d.sink import Sink
 
 #: Output interval when the scene gives none [s].
 DEFAULT_OUTPUT_DT = 0.01
@@ -240,11 +240,12 @@ class Simulation:
         steps land on ``target`` (shortened by the contact step bound and by events), adaptive ones
         are sampled there by dense output."""
         s = self._inner
-        end = target - 1e-12 * max(1.0, abs(target))
+        slack = 1e-12 * max(abs(target), self.dt)  # round-off of times, relative to the run's own scale
+        end = target - slack
         while s.t < end and (self.controller is None or self._span is None or self._span.t1 < target):
             s = self._event_step(s, target)
             self._inner = s
-        if self.controller is None or abs(s.t - target) <= 1e-12 * max(1.0, abs(target)):
+        if self.controller is None or abs(s.t - target) <= slack:
             return s.replace(t=target) if self.controller is None else s
         sample = self._span.sample(target)
         W_r, theta = self.system.split_q(sample.q)
@@ -463,8 +464,8 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     scene : Scene, or a path to a scene file
     overrides : "key.path=value" strings or mapping (only with a path)
     t_end, dt : float, optional
-        Override ``sim.t_end`` and ``sim.dt`` [s] (on impact scenes ``dt`` is the output interval
-        ``sim.output_dt``), validated as the scene keys are (``SceneError`` otherwise).
+        Override ``sim.t_end`` and ``sim.dt`` [s] (on adaptive runs ``dt`` is the interval between
+        returned states and frames), validated as the scene keys are (``SceneError`` otherwise).
     progress : bool
         Draw a progress bar on stderr when the run is projected to take over 2 s.
     sinks : sequence of Sink
@@ -475,10 +476,6 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     elif overrides:
         raise ValueError("overrides apply when loading: use load_scene(path, overrides)")
     scene = with_sim(scene, t_end=t_end, dt=dt)
-    if scene.kind == "impact":
-        from viz3d.impact.run import simulate_impact
-
-        return simulate_impact(scene, sinks=sinks, progress=progress)
     system, state = build(scene)
     sim_cfg = scene.data["sim"]
     formulation = make_formulation(sim_cfg)

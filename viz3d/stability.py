@@ -10,7 +10,8 @@ Three maps, each run ending with a reason:
   failure, error against the bench reference (viz3d.bench), constraint drift and energy drift,
   with their histories charted (e.g. plain Euler angles against charts and quaternions through
   theta = 0; constraint drift without stabilization);
-* **model size on an impact** (impact scene with ``--sweep bar.modes=...``): each run against the
+* **model size on contacts** (a scene with contacts, ``--sweep`` and no ``--methods``, e.g.
+  ``--sweep bar.modes=...``): each run against the
   finest one: a contact of the finest model that the run does not have is missed (one the finest
   model does not have is spurious); then the restitution. Contacts are the runs' own, as the
   physics defines them at each model's time resolution (``viz3d.contact.intervals``: breaks and
@@ -69,7 +70,7 @@ class StabilityRow:
 @dataclass
 class StabilityReport:
     scene: str
-    mode: str               # "sweep", "methods" or "impact"
+    mode: str               # "sweep", "methods" or "contacts"
     key: str
     rows: list[StabilityRow]
     histories: dict = field(default_factory=dict)  # method -> (t, |C|, energy drift) for "methods"
@@ -126,12 +127,11 @@ def stability(path, methods: list[str], sweep: str | None, dt: float | None, t_e
     over = list(overrides)
     scene = load_scene(path, over)
     key, values = _parse_sweep(sweep)
-    if scene.kind == "impact":
-        if not sweep:
-            raise ValueError("impact scenes need --sweep (e.g. bar.modes=1,2,4,8,16)")
-        return _impact_map(path, key, values, t_end, over)
     if not methods:
-        raise ValueError(f"{path}: give --methods (e.g. rk4,trapezoidal) for a multibody scene")
+        if not (sweep and scene.data["contacts"]):
+            raise ValueError(f"{path}: give --methods (e.g. rk4,trapezoidal), or --sweep for a scene with contacts "
+                             f"(e.g. bar.modes=1,2,4,8,16)")
+        return _contact_map(path, key, values, t_end, over)
     if sweep:
         return _sweep_map(path, methods, key, values, t_end, over)
     return _methods_map(path, methods, dt, t_end, over)
@@ -224,7 +224,7 @@ def _methods_map(path, methods, dt, t_end, base_over) -> StabilityReport:
     return StabilityReport(Path(path).stem, "methods", "", rows, hist)
 
 
-def _impact_map(path, key, values, t_end, base_over) -> StabilityReport:
+def _contact_map(path, key, values, t_end, base_over) -> StabilityReport:
     runs = [simulate(load_scene(path, base_over + [f"{key}={v}"]), t_end=t_end) for v in values]
     finest = runs[-1]
     ref = finest.extras["contacts"]
@@ -251,11 +251,11 @@ def _impact_map(path, key, values, t_end, base_over) -> StabilityReport:
         rows.append(StabilityRow("", v, float("nan"), reason, detail,
                                  extra={"contacts": int(x["contact_count"]), "restitution": e,
                                         "peak_force": float(np.max(x["contact_force"]))}))
-    return StabilityReport(Path(path).stem, "impact", key, rows)
+    return StabilityReport(Path(path).stem, "contacts", key, rows)
 
 
 def contact_windows(contacts, gap: float) -> list[tuple[float, float]]:
-    """Contact intervals ``(start, end)`` [s] from an impact run's ``contacts`` rows (start, approach
+    """Contact intervals ``(start, end)`` [s] from a run's ``contacts`` rows (start, approach
     speed, end, separation speed), merged at the resolution ``gap`` [s] by the one definition of a
     contact, ``viz3d.contact.intervals.physical_contacts`` (0: the rows as they are; a run's
     ``contacts`` are already merged at its model's time resolution). Unfinished contacts end at
@@ -265,7 +265,7 @@ def contact_windows(contacts, gap: float) -> list[tuple[float, float]]:
 
 
 def _touch_windows(traj) -> list[tuple[float, float]]:
-    """Unresolved touches of an impact run (recontacts shorter than its model resolves)."""
+    """Unresolved touches of a run (recontacts shorter than its model resolves)."""
     touches = np.asarray(traj.extras.get("contact_touches_unresolved", np.zeros((0, 4))), float).reshape(-1, 4)
     return [(float(a), float(b)) for a, _, b, _ in touches]
 

@@ -11,12 +11,12 @@ from law_examples import EXAMPLES, M_EFF, V0
 
 from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, HysteresisLaw, Linear
 from viz3d.contact.parameters import (
-    achieved_restitution,
     hysteresis_factor_exact,
     hysteresis_restitution,
     linear_damping,
     linear_restitution,
 )
+from viz3d.contact.single_impact import achieved_restitution
 
 #: The 1-DOF impact is integrated at rtol 1e-12; energies and restitutions are held to 1e-9 of the
 #: input (three decades of margin for the error accumulated over ~1e3 steps).

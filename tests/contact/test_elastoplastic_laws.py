@@ -10,7 +10,8 @@ import pytest
 from law_examples import EXAMPLES, M_EFF, NU, SIGMA_Y, V0, E, R
 from scipy.integrate import quad
 
-from viz3d.contact.parameters import achieved_restitution, plane_strain_modulus
+from viz3d.contact.parameters import plane_strain_modulus
+from viz3d.contact.single_impact import achieved_restitution
 
 PLASTIC = ("yigit_christoforou", "linear_plastic", "power_plastic")
 #: Closed forms vs their own re-typed formula: rounding only.

@@ -1,7 +1,7 @@
 """What a law allows and how finely a contact must be resolved (viz3d.contact.resolution).
 
 References: closed forms derived here from the law (linear: half period pi sqrt(m/K); Hertz:
-energy balance for the indentation and the exact duration integral of ``viz3d.impact.exact``),
+energy balance for the indentation and the exact duration integral of ``viz3d.contact.exact``),
 and the one-degree-of-freedom impact integrated at rtol 1e-12 (``achieved_restitution``), a
 different method from the closed forms under test.
 """
@@ -11,7 +11,7 @@ import pytest
 from law_examples import EXAMPLES, M_EFF, V0
 
 from viz3d.contact.laws import NORMAL_LAWS, Hertz, Linear
-from viz3d.contact.parameters import achieved_restitution
+from viz3d.contact.single_impact import achieved_restitution
 from viz3d.contact.resolution import (
     admissible_indentation,
     contact_time_scale,
@@ -20,7 +20,7 @@ from viz3d.contact.resolution import (
     load_restitution_slack,
     restitution_diagnosis,
 )
-from viz3d.impact.exact import hertz_impact
+from viz3d.contact.exact import hertz_impact
 
 #: Root finding to ALPHA_RTOL = 1e-10; the 1-DOF reference is integrated at rtol 1e-12.
 ROOT_TOL = 1e-9

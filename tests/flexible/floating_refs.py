@@ -167,3 +167,21 @@ def hamel_velocity_forces(M_B: np.ndarray, dM_B: list, R: np.ndarray, v: np.ndar
     E_r = H_dot[3:6] + np.cross(w, h) + np.cross(v_B, p)
     E_e = H_dot[6:] - dT_deta
     return -np.concatenate([E_t, E_r, E_e])
+
+
+def frame_mass_matrix(model, reference: str) -> np.ndarray:
+    """Mass matrix of the small-rotation linear frame (the former impact engine's, thesis ch. 6 and 10)
+    in ``z = [frame coordinates, q]``: ``free`` = [X, q] (axial) or [Y, Theta, q] (bending, Y and Theta
+    about x = 0), ``pinned`` = [Theta, q]. Couplings ``S1 = int rho A Phi``, ``S2 = int rho A x Phi``
+    (+ ``S_psi`` for Timoshenko); the section's rotary inertia counts only for Timoshenko bars."""
+    m = model
+    rot_inertia = m.inertia_origin + (m.material.rho * m.section.second_moment * m.length
+                                      if m.theory == "timoshenko" else 0.0)
+    if m.kind == "axial":
+        blocks, coupling = np.array([[m.mass]]), m.S1[None]
+    elif reference == "free":
+        blocks = np.array([[m.mass, m.static_moment], [m.static_moment, rot_inertia]])
+        coupling = np.vstack([m.S1, m.S2 + m.S_psi])
+    else:  # pinned
+        blocks, coupling = np.array([[rot_inertia]]), (m.S2 + m.S_psi)[None]
+    return np.block([[blocks, coupling], [coupling.T, m.M]])

@@ -13,7 +13,7 @@ import functools
 import numpy as np
 import pytest
 import sympy as sp
-from floating_refs import X, PolyBasis, SympyBar, hamel_velocity_forces, world_mass_matrix
+from floating_refs import X, PolyBasis, SympyBar, frame_mass_matrix, hamel_velocity_forces, world_mass_matrix
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
@@ -48,7 +48,6 @@ from viz3d.flexible.floating_points import (
     section_angular_jacobian,
     section_rotations,
 )
-from viz3d.impact.bodies import frame_mass_matrix
 from viz3d.rotations import matrix_from_quat, matrix_from_rotation_vector
 
 EPS = np.finfo(float).eps
@@ -294,10 +293,10 @@ def test_free_free_modes_are_mean_axes_and_clamped_free_modes_are_not():
             assert np.abs(G0).max() > 0.01 * scale
 
 
-# ---- the impact engine's linear frame ---------------------------------------------------------------------
+# ---- the linear (small-rotation) frame of thesis ch. 6 and 10 ---------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["bending_cantilever", "timoshenko_cantilever", "bending_free_free",
                                   "bending_cantilever_mass", "axial_clamped_free", "axial_free_mass"])
-def test_small_rotation_limit_is_the_impact_engines_free_frame(name):
+def test_small_rotation_limit_is_the_linear_free_frame(name):
     """At R = I, eta = 0 the planar block of M in (v_d, w_b, eta_dot) is the impact engine's
     ``frame_mass_matrix(model, "free")`` in z = [Y, Theta, q] (Y, Theta about x = 0) after the change of
     origin v_d = Y_dot + x_G Theta_dot, w_b = Theta_dot: M_free = T^T M T. The impact engine counts the

@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import simpson
 from wave_grid_oracle import grid_impact
 
-from viz3d.impact.exact import clamped_bar_rigid_mass, rigid_mass_on_bar, saint_venant_free_bar
+from viz3d.contact.exact import clamped_bar_rigid_mass, rigid_mass_on_bar, saint_venant_free_bar
 
 # Standard data set of the thesis (digest sec. 2): steel bar 0.3 m, 3 cm x 3 cm, impactor of equal mass.
 E, RHO, A, L, M1, V = 210e9, 7900.0, 9e-4, 0.3, 2.133, 1.0

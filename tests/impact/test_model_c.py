@@ -6,7 +6,7 @@ References: the thesis's Fig. 4.20 numbers (2 digits) and the digest's reproduct
 import numpy as np
 import pytest
 
-from viz3d.impact.exact import model_c_impacts
+from viz3d.contact.exact import model_c_impacts
 
 E, RHO, A, L, M1, V = 210e9, 7900.0, 9e-4, 0.3, 2.133, 1.0
 M_EQ = RHO * A * L / 3.0  # the bar's mass lumped by the static deformed shape

@@ -10,8 +10,8 @@ from scipy.integrate import solve_ivp
 from scipy.special import beta as beta_function
 
 from viz3d.contact.laws import Hertz
-from viz3d.contact.parameters import achieved_restitution
-from viz3d.impact.exact import (
+from viz3d.contact.single_impact import achieved_restitution
+from viz3d.contact.exact import (
     bar_bar_impact,
     goldsmith_hertz_approximation,
     hertz_impact,

@@ -1,6 +1,6 @@
 """Independent reference for the rigid mass on a bar: the characteristic grid ("method of steps").
 
-Not the closed-form recursion of ``viz3d.impact.exact``: time is cut into ``n`` equal steps per
+Not the closed-form recursion of ``viz3d.contact.exact``: time is cut into ``n`` equal steps per
 ``T``, every wave is replaced by its step average (the round trip is exactly ``n`` steps, so the
 delay is exact), the impactor equation ``V' = -k (V + 2 S)`` is integrated exactly over each step
 with the step-average incoming wave ``S``, separation is detected at step starts and recontact at

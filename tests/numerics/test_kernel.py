@@ -24,7 +24,9 @@ SENSITIVITY_SAMPLES = 4
 #: through a chart switch [seen ~1e-14].
 STEP_TOL = 1e-10
 
-RIGID = [p for p in sorted(SCENES.glob("*.toml")) if viz3d.load_scene(p).kind == "rigid"]
+#: Scenes of rigid bodies written as ordinary scenes (the impact shorthand has no sim.formulation key).
+RIGID = [p for p in sorted(SCENES.glob("*.toml")) if "[impactor]" not in p.read_text()
+         and all(b["type"] == "rigid" for b in viz3d.load_scene(p).data["bodies"])]
 
 
 def _setup(path, formulation="index1", overrides=None):

@@ -8,7 +8,7 @@ from rerun.chunk import RrdReader
 import viz3d
 from viz3d.cli import main
 from viz3d.viz.recorder_rerun import RerunRecorder
-from viz3d.viz.sink import NullSink
+from viz3d.sink import NullSink
 
 from conftest import SCENES
 from recording import entities, read_column, read_scalars

@@ -5,9 +5,7 @@ import numpy as np
 import pytest
 
 import viz3d
-from viz3d.impact.build import build_impact
-from viz3d.impact.display import geometry, impact_visuals
-from viz3d.scene.build import build
+from viz3d.scene.build import build, initial_pose
 from viz3d.scene.visuals import scene_visuals
 
 from conftest import SCENES
@@ -18,11 +16,14 @@ def _visuals(name, overrides=None):
     return scene_visuals(scene, build(scene)[0])
 
 
-def _impact(name):
+def _impactor(name):
+    """The impactor's vertices in world axes about its centre (k, 3), its centre, and the contact entry."""
     scene = viz3d.load_scene(SCENES / f"{name}.toml")
-    setup = build_impact(scene)
-    geo = geometry(scene, setup)
-    return impact_visuals(scene, setup, geo), geo
+    system = build(scene)[0]
+    vis = scene_visuals(scene, system)
+    i = [b["name"] for b in scene.data["bodies"]].index("impactor")
+    positions, rotations = initial_pose(scene, system.bodies)
+    return vis.bodies[i].vertices.astype(float) @ rotations[i].T, positions[i], scene.data["contacts"][0]
 
 
 def test_tendons_anchored_to_ground_end_on_a_post_standing_on_the_floor():
@@ -49,19 +50,17 @@ def test_reach_of_a_chain_hanging_from_ground_is_its_length():
 
 
 def test_flat_impactor_is_drawn_with_a_flat_contact_face():
-    vis, geo = _impact("impact_clamped_bar")
-    imp = vis.bodies[0]
-    assert imp.name == "impactor"
-    v = imp.vertices.astype(float)
-    along = v @ geo.n
-    assert along.max() == pytest.approx(geo.radius, rel=1e-6)         # the face is where the contact is
-    face = v[along > along.max() - 1e-6 * geo.radius]
+    v, centre, contact = _impactor("impact_clamped_bar")
+    n = np.asarray(contact["normal"])
+    radius = 0.02                                                      # impactor.radius of the scene
+    along = v @ n
+    assert centre + along.min() * n == pytest.approx(contact["point1"], abs=1e-9)  # the face is where the contact is
+    face = v[along < along.min() + 1e-6 * radius]
     assert len(face) >= 8, "the contact side is not flat"
-    lateral = np.linalg.norm(face - np.outer(face @ geo.n, geo.n), axis=1)
-    assert lateral.max() == pytest.approx(geo.radius, rel=1e-3)       # a full disc, not a point
+    lateral = np.linalg.norm(face - np.outer(face @ n, n), axis=1)
+    assert lateral.max() == pytest.approx(radius, rel=1e-3)           # a full disc, not a point
 
 
 def test_spherical_impactor_stays_a_sphere():
-    vis, geo = _impact("impact_bronze_ball")
-    r = np.linalg.norm(vis.bodies[0].vertices.astype(float), axis=1)
-    np.testing.assert_allclose(r, geo.radius, rtol=1e-5)
+    v, _, contact = _impactor("impact_bronze_ball")
+    np.testing.assert_allclose(np.linalg.norm(v, axis=1), contact["radius"], rtol=1e-5)

@@ -1,8 +1,8 @@
 """Contact-law parameters from material data or from a target coefficient of restitution.
 
 Hertz constants (seed 002 eqs 3.27, 7.6), first-yield and fully-plastic indentations (7.7, 7.26),
-the power-plastic constants (7.34), damping parameters that give a requested restitution, and
-``achieved_restitution``: the restitution a law really gives in a one-degree-of-freedom impact.
+the power-plastic constants (7.34) and damping parameters that give a requested restitution (the
+restitution a law really gives in a one-degree-of-freedom impact: ``single_impact.achieved_restitution``).
 Sign conventions and units as in ``viz3d.contact.laws``; SI throughout.
 
 Moduli. ``E' = E / (1 - nu^2)`` is the plane-strain modulus of one body and ``E*`` the effective
@@ -14,15 +14,8 @@ the text says "rigid sphere" (digest Appendix A item 14); the ``*_thesis`` funct
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from scipy.optimize import brentq
-
-from viz3d.contact.single_impact import ImpactOutcome, impact_outcome
-
-if TYPE_CHECKING:
-    from viz3d.contact.laws import ContactMemory, NormalLaw
 
 #: Peak Hertz pressure at first yield, p0 / sigma_Y, for nu ~ 0.3 (von Mises; Johnson 1985, sec. 6.2).
 #: It gives the thesis's 25.27 = (1.6 pi)^2 in (7.26).
@@ -280,31 +273,3 @@ def linear_damping(stiffness: float, m_eff: float, e: float) -> float:
 def _check_restitution(e: float) -> None:
     if not 0.0 < e <= 1.0:
         raise ValueError(f"coefficient of restitution must be in (0, 1], got {e}")
-
-
-# --- what a law really does ------------------------------------------------------------------------
-
-
-def achieved_restitution(law: NormalLaw, m_eff: float, v0: float, memory: ContactMemory | None = None) -> ImpactOutcome:
-    """Integrate the free 1-DOF impact ``m_eff alpha_ddot = -F(alpha, alpha_dot)`` through contact.
-
-    Starts at ``alpha = 0``, ``alpha_dot = v0 > 0``; scipy DOP853 with rtol 1e-12, split at maximum
-    compression (the contact memory is updated there) and stopped when the bodies are apart again.
-
-    Parameters
-    ----------
-    law : NormalLaw
-    m_eff : float
-        Effective mass ``m1 m2 / (m1 + m2)`` [kg].
-    v0 : float
-        Approach speed [m/s], > 0.
-    memory : ContactMemory, optional
-        History from earlier contacts (elastoplastic laws keep their crater).
-
-    Returns
-    -------
-    ImpactOutcome
-        ``restitution = -alpha_dot_out / alpha_dot_in``, contact duration, peak force, peak
-        indentation, energy lost, residual indentation and the sampled history.
-    """
-    return impact_outcome(law, m_eff, v0, memory)

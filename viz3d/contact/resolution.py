@@ -22,7 +22,7 @@ from scipy.optimize import brentq
 
 from viz3d.contact.laws import MIN_APPROACH_SPEED, ContactMemory, HysteresisLaw, Linear, NormalLaw
 from viz3d.contact.parameters import hysteresis_restitution, linear_restitution
-from viz3d.contact.single_impact import impact_outcome
+from viz3d.contact.single_impact import achieved_restitution
 
 #: Largest step during a contact, as a fraction of its time scale (a half period): with 20 steps per
 #: half period the cubic Hermite interpolant on which onset, maximum indentation and separation are
@@ -121,7 +121,7 @@ def free_impact_restitution(law: NormalLaw, m_eff: float, speed: float, memory: 
     Closed forms where they exist (elastic: 1; hysteresis laws: ``hysteresis_restitution(chi)``
     whatever mass and speed, as long as the law sees the true approach speed, i.e. above
     ``MIN_APPROACH_SPEED``; the no-tension linear dashpot: ``linear_restitution(zeta)``),
-    otherwise the law integrated through the contact (``single_impact.impact_outcome``).
+    otherwise the law integrated through the contact (``single_impact.achieved_restitution``).
     """
     if not law.dissipative:
         return 1.0
@@ -129,7 +129,7 @@ def free_impact_restitution(law: NormalLaw, m_eff: float, speed: float, memory: 
         return hysteresis_restitution(law.factor())
     if isinstance(law, Linear):
         return linear_restitution(law.damping / (2.0 * np.sqrt(law.stiffness * m_eff)))
-    return impact_outcome(law, m_eff, speed, memory).restitution
+    return achieved_restitution(law, m_eff, speed, memory).restitution
 
 
 def load_restitution_slack(load_acceleration: float, duration: float, speed: float) -> float:

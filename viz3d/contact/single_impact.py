@@ -99,8 +99,13 @@ class ImpactOutcome:
     history: ImpactHistory
 
 
-def impact_outcome(law: NormalLaw, m_eff: float, v0: float, memory: ContactMemory | None = None) -> ImpactOutcome:
-    """Integrate ``m_eff alpha_ddot = -F`` from ``alpha = 0``, ``alpha_dot = v0 > 0`` until the bodies part.
+def achieved_restitution(law: NormalLaw, m_eff: float, v0: float, memory: ContactMemory | None = None) -> ImpactOutcome:
+    """The restitution a law really gives: integrate the free 1-DOF impact ``m_eff alpha_ddot = -F``
+    from ``alpha = 0``, ``alpha_dot = v0 > 0`` until the bodies part (scipy DOP853, rtol 1e-12).
+
+    ``m_eff = m1 m2 / (m1 + m2)`` [kg]; ``memory``: history from earlier contacts (elastoplastic
+    laws keep their crater). Returns the restitution ``-alpha_dot_out / alpha_dot_in``, contact
+    duration, peak force and indentation, energies, residual indentation and the sampled history.
 
     Two phases: compression to ``alpha_dot = 0`` (the memory is updated there, so the force is exact
     for every law: ``alpha`` is monotonic in each phase) and restitution until ``alpha`` is back to

@@ -116,7 +116,7 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
     body = floating_bar(model, direction, depth_axis=E_Y, modal_damping=bar["damping"])
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
-    return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0), choice
+    return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice), choice
 
 
 def modal_time_resolution(fb: FlexibleBody) -> float:

@@ -31,8 +31,6 @@ LIMITS = Table({
 BYTES_PER_FRAME = 2048
 BYTES_PER_BODY_FRAME = 400
 BYTES_PER_JOINT_FRAME = 100
-#: Stored bytes per coordinate of an impact sample (z, z_dot of both bodies).
-BYTES_PER_COORDINATE_SAMPLE = 32
 #: Default output interval of multibody scenes [s] (viz3d.simulate.DEFAULT_OUTPUT_DT).
 DEFAULT_OUTPUT_DT = 0.01
 
@@ -68,8 +66,9 @@ def check_budget(data: dict, source: str) -> Estimate:
     limits = data["limits"]
     sim = data["sim"]
     t_end = sim["t_end"]
-    if "impactor" in data:
-        return _impact_budget(data, limits, source)
+    for i, b in enumerate(data["bodies"]):
+        if b["type"] == "flexible":
+            check_bar_size(b, limits, source, f"bodies[{i}]")
     n_bodies, n_joints = len(data["bodies"]), len(data["joints"])
     if n_bodies > limits["max_bodies"]:
         raise _over(source, "bodies", f"at most {limits['max_bodies']} bodies", n_bodies, "max_bodies")
@@ -85,28 +84,23 @@ def check_budget(data: dict, source: str) -> Estimate:
                            "sim.output_dt" if "output_dt" in sim else "sim.t_end")
 
 
-def _impact_budget(data: dict, limits: dict, source: str) -> Estimate:
-    bar = data.get("bar")
-    n = 1
-    if bar is not None:
-        key, n = _bar_coordinates(bar)
-        limit = "max_modes" if key == "bar.modes" else "max_flexible_coordinates"
-        what = "analytic modes" if key == "bar.modes" else "finite-element dofs"
-        if n > limits[limit]:
-            raise _over(source, key, f"at most {limits[limit]} {what}", n, limit)
-    frames = data["sim"]["t_end"] / data["sim"]["output_dt"] + 1
-    est = Estimate(0.0, frames, frames * (BYTES_PER_FRAME + BYTES_PER_COORDINATE_SAMPLE * (n + 1)))
-    return _memory_checked(est, limits, source, "sim.output_dt")
+def check_bar_size(bar: dict, limits: dict, source: str, where: str) -> None:
+    """Refuse a flexible bar with more modes or finite-element dofs than ``limits`` allow."""
+    key, n = _bar_coordinates(bar)
+    limit = "max_modes" if key == "modes" else "max_flexible_coordinates"
+    what = "analytic modes" if key == "modes" else "finite-element dofs"
+    if n > limits[limit]:
+        raise _over(source, f"{where}.{key}", f"at most {limits[limit]} {what}", n, limit)
 
 
 def _bar_coordinates(bar: dict) -> tuple[str, int]:
     """The key that sets a bar's size and its number of coordinates (an upper bound)."""
     if bar.get("model", "modal") == "fe" and "elements" in bar:
-        dofs_per_node = 1 if bar["theory"] == "rod" else 2
-        return "bar.elements", (bar["elements"] + 1) * dofs_per_node
+        dofs_per_node = 1 if bar["theory"] == "rod" else 3 if bar.get("element") == "quintic" else 2
+        return "elements", (bar["elements"] + 1) * dofs_per_node
     if "modes" in bar and bar.get("model", "modal") == "modal":
-        return "bar.modes", bar["modes"]
-    return "bar.tolerance", 0  # chosen from the physics, bounded by the selection itself
+        return "modes", bar["modes"]
+    return "tolerance", 0  # chosen from the physics, bounded by the selection itself
 
 
 def _memory_checked(est: Estimate, limits: dict, source: str, key: str) -> Estimate:

@@ -78,3 +78,22 @@ def materials(entry: dict, bodies: list[dict]) -> tuple[dict, dict]:
         else:
             out.append(DEFAULT_MATERIAL)
     return out[0], out[1]
+
+
+def contact_time_estimate(model: str, law, mass: float, speed: float) -> float | None:
+    """Quasi-static duration of a contact of ``mass`` [kg] arriving at ``speed`` [m/s] on a rigid
+    target [s]; None when it is instantaneous or set by the bodies, not the law. It gives the
+    frequency band a flexible body must resolve (``resolve_time``)."""
+    if model != "law" or speed <= 0:
+        return None
+    if isinstance(law, L.Linear):
+        return float(np.pi * np.sqrt(mass / law.stiffness))
+    stiffness = getattr(law, "stiffness", None) or getattr(law, "K_h", None)
+    if stiffness is None:
+        return None
+    n = getattr(law, "exponent", 1.5)
+    # energy balance to the largest indentation, then the duration integral of a power-law spring
+    alpha_m = ((n + 1) * mass * speed**2 / (2 * stiffness)) ** (1 / (n + 1))
+    from scipy.integrate import quad
+
+    return float(2 * alpha_m / speed * quad(lambda s: 1.0 / np.sqrt(1.0 - s ** (n + 1)), 0.0, 1.0, limit=200)[0])

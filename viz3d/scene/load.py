@@ -17,7 +17,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from viz3d.rotations import euler_from_matrix
-from viz3d.scene import spec
+from viz3d.scene import shorthand, spec
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
 from viz3d.scene.schema import Invalid, SceneError, validate
 
@@ -46,11 +46,6 @@ class Scene:
     @property
     def name(self) -> str:
         return self.data["scene"].get("name", self.path.stem)
-
-    @property
-    def kind(self) -> str:
-        """"impact" for scenes with an ``[impactor]`` table, else "rigid"."""
-        return "impact" if "impactor" in self.data else "rigid"
 
     @property
     def base_dir(self) -> Path:
@@ -91,17 +86,14 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
     for key, value in pairs:
         _set_path(raw, key, value, source)
     allowed = tuple(Path(d) for d in mesh_dirs)
-    if "impactor" in raw:
-        from viz3d.impact.spec import IMPACT_FILE
-
-        data = validate(raw, IMPACT_FILE, source)
-    else:
-        if "chain" in raw:
-            check_chain_size(raw["chain"] if isinstance(raw["chain"], dict) else {},
-                             validate(raw.get("limits", {}), LIMITS, source, "limits"), source)
-        data = validate(expand_generators(raw, source), spec.SCENE_FILE, source)
-        _cross_check(data, source)
-        _check_mesh_files(data, path, allowed, source)
+    if "impactor" in raw:  # the impact shorthand: validated as written, then expanded
+        raw = shorthand.expand(validate(raw, shorthand.IMPACT_FILE, source), source)
+    if "chain" in raw:
+        check_chain_size(raw["chain"] if isinstance(raw["chain"], dict) else {},
+                         validate(raw.get("limits", {}), LIMITS, source, "limits"), source)
+    data = validate(expand_generators(raw, source), spec.SCENE_FILE, source)
+    _cross_check(data, source)
+    _check_mesh_files(data, path, allowed, source)
     check_consistency(data, source)
     return Scene(path, data, texts, allowed)
 
@@ -110,17 +102,17 @@ def check_consistency(data: dict, source: str) -> None:
     """Checks across keys of a validated scene: durations and steps that fit together, and the
     estimated size and cost against ``[limits]`` (``viz3d.scene.budget``)."""
     sim = data["sim"]
-    step_key = "output_dt" if "impactor" in data else "dt"
-    if sim[step_key] > sim["t_end"]:
-        raise SceneError(source, f"sim.{step_key}", f"at most sim.t_end = {sim['t_end']:g} s", sim[step_key])
+    for key in ("dt", "output_dt"):
+        if sim.get(key, 0.0) > sim["t_end"]:
+            raise SceneError(source, f"sim.{key}", f"at most sim.t_end = {sim['t_end']:g} s", sim[key])
     check_budget(data, source)
 
 
 def with_sim(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with ``sim`` keys changed (``None`` values ignored), validated like the
     same keys in the file (``--t-end``, ``--dt`` and ``sim.*`` overrides share one validation)
-    and recorded as overrides. On impact scenes ``dt`` is the output interval ``sim.output_dt``
-    (their steps are adaptive, and ``sim.dt`` of an adaptive multibody run means the same).
+    and recorded as overrides. On adaptive runs (``sim.rtol``) ``dt`` is the interval between
+    returned states and sets the frame interval ``sim.output_dt`` with it.
 
     Raises
     ------
@@ -128,13 +120,13 @@ def with_sim(scene: Scene, **changes) -> Scene:
         Naming the ``sim`` key and what was expected.
     """
     changes = {k: v for k, v in changes.items() if v is not None}
-    if "impactor" in scene.data and "dt" in changes:
-        changes["output_dt"] = changes.pop("dt")
+    if "rtol" in scene.data["sim"] and "dt" in changes and "output_dt" in scene.data["sim"]:
+        changes["output_dt"] = changes["dt"]
     if not changes:
         return scene
     texts = tuple(f"sim.{k}={v!r}" for k, v in changes.items())
     source = _source(scene.path, scene.overrides + texts)
-    fields = _sim_table(scene).fields
+    fields = spec.SIM.fields
     data = json.loads(json.dumps(scene.data))
     for key, value in changes.items():
         if key not in fields:
@@ -147,12 +139,7 @@ def with_sim(scene: Scene, **changes) -> Scene:
     return dataclasses.replace(scene, data=data, overrides=scene.overrides + texts)
 
 
-def _sim_table(scene: Scene):
-    if "impactor" in scene.data:
-        from viz3d.impact.spec import IMPACT_FILE
 
-        return IMPACT_FILE.fields["sim"].check
-    return spec.SIM
 
 
 def _source(path: Path, texts: tuple[str, ...]) -> str:

@@ -133,10 +133,9 @@ class RerunRecorder:
         for st in visuals.statics:
             rec.log(f"/world/{st.name}", rr.Mesh3D(vertex_positions=st.vertices, triangle_indices=st.faces,
                                                   albedo_factor=[*st.color.tolist(), 255]), static=True)
-        if visuals.kind == "rigid":
-            for name, color in (("kinetic", [220, 60, 60]), ("potential", [60, 90, 220]), ("total", [30, 30, 30])):
-                rec.log(f"/plots/energy/{name}", rr.SeriesLines(colors=color, names=name), static=True)
-            rec.log("/plots/constraint_violation", rr.SeriesLines(colors=[150, 60, 180], names="max |C|"), static=True)
+        for name, color in (("kinetic", [220, 60, 60]), ("potential", [60, 90, 220]), ("total", [30, 30, 30])):
+            rec.log(f"/plots/energy/{name}", rr.SeriesLines(colors=color, names=name), static=True)
+        rec.log("/plots/constraint_violation", rr.SeriesLines(colors=[150, 60, 180], names="max |C|"), static=True)
         for j in visuals.joint_names:
             rec.log(f"/plots/reaction_force/{j}", rr.SeriesLines(
                 colors=[[220, 60, 60], [60, 160, 60], [60, 90, 220]], names=[f"{j} x", f"{j} y", f"{j} z"]), static=True)
@@ -179,14 +178,12 @@ class RerunRecorder:
             return
         frames, self._buffer = self._buffer, []
         t = rr.TimeColumn("sim_time", duration=np.array([f.t for f in frames]))
-        columns = {}
-        if self.visuals.kind == "rigid":
-            columns = {
-                "/plots/energy/kinetic": [f.energy_kinetic for f in frames],
-                "/plots/energy/potential": [f.energy_potential for f in frames],
-                "/plots/energy/total": [f.energy_total for f in frames],
-                "/plots/constraint_violation": [f.constraint_violation for f in frames],
-            }
+        columns = {
+            "/plots/energy/kinetic": [f.energy_kinetic for f in frames],
+            "/plots/energy/potential": [f.energy_potential for f in frames],
+            "/plots/energy/total": [f.energy_total for f in frames],
+            "/plots/constraint_violation": [f.constraint_violation for f in frames],
+        }
         for key in frames[0].scalars:
             columns[f"/plots/{key}"] = [f.scalars[key] for f in frames]
         for path, values in columns.items():

@@ -101,6 +101,12 @@ def camera_framing(visuals: SceneVisuals, fov: float = CAMERA_FOV) -> tuple[np.n
     return centre + distance * VIEW_DIRECTION, centre
 
 
+def time_unit(t_end: float) -> tuple[float, str]:
+    """Scale and SI prefix of the times shown for a run of duration ``t_end`` [s]: seconds for
+    runs of 10 ms and longer, else the prefix that makes ``t_end`` at least 1 (an impact's µs)."""
+    return (1.0, "") if t_end >= 1e-2 else unit_scale(t_end)
+
+
 def unit_scale(peak: float) -> tuple[float, str]:
     """``(factor, prefix)``: values up to ``peak`` (>= 0) times ``factor`` lie in [1, 1000)."""
     if not (math.isfinite(peak) and peak > 0):
@@ -392,10 +398,10 @@ class Viewer:
         try:
             if self.scene.value != self.runner.scene.path.stem and self.runner.scene.path.stem in self.scene.options:
                 self.scene.value = self.runner.scene.path.stem
-            rigid = snap.kind == "rigid"
+            fixed_steps = bool(snap.settings)  # adaptive runs with contact events keep their own settings
             for handle in (self.integrator, self.dt, self.stabilization):
-                handle.disabled = not rigid
-            if rigid:
+                handle.disabled = not fixed_steps
+            if fixed_steps:
                 self.integrator.value, self.dt.value = snap.settings["integrator"], float(snap.settings["dt"])
             log_speed = _log_speed(snap.speed)
             self.speed.min, self.speed.max = min(SPEED_RANGE[0], log_speed), max(SPEED_RANGE[1], log_speed)
@@ -423,10 +429,9 @@ class Viewer:
         h = snap.history
         if len(h) == 0:
             return
-        window = PLOT_WINDOW if snap.kind == "rigid" else np.inf
-        h = h[h[:, 0] >= h[-1, 0] - window]
-        # time in s for multibody scenes; an impact's microseconds get a prefix (uPlot shows 2e-4 as "0")
-        t_scale, t_prefix = unit_scale(float(np.max(np.abs(h[:, 0])))) if snap.kind == "impact" else (1.0, "")
+        h = h[h[:, 0] >= h[-1, 0] - PLOT_WINDOW]
+        # the time unit from the run's duration: an impact's microseconds get a prefix (uPlot shows 2e-4 as "0")
+        t_scale, t_prefix = time_unit(snap.t_end)
         col = 1
         for k, (handle, (title, labels)) in enumerate(zip(self.plots, snap.plots)):
             values = h[:, col:col + len(labels)]
@@ -444,7 +449,8 @@ def _status(snap: Snapshot) -> str:
     """The panel's status lines."""
     state = ("waiting for a browser to connect" if snap.waiting else "playing" if snap.playing else "paused")
     status = "" if snap.status == "ok" else f"  \n**{snap.status}**"
-    t_txt = f"{snap.frame.t:.3f} s" if snap.kind == "rigid" else f"{1e6 * snap.frame.t:.1f} µs"
+    scale, prefix = time_unit(snap.t_end)
+    t_txt = f"{scale * snap.frame.t:.4g} {prefix}s"
     return (f"**{snap.visuals.name}** &nbsp; t = {t_txt} &nbsp; ({state}, speed {snap.speed:.3g}x)"
             f"  \nreal-time factor achieved: **{snap.rtf:.2f}**{status}")
 
