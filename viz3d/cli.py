@@ -417,8 +417,7 @@ def summary(traj, out: Path) -> str:
         f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
         f"method      {meta['integrator']}, {step}, {meta['formulation']}, {meta['rotation']}",
         f"bodies      {len(traj.body_names)}, joints {len(traj.joint_names)}"
-        + (f"; {x['model_choice']}" if "model_choice" in x and traj.scene["scene"]["bodies"] and
-           any(b.get("type") == "flexible" for b in traj.scene["scene"]["bodies"]) else ""),
+        + (f"; {x['model_choice']}" if str(x.get("model_choice", "rigid bodies")) != "rigid bodies" else ""),
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
         f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, "
         f"{1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",

@@ -225,11 +225,11 @@ def constraint_rows(layout: ConstraintLayout, cfg: Configuration, memory: tuple 
     C, J, Je, gamma, off = [], [], [], [], []
     for js in layout.joints:
         m = js.n_joints * js.n_eq
-        C.append(js.residual(cfg).reshape(-1))
-        Jf, Jel = js.jacobian(cfg)
+        res, (Jf, Jel), gam = js.rows(cfg)
+        C.append(res.reshape(-1))
         J.append(Jf.reshape(m, 2, 6))
         Je.append(Jel.reshape(m, 2, layout.n_elastic))
-        gamma.append(js.gamma(cfg).reshape(-1))
+        gamma.append(gam.reshape(-1))
         off.append(np.zeros(m, dtype=bool) if js.is_joint else np.repeat(~js.active(memory), js.n_eq))
     rows = ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je))
     inactive = np.concatenate(off)

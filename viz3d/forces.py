@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, dot3, force_piece, items, matvec3
+from viz3d.compiled import Items, compiled_piece, dot3, force_piece, inline, items, matvec3
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, apply_force, rigid_points, scatter
 from viz3d.timefunctions import TimeFunctions, value
@@ -277,16 +277,23 @@ class ForceItems(Items):
     """i: [point, time-function kind, in body axes]; f: ``TimeFunctions.table`` row (10)."""
 
 
+@inline
+def _prescribed(d, k, t, R, out, tmp):
+    """Item ``k``'s prescribed vector at ``t`` into ``out`` (3,), in world axes (``R``: its body's
+    rotation, used when the value is given in body axes; ``tmp`` (3,) scratch)."""
+    value(d.i[k, 1], d.f[k], t, out)
+    if d.i[k, 2] == 1:
+        matvec3(R, out, tmp)
+        for c in range(3):
+            out[c] = tmp[c]
+
+
 @compiled_piece(force_piece, ForceItems)
 def _force(d, t, v, power):
-    f, fw = v.v3[8], v.v3[9]
+    f = v.v3[8]
     for k in range(d.i.shape[0]):
         p = d.i[k, 0]
-        value(d.i[k, 1], d.f[k], t, f)
-        if d.i[k, 2] == 1:
-            matvec3(v.R[v.pt_i[p, 0]], f, fw)
-            for c in range(3):
-                f[c] = fw[c]
+        _prescribed(d, k, t, v.R[v.pt_i[p, 0]], f, v.v3[9])
         apply_force(v, p, f)
         power[power.shape[0] - 1] += dot3(f, v.pv[p])
 
@@ -313,14 +320,10 @@ class TorqueItems(Items):
 
 @compiled_piece(force_piece, TorqueItems)
 def _torque(d, t, v, power):
-    tau, tw = v.v3[8], v.v3[9]
+    tau = v.v3[8]
     for k in range(d.i.shape[0]):
         b = d.i[k, 0]
-        value(d.i[k, 1], d.f[k], t, tau)
-        if d.i[k, 2] == 1:
-            matvec3(v.R[b], tau, tw)
-            for c in range(3):
-                tau[c] = tw[c]
+        _prescribed(d, k, t, v.R[b], tau, v.v3[9])
         for c in range(3):
             v.tau[b, c] += tau[c]
         power[power.shape[0] - 1] += dot3(tau, v.wW[b])

@@ -62,6 +62,11 @@ class Joint(ABC):
     def gamma(self, cfg: Configuration) -> FloatArray:
         """Acceleration right-hand side ``gamma = -C_v_dot @ v``, shape (nj, n_eq)."""
 
+    def rows(self, cfg: Configuration) -> tuple[FloatArray, tuple[FloatArray, FloatArray], FloatArray]:
+        """``(residual, jacobian, gamma)`` at ``cfg`` (what the constraint assembly asks of every row
+        provider; a provider whose three share work overrides this to do it once)."""
+        return self.residual(cfg), self.jacobian(cfg), self.gamma(cfg)
+
     def reaction_force(self, J: FloatArray, lam: FloatArray) -> FloatArray:
         """World force on body 1 of each joint, shape (nj, 3) [N], from the frame Jacobian blocks
         (nj, n_eq, 2, 6) and the multipliers (nj, n_eq).

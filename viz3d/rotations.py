@@ -104,6 +104,15 @@ def euler_from_matrix(R: FloatArray) -> FloatArray:
     return np.stack([psi, theta, phi], axis=-1)
 
 
+def frame_with_z(z: FloatArray) -> FloatArray:
+    """A rotation matrix (3, 3) whose third column is the unit vector ``z`` (3,) (the other two
+    completed from whichever world axis is farther from ``z``)."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
 def euler_near_gimbal_lock(angles: FloatArray, sin_min: float) -> np.ndarray:
     """True where ``|sin(theta)| < sin_min``, i.e. nutation near 0 or pi.
 

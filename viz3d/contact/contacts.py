@@ -379,16 +379,14 @@ class ContactRows:
         return np.array([phases[i].touching for i in self.which], dtype=bool)
 
     def _rows(self, cfg):
-        """The rows at ``cfg``; residual, Jacobian and gamma are asked for one after the other at
-        the same configuration, so the last evaluation is kept (by identity of ``cfg``)."""
-        last = self.__dict__.get("_last")
-        if last is not None and last[0] is cfg:
-            return last[1]
         alpha, J, Je, gamma = self.contacts.rows(cfg)
         w = self.which
-        out = alpha[w], J[w], Je[w], gamma[w]
-        object.__setattr__(self, "_last", (cfg, out))
-        return out
+        return alpha[w], J[w], Je[w], gamma[w]
+
+    def rows(self, cfg):
+        """Residual, Jacobian and gamma from one evaluation of the contact geometry."""
+        alpha, J, Je, gamma = self._rows(cfg)
+        return alpha[:, None], (J[:, None], Je[:, None]), gamma[:, None]
 
     def residual(self, cfg):
         return self._rows(cfg)[0][:, None]

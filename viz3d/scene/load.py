@@ -16,7 +16,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from viz3d.rotations import euler_from_matrix
+from viz3d.rotations import euler_from_matrix, frame_with_z
 from viz3d.scene import shorthand, spec
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
 from viz3d.scene.schema import Invalid, SceneError, validate
@@ -246,7 +246,7 @@ def chain_elements(chain: dict) -> tuple[list[dict], list[dict]]:
     d = np.asarray(chain["direction"], float)
     d /= np.linalg.norm(d)
     anchor, omega = np.asarray(chain["anchor"], float), np.asarray(chain["omega"], float)
-    euler = euler_from_matrix(_frame_with_z(d)).tolist()
+    euler = euler_from_matrix(frame_with_z(d)).tolist()
     mass = {"mass": chain["mass"]} if "mass" in chain else {"density": chain["density"]}
     bodies, joints = [], []
     for i in range(n):
@@ -261,14 +261,6 @@ def chain_elements(chain: dict) -> tuple[list[dict], list[dict]]:
             "body2": "ground" if i == 0 else f"{chain['prefix']}{i - 1}", "point": (anchor + i * L * d).tolist(),
         })
     return bodies, joints
-
-
-def _frame_with_z(z: np.ndarray) -> np.ndarray:
-    """A rotation matrix whose third column is the unit vector ``z``."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])
 
 
 # ---------------------------------------------------------------- cross checks

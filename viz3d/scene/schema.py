@@ -195,6 +195,12 @@ def boolean(x):
     return x
 
 
+def numbers(x):
+    if not (isinstance(x, list) and all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in x)):
+        raise Invalid("a list of numbers")
+    return [float(e) for e in x]
+
+
 def vec3(x):
     if not (isinstance(x, list) and len(x) == 3):
         raise Invalid("a list of 3 numbers")

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d.contact.laws import NORMAL_LAWS
-from viz3d.rotations import euler_from_matrix
+from viz3d.rotations import euler_from_matrix, frame_with_z
 from viz3d.scene.bars import bar_frame
 from viz3d.scene.budget import LIMITS, check_bar_size
 from viz3d.scene.contacts import DEFAULT_MATERIAL, RIGID, contact_law, contact_time_estimate
@@ -33,7 +33,6 @@ from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
     Field,
-    Invalid,
     SceneError,
     Table,
     boolean,
@@ -42,6 +41,7 @@ from viz3d.scene.schema import (
     nonnegative,
     nonzero_vec3,
     number,
+    numbers,
     one_of,
     positive,
     positive_int,
@@ -56,12 +56,6 @@ REFERENCES = ("fixed", "free", "pinned")
 BAR, IMPACTOR, CONTACT_NAME, PIVOT = "bar", "impactor", "impact", "pivot"
 #: Display radius of a flat impactor without one [m].
 FLAT_DISPLAY_RADIUS = 0.02
-
-
-def vector(x):
-    if not (isinstance(x, list) and all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in x)):
-        raise Invalid("a list of numbers")
-    return [float(e) for e in x]
 
 
 IMPACT_SIM = Table({
@@ -86,7 +80,7 @@ BAR_TABLE = Table({
     "elements": Field(positive_int, OPTIONAL, "number of finite elements (model = fe)"),
     "tolerance": Field(positive, OPTIONAL, "truncation error target: choose the mode count from the physics"),
     "contact_x": Field(nonnegative, OPTIONAL, "struck section [m] (default L)"),
-    "frame_velocity": Field(vector, OPTIONAL, "initial velocities of the frame coordinates: free rod [u]; free "
+    "frame_velocity": Field(numbers, OPTIONAL, "initial velocities of the frame coordinates: free rod [u]; free "
                             "beam [w at x = 0, rotation]; pinned [rotation] [m/s, rad/s]"),
     "damping": Field(nonnegative, 0.0, "modal damping ratio of every mode"),
     "position": Field(vec3, [0.0, 0.0, 0.0], "world position of the end x = 0 [m]"),
@@ -267,15 +261,7 @@ def impactor_body(imp: dict, mass: float, speed: float, P: np.ndarray, n: np.nda
         return body | {"shape": {"type": "sphere", "radius": r}}
     # a flat-faced cylinder, its axis (body z) along the normal
     return body | {"shape": {"type": "cylinder", "radius": r, "height": 2.0 * r},
-                   "euler": list(euler_from_matrix(_frame_with_z(n)))}
-
-
-def _frame_with_z(z: np.ndarray) -> np.ndarray:
-    """A rotation whose third column is ``z`` (3, 3)."""
-    a = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(a, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])
+                   "euler": list(euler_from_matrix(frame_with_z(n)))}
 
 
 def bar_body(bar: dict, t_c: float | None, src: str) -> dict:
