@@ -15,9 +15,11 @@ each contact was resolved.
   impulse of a kinematic contact and its activation while compressive, restitution impulses
   (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
   contact its target normal velocity while every joint keeps its velocity constraint.
-* **Checks** (``ContactStepping.after_step``, at separation): the indentation reached cannot store
-  more energy than the contact can have been given since onset, and a law contact between rigid
-  bodies separates with the restitution its law allows (``viz3d.contact.resolution``).
+* **Checks** (``ContactStepping.after_step``, at separation): while a law contact lasts, the
+  numerics create no more energy than the error estimates of its steps allow (and its indentation
+  stores no more than the energy available since onset); a law contact separates with the surfaces
+  receding, and between rigid bodies with the restitution its law allows, within what the loads
+  and the error estimates of its normal velocity can change (``viz3d.contact.resolution``).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from viz3d.contact.resolution import (
     STEP_FRACTION,
     contact_time_scale,
     free_impact_restitution,
+    energy_diagnosis,
     indentation_diagnosis,
     integration_restitution_slack,
     load_restitution_slack,
@@ -153,8 +156,6 @@ class ContactStepping:
     system : System
     formulation
         The run's formulation (multipliers of kinematic contacts come from it).
-    rtol, atol : float
-        Tolerances of the run's error control (fixed steps: 0), for the restitution check's slack.
     step_fraction : float
         Longest step during a law contact, as a fraction of its time scale (``inf`` removes the
         bound; for tests of the checks).
@@ -171,10 +172,9 @@ class ContactStepping:
         Time, contact and impulse [N s] of every impulse.
     """
 
-    def __init__(self, system: System, formulation, rtol: float = 0.0, atol: float = 0.0,
-                 step_fraction: float = STEP_FRACTION, kernel=None):
+    def __init__(self, system: System, formulation, step_fraction: float = STEP_FRACTION, kernel=None):
         self.system, self.formulation, self.kernel = system, formulation, kernel
-        self.rtol, self.atol, self.step_fraction = rtol, atol, step_fraction
+        self.step_fraction = step_fraction
         self._k0 = np.cumsum([0] + [c.k for c in system.contacts])
         self._probed: tuple | None = None
         self.log: list[tuple[float, str]] = []
@@ -404,7 +404,7 @@ class ContactStepping:
         touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
         led = ledger(self.system, touching)
         onset = Onset(phase.touches, state.t, approach, before, led.total, led.signed_potential,
-                      self.balance(led), led.dissipated, t_c)
+                      self.balance(led), led.dissipated, t_c, led.work_in)
         return self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory, onset=onset))
 
     def _max_indentation(self, state: State, k: int, i: int) -> State:
@@ -443,43 +443,71 @@ class ContactStepping:
     def balance(self, led: Ledger) -> float:
         return led.total + led.dissipated - led.work_in - (self.E0 if self.E0 is not None else led.total)
 
-    def after_step(self, state: State) -> State:
-        """Count the step of every law contact under way and check its indentation; raises
-        ``SimulationFailure`` with the diagnosis.
+    def after_step(self, state: State, error: FloatArray | None = None) -> State:
+        """Count the step of every law contact under way, add the step's error estimate of its
+        normal velocity, and check its indentation; raises ``SimulationFailure`` with the diagnosis.
 
+        ``error`` is the step's embedded error estimate of ``y = [q, v, w]`` (None for fixed steps).
         The recoverable energy of the indentation cannot exceed what the contact can have been given
         since onset: the system's energy then, less the potential energies that may be negative now
-        (gravity, loads; every other stored energy is >= 0), plus what the numerics created since
-        (the change of the ledger's balance error, and any dissipation that went backwards).
+        (gravity, loads; every other stored energy is >= 0), plus the work of the non-conservative
+        loads since, plus what the numerics may have created since (``Onset.energy_error``: what
+        the error estimates allow, so a run that creates more energy than its tolerance admits
+        stops; and any dissipation that went backwards).
         """
-        led = None
-        for k, c in enumerate(self.system.contacts):
-            if not c.located:
-                continue
-            for i, phase in enumerate(state.memory[k]):
-                if not (phase.touching and c.models[i] == "law" and phase.onset is not None):
-                    continue
-                state = self.with_phase(state, k, i, dataclasses.replace(
-                    phase, onset=dataclasses.replace(phase.onset, n_steps=phase.onset.n_steps + 1)))
-                led = led or ledger(self.system, state)
-                self._indentation_check(state, k, i, led)
+        under_way = [(k, i) for k, c in enumerate(self.system.contacts) if c.located
+                     for i, phase in enumerate(state.memory[k])
+                     if phase.touching and c.models[i] == "law" and phase.onset is not None]
+        if not under_way:
+            return state
+        led = ledger(self.system, state)
+        balance = self.balance(led)
+        low = None if error is None else self.balance(ledger(self.system, self._shifted(state, -error)))
+        for k, i in under_way:
+            o = state.memory[k][i].onset
+            dv = 0.0 if error is None else self._normal_velocity_error(state, k, i, error)
+            before = o.balance if o.n_steps == 0 else o.balance_now
+            dE = abs(balance - (before if low is None else low))
+            state = self.with_phase(state, k, i, dataclasses.replace(state.memory[k][i], onset=dataclasses.replace(
+                o, n_steps=o.n_steps + 1, velocity_error=o.velocity_error + dv, energy_error=o.energy_error + dE,
+                balance_now=balance)))
+            self._energy_check(state, k, i, led, balance)
         return state
 
-    def _indentation_check(self, state: State, k: int, i: int, led: Ledger) -> None:
+    def _shifted(self, state: State, dy: FloatArray) -> State:
+        """``state`` with ``y = [q, v, w]`` moved by ``dy``."""
+        s = self.system
+        return state.replace(q=state.q + dy[:s.n_q], v=state.v + dy[s.n_q:s.n_q + s.n_v], w=state.w + dy[s.n_q + s.n_v:])
+
+    def _normal_velocity_error(self, state: State, k: int, i: int, error: FloatArray) -> float:
+        """``|J_alpha e_v|`` [m/s]: the error estimate ``error`` of ``y`` seen by contact ``(k, i)``'s
+        normal velocity."""
+        s = self.system
+        _, J, Je, _ = self._contact_row(state, k, i)
+        frame, elastic = split_velocity(s, error[s.n_q:s.n_q + s.n_v])
+        return abs(float(apply_jacobian(_single_row(s, k, i), J[None], frame, Je[None], elastic)[0]))
+
+    def _energy_check(self, state: State, k: int, i: int, led: Ledger, balance: float) -> None:
+        """Stop if the numerics created more energy since the contact's onset than the error
+        estimates of its steps allow (``Onset.energy_error``), naming the indentation when it is
+        deeper than the energy available then pays for."""
         c, phase = self.system.contacts[k], state.memory[k][i]
         o, law = phase.onset, c.laws[i]
+        work = led.work_in - o.work_in
+        roundoff = ENERGY_ROUNDOFF * (abs(o.energy) + abs(work) + abs(o.signed_potential - led.signed_potential))
+        created = balance - o.balance
+        if created <= o.energy_error + roundoff:
+            return
         alpha = float(self._gap(state, k).alpha[i])
         need = float(law.elastic_energy(alpha, phase.memory)) if alpha > 0 else 0.0
-        available = o.energy - led.signed_potential
-        if need <= available:
-            return
-        created = abs(self.balance(led) - o.balance) + max(0.0, o.dissipated - led.dissipated)
-        if need <= available + created + ENERGY_ROUNDOFF * abs(o.energy):
-            return
-        detail = (f"{o.energy - o.signed_potential:.3g} J in the system at onset, work of gravity and loads "
-                  f"{o.signed_potential - led.signed_potential:.3g} J, created by the numerics {created:.3g} J")
-        raise SimulationFailure(f"{c.names[i]}: " + indentation_diagnosis(
-            o.number, state.t, alpha, law, available + created, phase.memory, detail))
+        loads = o.signed_potential - led.signed_potential + work
+        allowed = o.energy - o.signed_potential + loads + o.energy_error + max(0.0, o.dissipated - led.dissipated)
+        if need > allowed + roundoff:
+            detail = (f"{o.energy - o.signed_potential:.3g} J in the system at onset, work of gravity and loads "
+                      f"{loads:.3g} J, what the step error estimates allow the numerics {o.energy_error:.3g} J")
+            raise SimulationFailure(f"{c.names[i]}: " + indentation_diagnosis(
+                o.number, state.t, alpha, law, allowed, phase.memory, detail))
+        raise SimulationFailure(f"{c.names[i]}: " + energy_diagnosis(o.number, state.t, created, o.energy_error, o.n_steps))
 
     def _restitution_check(self, state: State, k: int, i: int, separation: float) -> str | None:
         """Diagnosis if the restitution of the law contact just ended is outside what the law allows.
@@ -492,7 +520,7 @@ class ContactStepping:
         o, law = phase.onset, c.laws[i]
         if o is None or o.speed <= 0.0:
             return None
-        slack = integration_restitution_slack(o.n_steps, self.system.n_q + self.system.n_v, self.rtol, self.atol, o.speed)
+        slack = integration_restitution_slack(o.velocity_error, o.speed)
         low, high = -slack, np.inf
         if self._rigid_pair(k, i):
             acc = self._load_acceleration(state, k, i)

@@ -110,7 +110,7 @@ class Simulation:
         self._kernel, self.kernel_note = (_compiled(system, integrator, formulation) if compiled
                                           else (None, "NumPy path (compiled = false)"))
         self._contacts = None   # contact events (systems with contacts): viz3d.events.ContactStepping
-        self._fired = None      # the event handled last, disarmed for the next step
+        self._fired = None      # the event handled last: its contact's events start at a root next step
         #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
         self.event_states: list[State] = []
         if system.contacts:
@@ -121,9 +121,7 @@ class Simulation:
 
         if state.w.size != self.system.n_aux or len(state.memory) != len(self.system.contacts):
             state = state.replace(w=np.zeros(self.system.n_aux), memory=tuple(c.initial_phases() for c in self.system.contacts))
-        c = self.controller
-        self._contacts = ContactStepping(self.system, self.formulation, c.rtol if c else 0.0, c.atol if c else 0.0,
-                                         kernel=self._kernel)
+        self._contacts = ContactStepping(self.system, self.formulation, kernel=self._kernel)
         self.state = self._inner = self._contacts.start(state)
 
     @property
@@ -194,8 +192,9 @@ class Simulation:
 
     def _kernel_ready(self) -> bool:
         """Fixed explicit RK steps the kernel covers (``_compiled`` already declined formulations
-        that step themselves)."""
-        return self._kernel is not None and self._kernel.tableau is not None and self.controller is None
+        that step themselves); never with contacts, whose events are located between the steps."""
+        return (self._kernel is not None and self._kernel.tableau is not None and self.controller is None
+                and self._contacts is None)
 
     def _kernel_step(self, target: float) -> State | None:
         """The step through the compiled kernel, which also makes the health checks and the chart
@@ -275,13 +274,15 @@ class Simulation:
                 self._h = acc.h_next
             f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
         events = contacts.events(s)
-        g0 = [0.0 if ev.name == self._fired else ev.g(s.t, s.y) for ev in events]
-        hit = first_event(events, g0, s.t, s.y, f0, t1, res.y, f1)
+        touched = self._fired.partition(":")[2] if self._fired else None      # "k:i" of the contact handled last
+        fresh = tuple(ev.name for ev in events if ev.name.partition(":")[2] == touched)
+        g0 = [0.0 if ev.name in fresh else ev.g(s.t, s.y) for ev in events]
+        hit = first_event(events, g0, s.t, s.y, f0, t1, res.y, f1, fresh)
         if hit is None:
             self._solver = solver
             self._span = _Span(s.t, t1, s, system, lambda: method.interpolant(rhs, s.t, s.y, h, res, f1)) \
                 if self.controller is not None else None
-            new = contacts.after_step(self._accept(_state_at(system, t1, res.y, s), f1, h))
+            new = contacts.after_step(self._accept(_state_at(system, t1, res.y, s), f1, h), res.error)
             self._fired = None
             if self.controller is not None:
                 self._h = min(self._h, self._turn_limit(f1))
@@ -295,7 +296,7 @@ class Simulation:
         f_ev = res_ev.f1 if res_ev.f1 is not None else rhs(t_ev, res_ev.y)
         self._span = _Span(s.t, t_ev, s, system, lambda: hermite_interpolant(s.t, s.y, f0, t_ev, res_ev.y, f_ev)) \
             if self.controller is not None else None
-        reached = contacts.after_step(self._accept(_state_at(system, t_ev, res_ev.y, s), None, t_ev - s.t))
+        reached = contacts.after_step(self._accept(_state_at(system, t_ev, res_ev.y, s), None, t_ev - s.t), res_ev.error)
         new = contacts.handle(name, reached)
         self._fired, self._f = name, None
         self.event_states.append(new)

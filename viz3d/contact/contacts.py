@@ -85,8 +85,19 @@ class Onset:
         Energy dissipated by the system so far at onset [J].
     time_scale : float
         The contact's time scale [s] (``viz3d.contact.resolution.contact_time_scale``).
+    work_in : float
+        Work done by non-conservative force elements since t = 0, at onset [J].
     n_steps : int
         Accepted steps taken while touching.
+    velocity_error : float
+        Sum over those steps of the magnitude of the error estimate of the relative normal
+        velocity ``alpha_dot`` [m/s] (adaptive steps; 0 for fixed ones).
+    energy_error : float
+        Sum over those steps of the energy the numerics may have created [J]: the change of the
+        ledger's balance error between the step's two embedded solutions (adaptive steps), or the
+        change measured over the step (fixed steps, which have no estimate).
+    balance_now : float
+        Balance error after the last step taken while touching [J].
     """
 
     number: int
@@ -98,7 +109,11 @@ class Onset:
     balance: float
     dissipated: float
     time_scale: float
+    work_in: float = 0.0
     n_steps: int = 0
+    velocity_error: float = 0.0
+    energy_error: float = 0.0
+    balance_now: float = np.nan
 
 
 @dataclass(frozen=True)

@@ -142,16 +142,17 @@ def load_restitution_slack(load_acceleration: float, duration: float, speed: flo
     return 2.0 * abs(load_acceleration) * duration / speed if speed > 0.0 else np.inf
 
 
-def integration_restitution_slack(n_steps: int, n_state: int, rtol: float, atol: float, speed: float) -> float:
-    """Bound on the restitution error of ``n_steps`` accepted adaptive steps.
+def integration_restitution_slack(velocity_error: float, speed: float) -> float:
+    """Bound on the restitution error of the steps taken during a contact.
 
-    Each step's local error is at most 1 in the controller's RMS norm, i.e. at most
-    ``sqrt(n_state) (atol + rtol |v|)`` on a velocity component with ``|v| <= speed``; summed
-    without amplification over the steps and divided by the approach speed.
+    ``velocity_error`` [m/s] sums the magnitudes of the embedded error estimates of the relative
+    normal velocity over the contact's accepted steps: each is the local error of the lower-order
+    solution, an upper bound (asymptotically in the step) of the propagated solution's; summed
+    without amplification and divided by the approach speed ``speed`` [m/s].
     """
     if speed <= 0.0:
         return np.inf
-    return n_steps * np.sqrt(n_state) * (rtol + atol / speed)
+    return velocity_error / speed
 
 
 def indentation_diagnosis(index: int, t: float, alpha: float, law: NormalLaw, energy: float,
@@ -161,6 +162,14 @@ def indentation_diagnosis(index: int, t: float, alpha: float, law: NormalLaw, en
     allowed = admissible_indentation(law, energy, memory)
     return (f"contact {index} at t = {t:.6g} s: indentation {alpha:.3g} m exceeds the {allowed:.2g} m the "
             f"{law.name} law allows with the energy available ({energy:.3g} J{': ' + detail if detail else ''}); "
+            f"the contact was not resolved (reduce sim.rtol or sim.max_step)")
+
+
+def energy_diagnosis(index: int, t: float, created: float, allowed: float, n_steps: int) -> str:
+    """Why a run stops when the numerics created ``created`` [J] during contact ``index`` (1-based)
+    up to ``t`` [s], more than the ``allowed`` [J] the error estimates of its ``n_steps`` steps admit."""
+    return (f"contact {index} at t = {t:.6g} s: energy {created:.3g} J created by the integration since the contact "
+            f"began exceeds the {allowed:.3g} J the error estimates of its {n_steps} steps allow; "
             f"the contact was not resolved (reduce sim.rtol or sim.max_step)")
 
 

@@ -1,12 +1,11 @@
 """Adaptive time stepping with error control, dense output and event location.
 
-Three separate pieces, as in diffrax: a method with an embedded error estimate (an
-``ExplicitRK`` on an embedded tableau such as ``DOPRI5``), a step-size ``Controller``, and
-``integrate``, which drives them over an interval, samples output through cubic Hermite dense
-output and stops exactly at the first event (a sign change of a scalar function ``g(t, y)``).
-``accepted_step`` (step rejection and the next step's proposal) serves ``integrate`` and the
-drivers that own the loop between steps (``viz3d.simulate`` re-charts and projects between
-accepted steps). Nothing here knows what ``y`` describes.
+Separate pieces, as in diffrax: a method with an embedded error estimate (an ``ExplicitRK`` on an
+embedded tableau such as ``DOPRI5``), a step-size ``Controller`` with ``accepted_step`` (step
+rejection and the next step's proposal), cubic Hermite dense output, and ``first_event``, which
+locates the first sign change of scalar functions ``g(t, y)`` inside a step. The driver owns the
+loop between steps (``viz3d.simulate`` re-charts, projects and handles events between accepted
+steps). Nothing here knows what ``y`` describes.
 """
 
 from __future__ import annotations
@@ -92,33 +91,6 @@ class Event:
         return {1: rising, -1: falling, 0: rising or falling}[self.direction]
 
 
-@dataclass
-class Outcome:
-    """Where ``integrate`` stopped and what it cost.
-
-    Attributes
-    ----------
-    t : float
-    y : ndarray, shape (n_y,)
-    f : ndarray, shape (n_y,)
-        ``rhs(t, y)``.
-    event : str or None
-        Name of the event that stopped it, ``None`` at ``t_end``.
-    h : float
-        Step the controller proposes next.
-    n_accepted, n_rejected, n_rhs : int
-    """
-
-    t: float
-    y: FloatArray
-    f: FloatArray
-    event: str | None
-    h: float
-    n_accepted: int = 0
-    n_rejected: int = 0
-    n_rhs: int = 0
-
-
 def hermite(t0, y0, f0, t1, y1, f1, t):
     """Cubic Hermite interpolant between two steps, at ``t`` (scalar or (m,) array)."""
     h = t1 - t0
@@ -129,90 +101,60 @@ def hermite(t0, y0, f0, t1, y1, f1, t):
     return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
 
 
-class _Counted:
-    def __init__(self, rhs):
-        self.rhs, self.n = rhs, 0
+def first_event(events, g0, t0, y0, f0, t1, y1, f1, fresh: tuple[str, ...] = ()):
+    """Earliest (name, time) of an event crossing inside (t0, t1], located on the interpolant.
 
-    def __call__(self, t, y):
-        self.n += 1
-        return self.rhs(t, y)
-
-
-def integrate(rhs, t0: float, y0: FloatArray, t_end: float, method: Integrator, controller: Controller,
-              events: tuple[Event, ...] = (), h: float | None = None, f0: FloatArray | None = None,
-              on_step: Callable | None = None, disarmed: tuple[str, ...] = ()) -> Outcome:
-    """Integrate ``y' = rhs(t, y)`` from ``t0`` until ``t_end`` or the first event.
-
-    Parameters
-    ----------
-    method : Integrator
-        With an embedded error estimate (``StepResult.error`` not None).
-    h : float, optional
-        First step to try (default: estimated).
-    on_step : callable (t0, y0, f0, t1, y1, f1) -> None, optional
-        Called after every accepted step (including the final partial step to an event), e.g. to
-        sample output through ``hermite``.
-    disarmed : tuple of str
-        Events that just fired at ``t0`` (their function is zero to round-off there): they are
-        ignored during the first accepted step, so a root at the start is not found again.
-
-    Raises
-    ------
-    StepSizeUnderflow
-        If the controller needs a step below ``controller.min_step``.
+    ``fresh`` names events that start at a root: an event just handled at ``t0`` (its function
+    is zero to round-off there, of either sign), or one armed by it (the separation of a contact
+    that just began). The sign at ``t0`` says nothing about such an event: it crosses when its
+    interpolant is on its armed side (before the crossing) at one of ``FRESH_PROBES`` points of
+    the step and on the other side later, so a contact that begins and ends inside one step ends
+    inside it, and an event that just fired does not fire again at once.
     """
-    rhs = _Counted(rhs)
-    t, y = t0, np.asarray(y0, float)
-    f = rhs(t, y) if f0 is None else f0
-    h = controller.first_step(rhs, t, y, f, error_order(method)) if h is None else h
-    g = [0.0 if ev.name in disarmed else ev.g(t, y) for ev in events]
-    out = Outcome(t, y, f, None, h)
-    while t < t_end:
-        acc = accepted_step(rhs, t, y, f, min(h, t_end - t, controller.max_step), method, controller)
-        res, h = acc.res, acc.h
-        out.n_rejected += acc.n_rejected
-        t1 = t + h
-        f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
-        hit = first_event(events, g, t, y, f, t1, res.y, f1)
-        if hit is not None:
-            name, t_ev = hit
-            res_ev = method.step(rhs, t, y, t_ev - t, f0=f)  # the method's own solution at the event
-            f_ev = res_ev.f1 if res_ev.f1 is not None else rhs(t_ev, res_ev.y)
-            if on_step:
-                on_step(t, y, f, t_ev, res_ev.y, f_ev)
-            out.n_accepted += 1
-            out.t, out.y, out.f, out.event, out.h = t_ev, res_ev.y, f_ev, name, h
-            out.n_rhs = rhs.n
-            return out
-        if on_step:
-            on_step(t, y, f, t1, res.y, f1)
-        out.n_accepted += 1
-        g = [ev.g(t1, res.y) for ev in events]
-        t, y, f = t1, res.y, f1
-        h = acc.h_next
-    out.t, out.y, out.f, out.h, out.n_rhs = t, y, f, h, rhs.n
-    return out
-
-
-def first_event(events, g0, t0, y0, f0, t1, y1, f1):
-    """Earliest (name, time) of an event crossing inside (t0, t1], located on the interpolant."""
     best = None
     for ev, g_start in zip(events, g0):
         g_end = ev.g(t1, y1)
-        if not ev.crosses(g_start, g_end):
-            continue
+
         def g_of(t, ev=ev):
             return ev.g(t, hermite(t0, y0, f0, t1, y1, f1, t))
-        lo_val = g_of(t0)
-        if np.sign(lo_val) == np.sign(g_end) and g_end != 0.0:
-            t_ev = t1  # interpolant disagrees at the start: take the step end
-        elif g_end == 0.0:
-            t_ev = t1
+
+        if ev.name in fresh:
+            t_ev = _fresh_crossing(ev, g_of, t0, t1, g_end)
+        elif not ev.crosses(g_start, g_end):
+            continue
         else:
-            t_ev = brentq(g_of, t0, t1, xtol=EVENT_XTOL * (t1 - t0) + 1e-300)
-        if best is None or t_ev < best[1]:
+            t_ev = _locate(g_of, t0, t1, g_end)
+        if t_ev is not None and (best is None or t_ev < best[1]):
             best = (ev.name, t_ev)
     return best
+
+
+#: Points on which a fresh event's interpolant is searched for its armed side (see ``first_event``).
+FRESH_PROBES = 32
+
+
+def _locate(g_of, t0: float, t1: float, g_end: float) -> float:
+    """Root of ``g_of`` in (t0, t1] bracketed by a sign change (the step end if the interpolant
+    disagrees with the step at ``t0`` or the end is the root)."""
+    lo_val = g_of(t0)
+    if g_end == 0.0 or (np.sign(lo_val) == np.sign(g_end)):
+        return t1
+    return float(brentq(g_of, t0, t1, xtol=EVENT_XTOL * (t1 - t0) + 1e-300))
+
+
+def _fresh_crossing(ev, g_of, t0: float, t1: float, g_end: float) -> float | None:
+    """First crossing of a fresh event after its interpolant is on the armed side at one of the
+    ``FRESH_PROBES`` points of the step (None if it never is, or ends there)."""
+    side = -1.0 if ev.direction > 0 else 1.0            # armed: below 0 for a rising event, above for falling
+    if side * g_end > 0.0:
+        return None
+    armed = None
+    for t in np.linspace(t0, t1, FRESH_PROBES + 1)[1:]:
+        if side * g_of(t) > 0.0:
+            armed = t
+        elif armed is not None:
+            return float(brentq(g_of, armed, t, xtol=EVENT_XTOL * (t1 - t0) + 1e-300))
+    return None
 
 
 @dataclass(frozen=True)
