@@ -234,10 +234,10 @@ class VectorField:
         return retract(self.system, q, w[: self.n_v], self.chart)
 
 
-def energies(system: System, state: State, cfg: Configuration | None = None) -> tuple[float, float]:
+def energies(system: System, state: State, cfg: Configuration | None = None, gaps: tuple = ()) -> tuple[float, float]:
     """Kinetic and potential energy [J] of a state (potential of all conservative elements, plus the
-    strain energy of flexible bodies and the energy stored in contacts); ``cfg``: its configuration
-    if the caller has it."""
+    strain energy of flexible bodies and the energy stored in contacts); ``cfg``: its configuration,
+    ``gaps``: each contact set's ``gap(cfg)``, if the caller has them."""
     cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
     T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
     V = sum(e.potential_energy(cfg) for e in system.forces)
@@ -245,7 +245,8 @@ def energies(system: System, state: State, cfg: Configuration | None = None) -> 
         T += _flexible_kinetic(fb, cfg, i)
         V += ffr.strain_energy(fb.bar, cfg.eta[i])
     for k, c in enumerate(system.contacts):
-        V += float(c.elastic_energy(cfg, state.memory[k] if state.memory else c.initial_phases()).sum())
+        phases = state.memory[k] if state.memory else c.initial_phases()
+        V += float(c.elastic_energy(cfg, phases, gaps[k] if gaps else None).sum())
     return T, float(V)
 
 

@@ -93,19 +93,21 @@ class Ledger:
         return self.kinetic + self.potential + self.strain + self.contact_elastic
 
 
-def ledger(system: System, state: State, cfg=None, energy: tuple[float, float] | None = None) -> Ledger:
-    """The energy ledger of ``state`` (see ``Ledger``); ``cfg`` and ``energy`` (its configuration
-    and ``dynamics.energies``) if the caller has them."""
+def ledger(system: System, state: State, cfg=None, energy: tuple[float, float] | None = None,
+           gaps: tuple = ()) -> Ledger:
+    """The energy ledger of ``state`` (see ``Ledger``); ``cfg``, ``energy`` and ``gaps`` (its
+    configuration, ``dynamics.energies`` and each contact set's ``gap(cfg)``) if the caller has them."""
     from viz3d.dynamics import energies
 
     cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
-    T, V_all = energies(system, state, cfg) if energy is None else energy
+    gaps = gaps or tuple(c.gap(cfg) for c in system.contacts)
+    T, V_all = energies(system, state, cfg, gaps) if energy is None else energy
     strain = sum(float(0.5 * cfg.eta[i] @ fb.bar.K @ cfg.eta[i]) for i, fb in enumerate(system.bodies.flexible))
     signed = sum(e.potential_energy(cfg) for e in system.forces if isinstance(e, (Gravity, AppliedForce)))
     elastic, dissipated, k0 = 0.0, 0.0, 0
     for k, c in enumerate(system.contacts):
         phases = state.memory[k] if state.memory else c.initial_phases()
-        U = c.elastic_energy(cfg, phases)
+        U = c.elastic_energy(cfg, phases, gaps[k])
         W = state.w[k0:k0 + c.k] if state.w.size else np.zeros(c.k)
         elastic += float(U.sum())
         dissipated += float(np.sum(W - U)) + sum(p.impulse_loss for p in phases)
@@ -588,14 +590,17 @@ def _row_index(system: System, k: int, i: int) -> int:
     raise KeyError(f"contact ({k}, {i}) has no constraint row (not kinematic)")
 
 
-def contact_forces(system: System, state: State, lam: FloatArray) -> list[FloatArray]:
+def contact_forces(system: System, state: State, lam: FloatArray, gaps: tuple = ()) -> list[FloatArray]:
     """Normal force of every contact [N], per set (k,): the law's, or a kinematic contact's
-    multiplier ``lam`` (the state's multipliers, ``Accelerations.lam``) while it touches."""
-    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    multiplier ``lam`` (the state's multipliers, ``Accelerations.lam``) while it touches; ``gaps``:
+    each set's ``gap`` at ``state`` if the caller has them."""
+    if not gaps:
+        cfg = body_state(system, state.q, state.v, state.chart, state.t)
+        gaps = tuple(c.gap(cfg) for c in system.contacts)
     out = []
     for k, c in enumerate(system.contacts):
         phases = state.memory[k] if state.memory else c.initial_phases()
-        F = c.magnitudes(c.gap(cfg), phases)
+        F = c.magnitudes(gaps[k], phases)
         for i in c.rigid_rows():
             if phases[i].touching:
                 F[i] = max(float(lam[_row_index(system, k, i)]), 0.0)

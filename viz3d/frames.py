@@ -219,29 +219,32 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``.
     """
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
-    T, V = energies(system, state, cfg)
-    acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
-    reactions, points = [], []
-    for js, sl in zip(system.joints.joints, system.joints.row_slices()):
-        if not js.is_joint:
-            continue
-        J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
-        reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
-        points.append(js.points(cfg))
+    gaps = tuple(c.gap(cfg) for c in system.contacts)
+    T, V = energies(system, state, cfg, gaps)
+    reactions, points, lam, violation = [], [], np.zeros(0), 0.0
+    if system.n_c:  # multipliers: joint reactions, kinematic contact forces
+        acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
+        lam, violation = acc.lam, _joint_violation(system, acc.rows.C)
+        for js, sl in zip(system.joints.joints, system.joints.row_slices()):
+            if not js.is_joint:
+                continue
+            J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
+            reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
+            points.append(js.points(cfg))
     springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
     contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]
     scalars: dict[str, float] = {}
     for out in system.outputs:
         scalars.update(out.values(cfg))
     if system.contacts:
-        contacts += _contact_display(system, state, cfg, acc.lam, scalars)
-        scalars.update(_ledger_scalars(system, state, reference_energy, cfg, (T, V)))
+        contacts += _contact_display(system, state, gaps, lam, scalars)
+        scalars.update(_ledger_scalars(system, state, reference_energy, cfg, (T, V), gaps))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
         joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
-        constraint_violation=_joint_violation(system, acc.rows.C), scalars=scalars,
+        constraint_violation=violation, scalars=scalars,
         deformed={d.name: d.vertices(cfg) for d in drawings},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
 
@@ -253,13 +256,12 @@ def _joint_violation(system: System, C: FloatArray) -> float:
     return float(np.max(np.abs(rows))) if rows.size else 0.0
 
 
-def _contact_display(system: System, state: State, cfg, lam, scalars: dict) -> list:
+def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: dict) -> list:
     """Contact points and forces of every contact set (for display), and their scalars."""
     from viz3d.events import contact_forces
 
     out = []
-    for c, F in zip(system.contacts, contact_forces(system, state, lam)):
-        gp = c.gap(cfg)
+    for c, gp, F in zip(system.contacts, gaps, contact_forces(system, state, lam, gaps)):
         for i, name in enumerate(c.names):
             scalars[f"contact/{name}/force"] = float(F[i])
             scalars[f"contact/{name}/indentation"] = float(max(gp.alpha[i], 0.0))
@@ -268,10 +270,10 @@ def _contact_display(system: System, state: State, cfg, lam, scalars: dict) -> l
     return out
 
 
-def _ledger_scalars(system: System, state: State, reference_energy: float | None, cfg, energy) -> dict[str, float]:
+def _ledger_scalars(system: System, state: State, reference_energy: float | None, cfg, energy, gaps) -> dict[str, float]:
     from viz3d.events import ledger
 
-    led = ledger(system, state, cfg, energy)
+    led = ledger(system, state, cfg, energy, gaps)
     out = {"energy/kinetic": led.kinetic, "energy/potential": led.potential, "energy/strain": led.strain,
            "energy/contact_elastic": led.contact_elastic, "energy/dissipated": led.dissipated,
            "energy/work_in": led.work_in}

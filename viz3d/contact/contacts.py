@@ -320,9 +320,10 @@ class ContactSet:
         gp = self.gap(cfg)
         return self.magnitudes(gp, phases) * gp.alpha_dot
 
-    def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> FloatArray:
-        """Recoverable energy stored in each acting law contact [J], shape (k,)."""
-        gp = self.gap(cfg)
+    def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...], gp: Gap | None = None) -> FloatArray:
+        """Recoverable energy stored in each acting law contact [J], shape (k,); ``gp``: ``gap(cfg)``
+        if the caller has it."""
+        gp = self.gap(cfg) if gp is None else gp
         on = self.active(phases, gp)
         U = np.zeros(self.k)
         for i in np.flatnonzero(on & (gp.alpha > 0.0)):
