@@ -67,6 +67,9 @@ def bar_model(bar: dict, src: str, where: str) -> tuple[BarModel, str]:
         raise
     except ValueError as exc:
         raise SceneError(src, f"{where}.supports", f"a bar model that exists ({exc})") from None
+    except (RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. no mode found in floating point
+        raise SceneError(src, where, f"a bar whose model can be computed (length {bar['length']:g} m, section and "
+                         f"material of a physical bar; here: {exc})") from None
 
 
 def _fe(bar, args, supports, masses, floating, src, where) -> tuple[BarModel, str]:
