@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.constraints import constraint_rows
 from viz3d.dynamics import accelerations, body_state, centres_of_mass, energies
 from viz3d.forces import SpringDamper
 from viz3d.system import State, System
@@ -212,24 +213,31 @@ class FlexibleDrawing:
 
 
 def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
-                     reference_energy: float | None = None) -> Frame:
+                     reference_energy: float | None = None, lam: FloatArray | None = None) -> Frame:
     """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side).
 
     ``drawings``: the ``FlexibleDrawing`` of each flexible body to draw deformed; with contacts,
-    ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``.
+    ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``;
+    ``lam``: the multipliers at ``state`` (n_c,) if the caller has them (the compiled kernel's),
+    else they are solved for here.
     """
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
     gaps = tuple(c.gap(cfg) for c in system.contacts)
     T, V = energies(system, state, cfg, gaps)
-    reactions, points, lam, violation = [], [], np.zeros(0), 0.0
-    if system.n_c:  # multipliers: joint reactions, kinematic contact forces
+    reactions, points, violation = [], [], 0.0
+    joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
+    rows = None
+    if system.n_c and lam is None:  # multipliers: joint reactions, kinematic contact forces
         acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
-        lam, violation = acc.lam, _joint_violation(system, acc.rows.C)
-        for js, sl in zip(system.joints.joints, system.joints.row_slices()):
-            if not js.is_joint:
-                continue
-            J = acc.rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
-            reactions.append(js.reaction_force(J, acc.lam[sl].reshape(js.n_joints, js.n_eq)))
+        lam, rows = acc.lam, acc.rows
+    elif joints:
+        rows = constraint_rows(system.joints, cfg, state.memory)
+    lam = np.zeros(0) if lam is None else lam
+    if joints:
+        violation = _joint_violation(system, rows.C)
+        for js, sl in joints:
+            J = rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
+            reactions.append(js.reaction_force(J, lam[sl].reshape(js.n_joints, js.n_eq)))
             points.append(js.points(cfg))
     springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
     contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]

@@ -103,7 +103,7 @@ class Driver:
     def _frame(self, state) -> Frame:
         contacts = self.sim.contacts
         return frame_from_state(self.system, self.formulation, state, self._drawings,
-                                contacts.E0 if contacts is not None else None)
+                                contacts.E0 if contacts is not None else None, self.sim.multipliers(state))
 
     def frame(self) -> Frame:
         return self._frame(self.sim.state)

@@ -124,6 +124,16 @@ class Simulation:
         self._contacts = ContactStepping(self.system, self.formulation, kernel=self._kernel)
         self.state = self._inner = self._contacts.start(state)
 
+    def multipliers(self, state: State) -> np.ndarray | None:
+        """The multipliers at ``state`` (n_c,) from the compiled kernel, for frames; None without
+        constraint rows or kernel (or where the kernel cannot evaluate: the NumPy path then says why)."""
+        if self._kernel is None or not self.system.n_c:
+            return None
+        try:
+            return self._kernel.multipliers(state.t, state.y, state.chart, state.memory)
+        except np.linalg.LinAlgError:
+            return None
+
     @property
     def contacts(self):
         """The run's ``viz3d.events.ContactStepping`` (None without contacts)."""
@@ -558,7 +568,7 @@ class _Emitter:
     def _frame(self, state: State) -> Frame:
         contacts = self.sim.contacts
         return frame_from_state(self.sim.system, self.formulation, state, self.drawings,
-                                contacts.E0 if contacts is not None else None)
+                                contacts.E0 if contacts is not None else None, self.sim.multipliers(state))
 
     def emit(self, output: bool) -> None:
         frame = self._frame(self.sim.state)
