@@ -448,18 +448,19 @@ def contact_lines(traj) -> list[str]:
     unresolved = (f" ({breaks} breaks and {touches} touches shorter than {tau * 1e6:.3g} us, the period of the model's "
                   f"highest mode, which it cannot resolve: Gibbs ringing of the truncated modes, merged or left out)"
                   if breaks or touches else "")
-    dv, de = float(x.get("velocity_uncertainty", 0.0)), float(x.get("restitution_uncertainty", np.nan))
+    dv, de = float(x.get("relative_velocity_uncertainty", 0.0)), float(x.get("restitution_uncertainty", np.nan))
     v = np.asarray(x["approach_velocity"], float)
     name = str(x["contact_names"][0])
     v_txt = ""
+    speeds = np.asarray(x.get("impact_speeds", np.zeros((0, 2))), float).reshape(-1, 2)
     if v.size:
         v_end = -float(v[-1, 0])
-        v_txt = f"{float(v[0, 0]):.4g} -> {v_end:.4g}" + (f" +- {dv:.2g}" if dv > 0 else "") + " m/s apart"
+        v_start = float(speeds[0, 0]) if len(speeds) else float(v[0, 0])  # approaching the first contact
+        v_txt = f"{v_start:.4g} -> {v_end:.4g}" + (f" +- {dv:.2g}" if dv > 0 else "") + " m/s apart"
         if dv > 0:
             v_txt += (" (+-: velocity jumps of instantaneous impulses on the modal body, shorter than it can resolve"
                       + ("; the sign of the final motion is not resolved)" if abs(v_end) < dv else ")"))
     e_txt = f"{float(x['restitution']):.4f}" + (f" +- {de:.2g}" if np.isfinite(de) and de > 0 else "")
-    speeds = np.asarray(x.get("impact_speeds", np.zeros((0, 2))), float).reshape(-1, 2)
     if len(speeds):
         e_txt += (f" of the bodies' rigid motion (impact 1 of {len(speeds)}: approaching at {speeds[0, 0]:.4g} m/s "
                   f"before its first contact, {-speeds[0, 1]:.4g} m/s apart after its last)")

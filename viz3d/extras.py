@@ -10,7 +10,7 @@ centres of mass, positive approaching), ``gauge_strain`` (n, ng), the ledger ``e
 them, ``contact_touch_names`` (m,), ``contact_count``, ``contact_restitution`` (m,),
 ``contact_breaks_unresolved`` (m,), ``contact_touches_unresolved`` (u, 4), ``contact_events`` (r, 4),
 ``restitution`` (the bodies', first impact), ``restitution_uncertainty``, ``impact_restitution``
-(ni,), ``impact_speeds`` (ni, 2), ``velocity_uncertainty``, ``restitution_requested``,
+(ni,), ``impact_speeds`` (ni, 2), ``velocity_uncertainty``, ``relative_velocity_uncertainty``, ``restitution_requested``,
 ``time_resolution``, ``contact_resolution``, ``model_choice``.
 """
 
@@ -75,6 +75,7 @@ def _contact_fields(sim, scene, frames, names: list[str]) -> dict:
         "impact_restitution": rep.restitution,
         "impact_speeds": rep.speeds,
         "velocity_uncertainty": np.array(rep.velocity_uncertainty),
+        "relative_velocity_uncertainty": np.array(rep.relative_velocity_uncertainty),
         "restitution_requested": np.array(requested[0] if requested else np.nan, float),
         "time_resolution": np.array(max(resolutions.values(), default=0.0)),
         "contact_resolution": np.array(rep.resolution),

@@ -131,6 +131,8 @@ def test_bouncing_ball_restitution_is_measured_from_the_first_contact():
     np.testing.assert_allclose(x["impact_restitution"], x["contact_restitution"], rtol=1e-12)  # one contact per bounce
     text = summary(traj, Path("out"))
     assert "restitution 0.8327 of the bodies' rigid motion (impact 1 of 5" in text
+    # the approach line starts from the speed before the first contact (was "0 ->": the ball at rest at t = 0)
+    assert f"impact: {np.sqrt(2 * G * H):.4g} -> " in text, text
 
 
 def test_bar_trajectory_gives_its_centre_of_mass_position_and_velocity():
@@ -215,6 +217,11 @@ def test_stated_uncertainty_covers_the_exact_final_velocity_and_restitution(scen
         # resolved", the exact being +0.0003.)
         line, = [ln for ln in summary(traj, Path("out")).splitlines() if ln.startswith("approach")]
         v_end, dv = map(float, re.search(r"-> (\S+) \+- (\S+) m/s apart", line).groups())
+        # the relative velocity's +- counts each impulse's jump on both bodies: sum P (1/m1 + 1/m2),
+        # the impactor's sum P / m1 times (1 + m1 / M_BAR) = (1 + 1 / beta) (was the impactor's alone)
+        rel = float(x["relative_velocity_uncertainty"])
+        assert rel == pytest.approx(float(x["velocity_uncertainty"]) * (1 + 1 / beta), rel=1e-9)
+        assert dv == pytest.approx(rel, rel=0.05)  # printed with 2 digits
         assert abs(v_end - (sv.v2_plus - sv.v1_plus)) <= dv, line
         assert ("the sign of the final motion is not resolved" in line) == (abs(v_end) < dv), line
 

@@ -46,6 +46,8 @@ class ContactReport:
         What the model cannot resolve in each restitution (see the module docstring).
     velocity_uncertainty : float
         The same for body 1's final velocity [m/s].
+    relative_velocity_uncertainty : float
+        The same for the final relative normal velocity of the bodies' centres of mass [m/s].
     resolution : float
         The largest time resolution used [s].
     """
@@ -59,6 +61,7 @@ class ContactReport:
     speeds: FloatArray
     uncertainty: FloatArray
     velocity_uncertainty: float
+    relative_velocity_uncertainty: float
     resolution: float
     impact_contacts: list = field(default_factory=list)
 
@@ -87,7 +90,7 @@ def contact_report(records, impulses, rigid_now: dict[str, float], resolutions: 
     """
     names, rows, breaks, touches, events = [], [], [], [], []
     rest, speeds, unc, groups_all = [], [], [], []
-    v_unc = 0.0
+    v_unc, v_rel_unc = 0.0, 0.0
     for name in dict.fromkeys(r.contact for r in records):
         mine = [r for r in records if r.contact == name]
         located = np.array([[r.t_start, r.approach, r.t_end, r.separation] for r in mine], float)
@@ -112,6 +115,7 @@ def contact_report(records, impulses, rigid_now: dict[str, float], resolutions: 
                 unc.append(mobilities.get(name, (0.0, 0.0))[1] * P[np.isin(owner, g)].sum() / abs(before))
             groups_all.append((name, g))
         v_unc += mobilities.get(name, (0.0, 0.0))[0] * float(P.sum())
+        v_rel_unc += mobilities.get(name, (0.0, 0.0))[1] * float(P.sum())
     rows_all = np.concatenate(rows) if rows else np.zeros((0, 4))
     order = np.argsort(rows_all[:, 0], kind="stable")
     first = np.argsort([t for t, in _starts(groups_all, records)], kind="stable").astype(int)
@@ -120,7 +124,7 @@ def contact_report(records, impulses, rigid_now: dict[str, float], resolutions: 
                          np.concatenate(touches) if touches else np.zeros((0, 4)),
                          np.concatenate(events) if events else np.zeros((0, 4)),
                          np.array(rest, float)[first], np.array(speeds, float).reshape(-1, 2)[first],
-                         np.array(unc, float)[first], v_unc, max(resolutions.values(), default=0.0), groups_all)
+                         np.array(unc, float)[first], v_unc, v_rel_unc, max(resolutions.values(), default=0.0), groups_all)
 
 
 def _starts(groups_all, records) -> list[tuple[float]]:
