@@ -171,7 +171,8 @@ def constrain(m, v, w, t, rows):
     for k in range(v.Je.shape[0]):
         v.Je[k] = 0.0
     for d in literal_unroll(rows):
-        row_piece(d, t, v)
+        if d.i.shape[0] > 0:
+            row_piece(d, t, v)
     for b in range(m.nb + 1):
         for i in range(3):
             w.tw[b, i] = w.vW[b, i]
@@ -310,7 +311,8 @@ def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
     kinematics(m, v, w)
     clear(m, v, w)
     for d in literal_unroll(forces):
-        force_piece(d, t, v, w.aux)
+        if d.i.shape[0] > 0:  # every registered type is passed (one compiled signature); most are empty
+            force_piece(d, t, v, w.aux)
     generalized_forces(m, v, w)
     if not free_accelerations(m, v, w):
         return SINGULAR
@@ -327,4 +329,5 @@ def gaps(t, y, chart, m, v, w, geometry, out):
     frames(m, v, w, y, chart)
     kinematics(m, v, w)
     for d in literal_unroll(geometry):
-        gap_piece(d, v, out)
+        if d.i.shape[0] > 0:
+            gap_piece(d, v, out)
