@@ -110,7 +110,7 @@ def generalized_forces(m, v, w):
         body_forces(m, v, w, fx)
 
 
-@jit
+@inline
 def _rigid_solve(mass, inertia_inv, b, x, out):
     """``out = M_b^-1 x`` (6,) for a rigid body."""
     for i in range(3):
@@ -138,7 +138,7 @@ def free_accelerations(m, v, w):
     return True
 
 
-@jit
+@inline
 def _row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
     """``C_v[row] . x`` for per-body frame vectors ``x6`` (nb + 1, 6) and elastic ``xe`` (n_e,)."""
     acc = 0.0
