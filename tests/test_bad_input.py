@@ -99,6 +99,20 @@ def test_a_bar_whose_modes_cannot_be_computed_is_refused(capsys):
              "impact_clamped_bar.toml", "bodies[0]", "a bar whose model can be computed", "length 1e+300 m")
 
 
+@pytest.mark.parametrize("scene, override, key", [
+    # found by the override fuzzer on a fresh clone: each raised from the physics instead of a message
+    ("impact_cantilever_plastic", "bar.material.E=1e-300", "contact"),
+    ("impact_cantilever_plastic", "bar.material.E=2.982507795877363e+170", "contact"),
+    ("impact_cantilever_plastic", "bar.material.E=1.7024475736037724e+134", "contact"),
+    ("impact_clamped_bar", "bar.section.depth=1e-300", "bodies[0].section"),
+    ("impact_clamped_bar", "bar.material.E=2.982507795877363e+170", "bodies"),
+    ("impact_clamped_bar", "bar.length=1.3407807929942597e+154", "bodies[0]"),
+    ("impact_clamped_bar", "bar.length=5.643803094122362e+102", "bodies[0]"),
+])
+def test_values_the_physics_cannot_compute_are_refused_naming_the_table(scene, override, key, capsys):
+    _refused(["check", SCENES / f"{scene}.toml", "--set", override], capsys, f"{scene}.toml", f": {key}: expected ")
+
+
 def test_a_huge_mode_count_is_refused_before_it_is_built(capsys):
     _refused(["check", SCENES / "impact_free_bar.toml", "--set", "bar.modes=100000"], capsys, "bar.modes",
              "limits.max_modes")

@@ -97,6 +97,9 @@ def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
 
     from conftest import ROOT
 
+    # compile (and cache) the chain's kernel first: with a cold numba cache the subprocess would still be
+    # compiling when the signal comes (seen with pytest-xdist on a fresh clone), which tests the compiler
+    viz3d.simulate(SCENES / "chain.toml", {"sim.t_end": 1e-3})
     path = tmp_path / "sigint.rrd"
     proc = subprocess.Popen([sys.executable, "-m", "viz3d", "run", str(SCENES / "chain.toml"), "--t-end", "100",
                              "--record", str(path), "--out", str(tmp_path / "c.npz"), "--no-progress"],

@@ -28,12 +28,15 @@ def material_section(bar: dict, src: str, where: str) -> tuple[Material, Section
         raise SceneError(src, f"{where}.material.rho", "the bar's density [kg/m^3]")
     sec = bar["section"]
     k = {"shear_coefficient": sec["shear_coefficient"]} if "shear_coefficient" in sec else {}
-    if sec["type"] == "rectangle":
-        section = Section.rectangle(sec["width"], sec["depth"], **k)
-    elif sec["type"] == "circle":
-        section = Section.circle(sec["diameter"], **k)
-    else:
-        section = Section(sec["area"], sec["second_moment"], sec["depth"], **k)
+    try:
+        if sec["type"] == "rectangle":
+            section = Section.rectangle(sec["width"], sec["depth"], **k)
+        elif sec["type"] == "circle":
+            section = Section.circle(sec["diameter"], **k)
+        else:
+            section = Section(sec["area"], sec["second_moment"], sec["depth"], **k)
+    except ValueError as exc:  # e.g. a second moment that underflows to 0
+        raise SceneError(src, f"{where}.section", f"a section with positive area and second moment (here: {exc})") from None
     return Material(m["E"], m["rho"], m["nu"]), section
 
 
@@ -65,9 +68,7 @@ def bar_model(bar: dict, src: str, where: str) -> tuple[BarModel, str]:
         return _economical(args, supports, bar.get("resolve_x", bar["length"]), bar.get("resolve_time"), bar["tolerance"])
     except SceneError:
         raise
-    except ValueError as exc:
-        raise SceneError(src, f"{where}.supports", f"a bar model that exists ({exc})") from None
-    except (RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. no mode found in floating point
+    except (ValueError, RuntimeError, ArithmeticError) as exc:  # e.g. no mode found in floating point
         raise SceneError(src, where, f"a bar whose model can be computed (length {bar['length']:g} m, section and "
                          f"material of a physical bar; here: {exc})") from None
 
@@ -116,7 +117,11 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
     """The scene's flexible body ``index`` and how its model was chosen."""
     model, choice = bar_model(bar, src, where)
     direction = E_X if model.kind == "axial" else E_Y
-    body = floating_bar(model, direction, depth_axis=E_Y, modal_damping=bar["damping"])
+    try:
+        body = floating_bar(model, direction, depth_axis=E_Y, modal_damping=bar["damping"])
+    except (ValueError, ArithmeticError) as exc:  # e.g. inertia invariants out of floating-point range
+        raise SceneError(src, where, f"a bar whose model can be computed (length {bar['length']:g} m, section and "
+                         f"material of a physical bar; here: {exc})") from None
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
     return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice), choice

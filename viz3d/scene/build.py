@@ -350,6 +350,8 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
         names = redundant_joints(system, *constraint_jacobian(system.joints, _configuration(system, state)))
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"
         raise SceneError(source, "joints", f"independent joints ({who})") from None
+    except np.linalg.LinAlgError as exc:  # a body's mass block (e.g. a bar with absurd dimensions)
+        raise SceneError(source, "bodies", f"bodies whose mass matrices are positive definite (here: {exc})") from None
     except ProjectionError as exc:
         raise SceneError(source, "joints", f"joints that can all be satisfied at once ({exc})") from None
     dq = _max_position_change(system, state.q, q)

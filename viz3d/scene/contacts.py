@@ -19,7 +19,19 @@ RIGID = {"E": np.inf, "nu": 0.0}
 
 def contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str):
     """``(model, law, requested restitution)`` of one contact: model ``"law"``, ``"rigid"`` or
-    ``"restitution"``; the law (None unless a law); the restitution asked for (None if none)."""
+    ``"restitution"``; the law (None unless a law); the restitution asked for (None if none).
+    Parameters the law's own formulas cannot use (overflow, no root in floating point) are refused
+    naming the contact."""
+    try:
+        return _contact_law(entry, materials, src, where)
+    except SceneError:
+        raise
+    except (ValueError, ArithmeticError, RuntimeError) as exc:
+        raise SceneError(src, where, f"parameters and materials the {entry['law']} law can be computed from "
+                         f"(here: {exc})") from None
+
+
+def _contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str):
     name = entry["law"]
     if name == "rigid":
         return "rigid", None, None
