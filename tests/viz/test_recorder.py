@@ -97,13 +97,18 @@ def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
 
     from conftest import ROOT
 
-    # compile (and cache) the chain's kernel first: with a cold numba cache the subprocess would still be
-    # compiling when the signal comes (seen with pytest-xdist on a fresh clone), which tests the compiler
-    viz3d.simulate(SCENES / "chain.toml", {"sim.t_end": 1e-3})
+    # The same command, short, first: it compiles and caches every kernel the run needs. With a cold
+    # numba cache the interrupted run would otherwise still be compiling when the signal comes (tens
+    # of seconds; seen with pytest-xdist on a fresh clone), and a signal then is lost or breaks the
+    # compiler (see the closing note of stop 17).
+    def command(t_end, name):
+        return [sys.executable, "-m", "viz3d", "run", str(SCENES / "chain.toml"), "--t-end", t_end,
+                "--record", str(tmp_path / f"{name}.rrd"), "--out", str(tmp_path / f"{name}.npz"), "--no-progress"]
+
+    warm = subprocess.run(command("0.05", "warm"), cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert warm.returncode == 0, warm.stderr
     path = tmp_path / "sigint.rrd"
-    proc = subprocess.Popen([sys.executable, "-m", "viz3d", "run", str(SCENES / "chain.toml"), "--t-end", "100",
-                             "--record", str(path), "--out", str(tmp_path / "c.npz"), "--no-progress"],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(command("100", "sigint"), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while not path.exists() and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -113,7 +118,7 @@ def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
     assert proc.returncode == 1 and "interrupted at t =" in out, (out, err)
     t, _ = read_scalars(path, "/plots/energy/total")
     assert len(t) > 100
-    traj = viz3d.Trajectory.load(tmp_path / "c.npz")
+    traj = viz3d.Trajectory.load(tmp_path / "sigint.npz")
     assert traj.t[-1] == pytest.approx(t[-1], abs=0.011)
 
 
