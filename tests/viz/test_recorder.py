@@ -108,7 +108,10 @@ def test_ctrl_c_on_the_command_line_leaves_a_readable_recording(tmp_path):
     warm = subprocess.run(command("0.05", "warm"), cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert warm.returncode == 0, warm.stderr
     path = tmp_path / "sigint.rrd"
-    proc = subprocess.Popen(command("100", "sigint"), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT back to its default in the child: a suite started as a background job (`cmd &` in a script)
+    # hands its children SIGINT ignored, and Python then never raises KeyboardInterrupt
+    proc = subprocess.Popen(command("100", "sigint"), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60
     while not path.exists() and time.monotonic() < deadline:
         time.sleep(0.1)
