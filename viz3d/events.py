@@ -405,8 +405,9 @@ class ContactStepping:
         t_c = contact_time_scale(law, self.effective_mass(state, k, i), max(approach, 0.0), before, pressing)
         touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
         led = ledger(self.system, touching)
+        balance = self.balance(led)
         onset = Onset(phase.touches, state.t, approach, before, led.total, led.signed_potential,
-                      self.balance(led), led.dissipated, t_c, led.work_in)
+                      balance, led.dissipated, t_c, led.work_in, balance_now=balance)
         return self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory, onset=onset))
 
     def _max_indentation(self, state: State, k: int, i: int) -> State:
@@ -464,22 +465,16 @@ class ContactStepping:
             return state
         led = ledger(self.system, state)
         balance = self.balance(led)
-        low = None if error is None else self.balance(ledger(self.system, self._shifted(state, -error)))
+        low = None if error is None else self.balance(ledger(self.system, self.state_at(state.t, state.y - error, state)))
         for k, i in under_way:
             o = state.memory[k][i].onset
             dv = 0.0 if error is None else self._normal_velocity_error(state, k, i, error)
-            before = o.balance if o.n_steps == 0 else o.balance_now
-            dE = abs(balance - (before if low is None else low))
+            dE = abs(balance - (o.balance_now if low is None else low))
             state = self.with_phase(state, k, i, dataclasses.replace(state.memory[k][i], onset=dataclasses.replace(
                 o, n_steps=o.n_steps + 1, velocity_error=o.velocity_error + dv, energy_error=o.energy_error + dE,
                 balance_now=balance)))
             self._energy_check(state, k, i, led, balance)
         return state
-
-    def _shifted(self, state: State, dy: FloatArray) -> State:
-        """``state`` with ``y = [q, v, w]`` moved by ``dy``."""
-        s = self.system
-        return state.replace(q=state.q + dy[:s.n_q], v=state.v + dy[s.n_q:s.n_q + s.n_v], w=state.w + dy[s.n_q + s.n_v:])
 
     def _normal_velocity_error(self, state: State, k: int, i: int, error: FloatArray) -> float:
         """``|J_alpha e_v|`` [m/s]: the error estimate ``error`` of ``y`` seen by contact ``(k, i)``'s

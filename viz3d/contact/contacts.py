@@ -97,7 +97,7 @@ class Onset:
         ledger's balance error between the step's two embedded solutions (adaptive steps), or the
         change measured over the step (fixed steps, which have no estimate).
     balance_now : float
-        Balance error after the last step taken while touching [J].
+        Balance error after the last step taken while touching (at onset: ``balance``) [J].
     """
 
     number: int

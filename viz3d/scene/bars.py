@@ -69,8 +69,7 @@ def bar_model(bar: dict, src: str, where: str) -> tuple[BarModel, str]:
     except SceneError:
         raise
     except (ValueError, RuntimeError, ArithmeticError) as exc:  # e.g. no mode found in floating point
-        raise SceneError(src, where, f"a bar whose model can be computed (length {bar['length']:g} m, section and "
-                         f"material of a physical bar; here: {exc})") from None
+        raise SceneError(src, where, _uncomputable(bar, exc)) from None
 
 
 def _fe(bar, args, supports, masses, floating, src, where) -> tuple[BarModel, str]:
@@ -113,6 +112,12 @@ def bar_frame(bar: dict) -> tuple[FloatArray, FloatArray]:
     return axis, np.column_stack([axis, bend, np.cross(axis, bend)])
 
 
+def _uncomputable(bar: dict, exc: Exception) -> str:
+    """What a bar the physics cannot compute should have been."""
+    return (f"a bar whose model can be computed (length {bar['length']:g} m, section and material of a physical bar; "
+            f"here: {exc})")
+
+
 def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[FlexibleBody, str]:
     """The scene's flexible body ``index`` and how its model was chosen."""
     model, choice = bar_model(bar, src, where)
@@ -120,8 +125,7 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
     try:
         body = floating_bar(model, direction, depth_axis=E_Y, modal_damping=bar["damping"])
     except (ValueError, ArithmeticError) as exc:  # e.g. inertia invariants out of floating-point range
-        raise SceneError(src, where, f"a bar whose model can be computed (length {bar['length']:g} m, section and "
-                         f"material of a physical bar; here: {exc})") from None
+        raise SceneError(src, where, _uncomputable(bar, exc)) from None
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
     return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice), choice
