@@ -46,8 +46,12 @@ try:  # numba is optional: without it every run takes the NumPy path
 except ImportError:  # pragma: no cover - exercised only where numba is missing
     numba = None
 
-#: Options of every compiled function of viz3d.
-JIT_OPTIONS = {"cache": True, "error_model": "numpy"}
+#: Options of every compiled function of viz3d. ``_nrt=False``: no reference counting of arrays. The
+#: compiled code never allocates (every scratch array comes from ``viz3d.kernel.model.workspace``),
+#: and counting references cost more than the arithmetic: each call and each row view (``v3[2]``,
+#: ``R[b]``) took and released one atomic reference per array (the right-hand side of a 2-link
+#: chain took twice as long). An allocation in compiled code is then a compile error.
+JIT_OPTIONS = {"cache": True, "error_model": "numpy", "_nrt": False}
 #: ... and of those called only from compiled code: no wrappers for calls from Python (the wrapper
 #: that unboxes the kernel's named tuples of arrays costs more to compile than most functions).
 INNER_OPTIONS = dict(JIT_OPTIONS, no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -191,7 +195,7 @@ def registered(target) -> tuple[type[Items], ...]:
 # ---------------------------------------------------------------------------- small 3-vector helpers
 
 
-@jit
+@inline
 def cross3(a, b, out):
     """``out = a x b`` (3,)."""
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -199,21 +203,21 @@ def cross3(a, b, out):
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@jit
+@inline
 def matvec3(A, x, out):
     """``out = A x`` for A (3, 3)."""
     for i in range(3):
         out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
 
 
-@jit
+@inline
 def tmatvec3(A, x, out):
     """``out = A^T x`` for A (3, 3)."""
     for i in range(3):
         out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
 
 
-@jit
+@inline
 def dot3(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 

@@ -99,6 +99,9 @@ class KernelStepper:
         self.ws = workspace(data)
         self._entries: dict = {}
         self._memory_id, self._view = None, self.ws[0]
+        n = data.model.n_q + data.model.n_v + data.model.n_aux
+        stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
+        self._k, self._yi = np.empty((stages, n)), np.empty(n)
 
     def view(self, memory: tuple):
         """The workspace's view with the contacts' memory ``memory`` (a ``State.memory``)."""
@@ -140,7 +143,7 @@ class KernelStepper:
         tab, d = self.tableau, self.data
         v, w = self.ws
         return advance(n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w, d.forces,
-                       d.rows)
+                       d.rows, self._k, self._yi)
 
 
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
