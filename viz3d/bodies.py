@@ -114,6 +114,7 @@ class Bodies:
     flexible: tuple[FlexibleBody, ...] = ()
     M_inv: FloatArray = field(init=False, repr=False)
     is_rigid: np.ndarray = field(init=False, repr=False)
+    _rigid_mass_inertia: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         nb = len(self.names)
@@ -128,6 +129,7 @@ class Bodies:
         M_inv[:nb][rigid, 3:, 3:] = np.linalg.inv(self.inertia[rigid]) if rigid.any() else np.zeros((0, 3, 3))
         object.__setattr__(self, "M_inv", M_inv)
         object.__setattr__(self, "is_rigid", rigid)
+        object.__setattr__(self, "_rigid_mass_inertia", (self.mass[rigid], self.inertia[rigid]))
 
     @property
     def n_bodies(self) -> int:
@@ -148,7 +150,9 @@ class Bodies:
 
     def kinetic_energy(self, W_v: FloatArray, B_omega: FloatArray) -> float:
         """Kinetic energy of the rigid bodies [J] from (nb, 3) velocities and body angular velocities."""
-        rigid = self.is_rigid
-        trans = self.mass[rigid] @ np.einsum("bi,bi->b", W_v[rigid], W_v[rigid])
-        rot = np.einsum("bi,bij,bj->", B_omega[rigid], self.inertia[rigid], B_omega[rigid])
+        if not self.all_rigid:
+            W_v, B_omega = W_v[self.is_rigid], B_omega[self.is_rigid]
+        mass, inertia = self._rigid_mass_inertia
+        trans = mass @ np.einsum("bi,bi->b", W_v, W_v)
+        rot = np.einsum("bi,bij,bj->", B_omega, inertia, B_omega)
         return 0.5 * float(trans + rot)

@@ -12,6 +12,7 @@ and an elastic part (n_e,).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -238,16 +239,35 @@ def energies(system: System, state: State, cfg: Configuration | None = None, gap
     """Kinetic and potential energy [J] of a state (potential of all conservative elements, plus the
     strain energy of flexible bodies and the energy stored in contacts); ``cfg``: its configuration,
     ``gaps``: each contact set's ``gap(cfg)``, if the caller has them."""
+    e = energy_terms(system, state, cfg, gaps)
+    return e.kinetic, float(sum(e.potentials) + sum(e.strain) + sum(float(U.sum()) for U in e.contact_elastic))
+
+
+class EnergyTerms(NamedTuple):
+    """The energies of a state term by term [J]: ``kinetic`` (all bodies), ``potentials`` (one per
+    force element, in ``System.forces`` order), ``strain`` (one per flexible body) and
+    ``contact_elastic`` (per contact set, (k,))."""
+
+    kinetic: float
+    potentials: list
+    strain: list
+    contact_elastic: list
+
+
+def energy_terms(system: System, state: State, cfg: Configuration | None = None, gaps: tuple = ()) -> EnergyTerms:
+    """Every energy term of a state, each computed once (``energies`` sums them; the ledger of
+    ``viz3d.events`` splits them); ``cfg`` and ``gaps`` as in ``energies``."""
     cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
     T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
-    V = sum(e.potential_energy(cfg) for e in system.forces)
+    strain = []
     for i, fb in enumerate(system.bodies.flexible):
         T += _flexible_kinetic(fb, cfg, i)
-        V += ffr.strain_energy(fb.bar, cfg.eta[i])
+        strain.append(float(ffr.strain_energy(fb.bar, cfg.eta[i])))
+    U = []
     for k, c in enumerate(system.contacts):
         phases = state.memory[k] if state.memory else c.initial_phases()
-        V += float(c.elastic_energy(cfg, phases, gaps[k] if gaps else None).sum())
-    return T, float(V)
+        U.append(c.elastic_energy(cfg, phases, gaps[k] if gaps else None))
+    return EnergyTerms(float(T), [e.potential_energy(cfg) for e in system.forces], strain, U)
 
 
 def _flexible_kinetic(fb, cfg: Configuration, i: int) -> float:

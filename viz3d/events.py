@@ -93,30 +93,27 @@ class Ledger:
         return self.kinetic + self.potential + self.strain + self.contact_elastic
 
 
-def ledger(system: System, state: State, cfg=None, energy: tuple[float, float] | None = None,
-           gaps: tuple = ()) -> Ledger:
-    """The energy ledger of ``state`` (see ``Ledger``); ``cfg``, ``energy`` and ``gaps`` (its
-    configuration, ``dynamics.energies`` and each contact set's ``gap(cfg)``) if the caller has them."""
-    from viz3d.dynamics import energies
+def ledger(system: System, state: State, cfg=None, gaps: tuple = ()) -> Ledger:
+    """The energy ledger of ``state`` (see ``Ledger``); ``cfg`` and ``gaps`` (its configuration and
+    each contact set's ``gap(cfg)``) if the caller has them."""
+    from viz3d.dynamics import energy_terms
 
     cfg = body_state(system, state.q, state.v, state.chart, state.t) if cfg is None else cfg
     gaps = gaps or tuple(c.gap(cfg) for c in system.contacts)
-    T, V_all = energies(system, state, cfg, gaps) if energy is None else energy
-    strain = sum(float(0.5 * cfg.eta[i] @ fb.bar.K @ cfg.eta[i]) for i, fb in enumerate(system.bodies.flexible))
-    signed = sum(e.potential_energy(cfg) for e in system.forces if isinstance(e, (Gravity, AppliedForce)))
+    e = energy_terms(system, state, cfg, gaps)
+    signed = sum(V for f, V in zip(system.forces, e.potentials) if isinstance(f, (Gravity, AppliedForce)))
     elastic, dissipated, k0 = 0.0, 0.0, 0
-    for k, c in enumerate(system.contacts):
+    for k, (c, U) in enumerate(zip(system.contacts, e.contact_elastic)):
         phases = state.memory[k] if state.memory else c.initial_phases()
-        U = c.elastic_energy(cfg, phases, gaps[k])
         W = state.w[k0:k0 + c.k] if state.w.size else np.zeros(c.k)
         elastic += float(U.sum())
         dissipated += float(np.sum(W - U)) + sum(p.impulse_loss for p in phases)
         k0 += c.k
-    V = V_all - strain - elastic
     if state.w.size:
         dissipated += float(state.w[-2])
     work_in = float(state.w[-1]) if state.w.size else 0.0
-    return Ledger(T, V, strain, elastic, float(signed), dissipated, work_in)
+    return Ledger(e.kinetic, float(sum(e.potentials)), float(sum(e.strain)), elastic, float(signed), dissipated,
+                  work_in)
 
 
 # ---------------------------------------------------------------------------- contact records

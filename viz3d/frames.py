@@ -223,7 +223,13 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     """
     cfg = body_state(system, state.q, state.v, state.chart, state.t)
     gaps = tuple(c.gap(cfg) for c in system.contacts)
-    T, V = energies(system, state, cfg, gaps)
+    if system.contacts:
+        from viz3d.events import ledger
+
+        led = ledger(system, state, cfg, gaps)
+        T, V = led.kinetic, led.potential + led.strain + led.contact_elastic
+    else:
+        T, V = energies(system, state, cfg, gaps)
     reactions, points, violation = [], [], 0.0
     joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
     rows = None
@@ -246,7 +252,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         scalars.update(out.values(cfg))
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)
-        scalars.update(_ledger_scalars(system, state, reference_energy, cfg, (T, V), gaps))
+        scalars.update(_ledger_scalars(led, reference_energy))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
@@ -278,10 +284,7 @@ def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: di
     return out
 
 
-def _ledger_scalars(system: System, state: State, reference_energy: float | None, cfg, energy, gaps) -> dict[str, float]:
-    from viz3d.events import ledger
-
-    led = ledger(system, state, cfg, energy, gaps)
+def _ledger_scalars(led, reference_energy: float | None) -> dict[str, float]:
     out = {"energy/kinetic": led.kinetic, "energy/potential": led.potential, "energy/strain": led.strain,
            "energy/contact_elastic": led.contact_elastic, "energy/dissipated": led.dissipated,
            "energy/work_in": led.work_in}
