@@ -129,7 +129,8 @@ class Bodies:
         M_inv[:nb][rigid, 3:, 3:] = np.linalg.inv(self.inertia[rigid]) if rigid.any() else np.zeros((0, 3, 3))
         object.__setattr__(self, "M_inv", M_inv)
         object.__setattr__(self, "is_rigid", rigid)
-        object.__setattr__(self, "_rigid_mass_inertia", (self.mass[rigid], self.inertia[rigid]))
+        which = None if rigid.all() else np.flatnonzero(rigid)  # rows of the rigid bodies, None: all
+        object.__setattr__(self, "_rigid_mass_inertia", (which, self.mass[rigid], self.inertia[rigid]))
 
     @property
     def n_bodies(self) -> int:
@@ -150,9 +151,9 @@ class Bodies:
 
     def kinetic_energy(self, W_v: FloatArray, B_omega: FloatArray) -> float:
         """Kinetic energy of the rigid bodies [J] from (nb, 3) velocities and body angular velocities."""
-        if not self.all_rigid:
-            W_v, B_omega = W_v[self.is_rigid], B_omega[self.is_rigid]
-        mass, inertia = self._rigid_mass_inertia
+        rigid, mass, inertia = self._rigid_mass_inertia
+        if rigid is not None:
+            W_v, B_omega = W_v[rigid], B_omega[rigid]
         trans = mass @ np.einsum("bi,bi->b", W_v, W_v)
-        rot = np.einsum("bi,bij,bj->", B_omega, inertia, B_omega)
+        rot = np.sum(B_omega * np.matmul(inertia, B_omega[:, :, None])[:, :, 0])
         return 0.5 * float(trans + rot)

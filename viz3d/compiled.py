@@ -8,7 +8,8 @@ written next to its NumPy code and registered here for one of four **targets**:
 * ``force_piece(d, t, v, power)``: force elements and law contacts add their generalized forces to
   ``v`` and the power that is not in a potential energy to ``power`` (the ledger's work rates);
 * ``row_piece(d, t, v)``: a row provider (joint set, kinematic contacts) fills its constraint rows;
-* ``gap_piece(d, v, out)``: contacts write their indentation and its rate (the event functions);
+* ``gap_piece(d, v, out)``: contacts write their indentation, its rate (the event functions), normal,
+  separation and contact point;
 * ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max)``: a normal law's magnitude
   (its parameters in ``d.f[k, p0:]``).
 
@@ -122,7 +123,9 @@ def row_piece(d, t, v):
 
 
 def gap_piece(d, v, out):
-    """Write ``[alpha, alpha_dot]`` of the contacts ``d`` into their rows of ``out`` (n_contacts, 2)."""
+    """Write the gap of the contacts ``d`` into their rows of ``out`` (n_contacts, 11): ``alpha``,
+    ``alpha_dot``, then the world normal, ``a - b`` and the contact point, 3 each (the fields of
+    ``viz3d.contact.contacts.Gap``)."""
     raise NotImplementedError
 
 
@@ -235,11 +238,30 @@ def _stamp(files: tuple[str, ...]) -> str:
     return h.hexdigest()
 
 
-def source_stamp() -> str:
-    """One hash of the source files with compiled code: this module, every module of viz3d that
-    imports it, and the files of pieces registered from elsewhere (independent of import order)."""
+def stamped_files() -> tuple[str, ...]:
+    """The source files with compiled code: this module, every module of viz3d that imports it,
+    and the files of pieces registered from elsewhere (independent of import order)."""
     ours = {str(p) for p in PACKAGE.rglob("*.py") if p.name == "compiled.py" or _uses_compiled(p)}
-    return _stamp(tuple(sorted(ours | _SOURCES)))
+    return tuple(sorted(ours | _SOURCES))
+
+
+def source_stamp() -> str:
+    """One hash of ``stamped_files``: the key of every cached compiled function of viz3d."""
+    files = stamped_files()
+    return _stamp_cached(files, tuple(_mtime(f) for f in files))
+
+
+@functools.lru_cache(maxsize=8)
+def _stamp_cached(files: tuple[str, ...], mtimes: tuple) -> str:
+    return _stamp(files)
+
+
+def _mtime(name: str) -> tuple:
+    try:
+        st = Path(name).stat()
+        return st.st_mtime_ns, st.st_size
+    except OSError:
+        return None
 
 
 @functools.lru_cache(maxsize=None)
@@ -268,10 +290,14 @@ def _install_stamp_locators() -> None:
         from numba.core import caching
     except ImportError:  # pragma: no cover
         return
-    impl = getattr(caching, "_CacheImpl", None)
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # renamed in numba 0.6x
     bases = [getattr(caching, name, None) or getattr(caching, "_" + name, None)
              for name in ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
-    if impl is None or not hasattr(impl, "_locator_classes") or None in bases:
+    if impl is None or not hasattr(impl, "_locator_classes") or None in bases:  # pragma: no cover
+        import warnings
+
+        warnings.warn(f"numba {numba.__version__}: cannot key the kernel cache on all of viz3d's compiled "
+                      "sources; after an edit of an element's piece, clear the numba cache", RuntimeWarning)
         return
     ours = []
     for base in bases:

@@ -21,6 +21,7 @@ from viz3d.constraints import ConstraintRows, constraint_rows
 from viz3d.flexible import floating as ffr
 from viz3d.kinematics import Configuration, Pose, Twist, pose_from, twist_from
 from viz3d.mass import MassMatrix, mass_matrix
+from viz3d.rotations import cross
 from viz3d.system import State, System
 
 
@@ -288,5 +289,5 @@ def centres_of_mass(system: System, cfg: Configuration) -> tuple[FloatArray, Flo
         R, b = cfg.pose.R_WB[fb.index], fb.index
         shift = R @ (fb.bar.S @ cfg.eta[i]) / fb.bar.mass
         W_G[b] += shift
-        W_v[b] += np.cross(cfg.twist.W_omega[b], shift) + R @ (fb.bar.S @ cfg.eta_dot[i]) / fb.bar.mass
+        W_v[b] += cross(cfg.twist.W_omega[b], shift) + R @ (fb.bar.S @ cfg.eta_dot[i]) / fb.bar.mass
     return W_G, W_v

@@ -236,7 +236,7 @@ class ContactStepping:
 
     def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
         """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``[alpha, alpha_dot]`` of
-        every contact (n_contacts, 2), or with ``(k, i)`` the multiplier of that kinematic contact.
+        every contact (columns 0 and 1 of an (n_contacts, 2 or more) array), or with ``(k, i)`` the multiplier of that kinematic contact.
         Compiled when the run has a kernel; the last result is reused for the same ``(t, y)`` (the
         events of one step are evaluated at the same points)."""
         key = (t, y.tobytes(), k, i, id(like.memory))

@@ -213,16 +213,21 @@ class FlexibleDrawing:
 
 
 def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
-                     reference_energy: float | None = None, lam: FloatArray | None = None) -> Frame:
+                     reference_energy: float | None = None, lam: FloatArray | None = None,
+                     kinematics: tuple | None = None) -> Frame:
     """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side).
 
     ``drawings``: the ``FlexibleDrawing`` of each flexible body to draw deformed; with contacts,
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``;
     ``lam``: the multipliers at ``state`` (n_c,) if the caller has them (the compiled kernel's),
-    else they are solved for here.
+    else they are solved for here; ``kinematics``: the ``Configuration`` at ``state`` and each
+    contact set's ``Gap`` if the caller has them (``viz3d.kernel.KernelStepper.configuration``).
     """
-    cfg = body_state(system, state.q, state.v, state.chart, state.t)
-    gaps = tuple(c.gap(cfg) for c in system.contacts)
+    if kinematics is None:
+        cfg = body_state(system, state.q, state.v, state.chart, state.t)
+        gaps = tuple(c.gap(cfg) for c in system.contacts)
+    else:
+        cfg, gaps = kinematics
     if system.contacts:
         from viz3d.events import ledger
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from viz3d.diagnosis import SimulationFailure
 from viz3d.formulation import FORMULATIONS
-from viz3d.frames import Frame, SceneVisuals, frame_from_state
+from viz3d.frames import Frame, SceneVisuals
 from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene
@@ -101,9 +101,7 @@ class Driver:
         self.advance(self.t + 0.5 * self.sim.dt, math.inf, queue.Queue())
 
     def _frame(self, state) -> Frame:
-        contacts = self.sim.contacts
-        return frame_from_state(self.system, self.formulation, state, self._drawings,
-                                contacts.E0 if contacts is not None else None, self.sim.multipliers(state))
+        return self.sim.frame(state, self._drawings)
 
     def frame(self) -> Frame:
         return self._frame(self.sim.state)

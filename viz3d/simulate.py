@@ -134,6 +134,16 @@ class Simulation:
         except np.linalg.LinAlgError:
             return None
 
+    def frame(self, state: State, drawings: tuple = ()) -> Frame:
+        """The output frame of ``state`` (``viz3d.frames.frame_from_state``), with the multipliers,
+        configuration and gaps from the compiled kernel when the run has one."""
+        contacts = self._contacts
+        kinematics = None
+        if self._kernel is not None:
+            kinematics = self._kernel.configuration(self.system, state.t, state.y, state.chart)
+        return frame_from_state(self.system, self.formulation, state, drawings,
+                                contacts.E0 if contacts is not None else None, self.multipliers(state), kinematics)
+
     @property
     def contacts(self):
         """The run's ``viz3d.events.ContactStepping`` (None without contacts)."""
@@ -566,9 +576,7 @@ class _Emitter:
                 self.opened.append(s)
 
     def _frame(self, state: State) -> Frame:
-        contacts = self.sim.contacts
-        return frame_from_state(self.sim.system, self.formulation, state, self.drawings,
-                                contacts.E0 if contacts is not None else None, self.sim.multipliers(state))
+        return self.sim.frame(state, self.drawings)
 
     def emit(self, output: bool) -> None:
         frame = self._frame(self.sim.state)

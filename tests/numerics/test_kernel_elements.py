@@ -212,3 +212,27 @@ def test_an_element_without_a_compiled_piece_falls_back_visibly():
     sim = Simulation(system, random_state(system), make_integrator("rk4"), Index1(), 1e-3)
     assert sim.kernel_note.startswith("NumPy path") and "uncompiled_test_element" in sim.kernel_note
     assert Simulation(base, random_state(base), make_integrator("rk4"), Index1(), 1e-3).kernel_note == "compiled kernel"
+
+
+def test_compiled_configuration_and_gaps_equal_numpy(setup):
+    """What output frames take from the kernel (``KernelStepper.configuration``): every body's pose
+    and twist, the elastic coordinates and every contact's gap, against ``body_state`` and
+    ``ContactSet.gap``. Same formulas in another order: round-off of the positions' scale."""
+    system, state = setup
+    stepper = K.KernelStepper(K.kernel_for(system, Index1()), None)
+    t = TIMES[1]
+    cfg, gaps = stepper.configuration(system, t, state.y, state.chart)
+    ref = body_state(system, state.q, state.v, state.chart, t)
+    scale = 1.0 + np.abs(state.y).max()
+    tol = 100 * np.finfo(float).eps * scale
+    for got, want in ((cfg.pose.W_r, ref.pose.W_r), (cfg.pose.R_WB, ref.pose.R_WB), (cfg.twist.W_v, ref.twist.W_v),
+                      (cfg.twist.B_omega, ref.twist.B_omega), (cfg.twist.W_omega, ref.twist.W_omega)):
+        assert got.shape == want.shape and np.abs(got - want).max() <= tol
+    for got, want in zip(cfg.eta + cfg.eta_dot, ref.eta + ref.eta_dot):
+        np.testing.assert_array_equal(got, want)
+    assert len(gaps) == len(system.contacts) == 2
+    for gp, c in zip(gaps, system.contacts):
+        want = c.gap(ref)
+        for field in ("alpha", "alpha_dot", "n", "d", "point"):
+            got, exp = getattr(gp, field), getattr(want, field)
+            assert got.shape == exp.shape and np.abs(got - exp).max() <= tol, field

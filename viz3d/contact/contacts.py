@@ -468,8 +468,12 @@ def _contact_gaps(d, v, out):
     n, dv = v.v3[8], v.v3[9]
     for k in range(d.i.shape[0]):
         alpha, alpha_dot = _gap(v, d.i[k, 0], d.i[k, 1], d.i[k, 2], d.f[k, 0:3], d.f[k, 3], n, dv)
-        out[d.i[k, 3], 0] = alpha
-        out[d.i[k, 3], 1] = alpha_dot
+        row = out[d.i[k, 3]]
+        row[0], row[1] = alpha, alpha_dot
+        for c in range(3):  # the rest of Gap: n, d, point = a - r n
+            row[2 + c] = n[c]
+            row[5 + c] = dv[c]
+            row[8 + c] = v.px[d.i[k, 0], c] - d.f[k, 3] * n[c]
 
 
 def _law_contacts(d, t, v, power):

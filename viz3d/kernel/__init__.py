@@ -130,11 +130,29 @@ class KernelStepper:
         return self.ws[1].lam.copy()
 
     def gaps(self, t: float, y: np.ndarray, chart: np.ndarray) -> np.ndarray:
-        """``[alpha, alpha_dot]`` of every contact (n_contacts, 2) [m, m/s]."""
+        """Every contact's gap, (n_contacts, 11): ``alpha`` [m], ``alpha_dot`` [m/s], world normal,
+        ``a - b`` [m] and contact point [m] (``viz3d.contact.contacts.Gap``, columns 2-4, 5-7, 8-10)."""
         d = self.data
-        out = np.empty((d.n_contacts, 2))
+        out = np.empty((d.n_contacts, 11))
         self._call(gaps, t, y, chart, d.model, self.ws[0], self.ws[1], d.geometry, out)
         return out
+
+    def configuration(self, system, t: float, y: np.ndarray, chart: np.ndarray) -> tuple:
+        """``(Configuration, gaps)`` at ``(t, y)``: what ``viz3d.dynamics.body_state`` and each contact
+        set's ``gap`` compute, from one compiled call (for output frames)."""
+        from viz3d.contact.contacts import Gap
+        from viz3d.kinematics import Configuration, Pose, Twist
+
+        g = self.gaps(t, y, chart)
+        v, w = self.ws
+        e0 = np.cumsum([0] + [fb.n for fb in system.bodies.flexible])
+        eta = tuple(w.eta[a:b].copy() for a, b in zip(e0[:-1], e0[1:]))
+        eta_dot = tuple(w.eta_dot[a:b].copy() for a, b in zip(e0[:-1], e0[1:]))
+        cfg = Configuration(t, Pose(w.r.copy(), v.R.copy()), Twist(w.vW.copy(), w.wB.copy(), v.wW.copy()), eta,
+                            eta_dot)
+        k0 = np.cumsum([0] + [c.k for c in system.contacts])
+        sets = tuple(Gap(g[a:b, 0], g[a:b, 1], g[a:b, 2:5], g[a:b, 5:8], g[a:b, 8:11]) for a, b in zip(k0[:-1], k0[1:]))
+        return cfg, sets
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
              max_speed: float, n_steps: int = 1) -> tuple[int, int]:
