@@ -191,6 +191,13 @@ class ContactStepping:
         memory[k] = tuple(phases)
         return state.replace(memory=tuple(memory))
 
+    def ledger(self, state: State) -> Ledger:
+        """The energy ledger of ``state`` (``ledger``), its configuration and gaps from the compiled
+        kernel when the run has one."""
+        if self.kernel is None:
+            return ledger(self.system, state)
+        return ledger(self.system, state, *self.kernel.configuration(self.system, state.t, state.y, state.chart))
+
     def state_at(self, t: float, y: FloatArray, like: State) -> State:
         """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""
         s = self.system
@@ -235,20 +242,15 @@ class ContactStepping:
         return out
 
     def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
-        """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``[alpha, alpha_dot]`` of
-        every contact (columns 0 and 1 of an (n_contacts, 2 or more) array), or with ``(k, i)`` the multiplier of that kinematic contact.
-        Compiled when the run has a kernel; the last result is reused for the same ``(t, y)`` (the
-        events of one step are evaluated at the same points)."""
+        """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``_gap_values``, or with
+        ``(k, i)`` the multiplier of that kinematic contact. Compiled when the run has a kernel; the
+        last result is reused for the same ``(t, y)`` (the events of one step are evaluated at the
+        same points)."""
         key = (t, y.tobytes(), k, i, id(like.memory))
         if self._probed is not None and self._probed[0] == key:
             return self._probed[1]
         if k < 0:
-            if self.kernel is not None:
-                value = self.kernel.gaps(t, y, like.chart)
-            else:
-                cfg = body_state(self.system, *self.system.split_y(y)[:2], like.chart, t)
-                value = np.concatenate([np.column_stack([g.alpha, g.alpha_dot])
-                                        for g in (c.gap(cfg) for c in self.system.contacts)])
+            value = self._gap_values(t, y, like.chart)
         elif self.kernel is not None:
             value = float(self.kernel.multipliers(t, y, like.chart, like.memory)[_row_index(self.system, k, i)])
         else:
@@ -320,9 +322,9 @@ class ContactStepping:
         approach = float(gp.alpha_dot[i])
         P_c = approach / mobility
         P = (1.0 + e) * P_c if hypothesis == "poisson" else (1.0 + e) * approach / mobility
-        T0 = ledger(self.system, state).kinetic
+        T0 = self.ledger(state).kinetic
         new = state.replace(v=state.v - P * u)
-        return new, P, T0 - ledger(self.system, new).kinetic
+        return new, P, T0 - self.ledger(new).kinetic
 
     def effective_mass(self, state: State, k: int, i: int) -> float:
         return 1.0 / self.response(state, k, i)[1]
@@ -346,7 +348,7 @@ class ContactStepping:
 
     def start(self, state: State) -> State:
         """Contacts touching and approaching (or overlapping) at the start begin at once."""
-        self.E0 = ledger(self.system, state).total
+        self.E0 = self.ledger(state).total
         for k, c in enumerate(self.system.contacts):
             if not c.located:
                 continue
@@ -401,7 +403,7 @@ class ContactStepping:
         pressing = max(self.pressing_force(state, k, i), 0.0)
         t_c = contact_time_scale(law, self.effective_mass(state, k, i), max(approach, 0.0), before, pressing)
         touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
-        led = ledger(self.system, touching)
+        led = self.ledger(touching)
         balance = self.balance(led)
         onset = Onset(phase.touches, state.t, approach, before, led.total, led.signed_potential,
                       balance, led.dissipated, t_c, led.work_in, balance_now=balance)
@@ -460,12 +462,13 @@ class ContactStepping:
                      if phase.touching and c.models[i] == "law" and phase.onset is not None]
         if not under_way:
             return state
-        led = ledger(self.system, state)
+        led = self.ledger(state)
         balance = self.balance(led)
-        low = None if error is None else self.balance(ledger(self.system, self.state_at(state.t, state.y - error, state)))
+        low = None if error is None else self.balance(self.ledger(self.state_at(state.t, state.y - error, state)))
+        dvs = None if error is None else self._normal_velocity_errors(state, error)
         for k, i in under_way:
             o = state.memory[k][i].onset
-            dv = 0.0 if error is None else self._normal_velocity_error(state, k, i, error)
+            dv = 0.0 if dvs is None else float(dvs[self._k0[k] + i])
             dE = abs(balance - (o.balance_now if low is None else low))
             state = self.with_phase(state, k, i, dataclasses.replace(state.memory[k][i], onset=dataclasses.replace(
                 o, n_steps=o.n_steps + 1, velocity_error=o.velocity_error + dv, energy_error=o.energy_error + dE,
@@ -473,13 +476,22 @@ class ContactStepping:
             self._energy_check(state, k, i, led, balance)
         return state
 
-    def _normal_velocity_error(self, state: State, k: int, i: int, error: FloatArray) -> float:
-        """``|J_alpha e_v|`` [m/s]: the error estimate ``error`` of ``y`` seen by contact ``(k, i)``'s
-        normal velocity."""
+    def _gap_values(self, t: float, y: FloatArray, chart: FloatArray) -> FloatArray:
+        """``alpha`` [m] and ``alpha_dot`` [m/s] of every contact at ``(t, y)``: columns 0 and 1 of an
+        (n_contacts, 2 or more) array (compiled when the run has a kernel)."""
+        if self.kernel is not None:
+            return self.kernel.gaps(t, y, chart)
+        cfg = body_state(self.system, *self.system.split_y(y)[:2], chart, t)
+        return np.concatenate([np.column_stack([g.alpha, g.alpha_dot]) for g in (c.gap(cfg) for c in self.system.contacts)])
+
+    def _normal_velocity_errors(self, state: State, error: FloatArray) -> FloatArray:
+        """``|J_alpha e_v|`` of every contact (n_contacts,) [m/s]: the error estimate ``error`` of ``y``
+        seen by the normal velocities. ``alpha_dot = J_alpha v`` is linear in ``v`` at fixed
+        positions, so it is the gap rate at ``state``'s positions with ``v = e_v``."""
         s = self.system
-        _, J, Je, _ = self._contact_row(state, k, i)
-        frame, elastic = split_velocity(s, error[s.n_q:s.n_q + s.n_v])
-        return abs(float(apply_jacobian(_single_row(s, k, i), J[None], frame, Je[None], elastic)[0]))
+        y = state.y.copy()
+        y[s.n_q:s.n_q + s.n_v] = error[s.n_q:s.n_q + s.n_v]
+        return np.abs(self._gap_values(state.t, y, state.chart)[:, 1])
 
     def _energy_check(self, state: State, k: int, i: int, led: Ledger, balance: float) -> None:
         """Stop if the numerics created more energy since the contact's onset than the error
