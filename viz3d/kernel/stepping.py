@@ -15,9 +15,10 @@ from viz3d.kernel.field import NONFINITE, OK, ROTATION, SPEED, evaluate, rotatio
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, frames near
-    gimbal lock are re-charted (``m.switching``) and counted in ``switches`` (per body); the run stops at the first failed evaluation, non-finite state, frame
-    speed above ``max_speed``, or orientation coordinates turning more than ``MAX_TURN`` rad in a
-    step. On a failure ``y`` holds the failed step's result."""
+    gimbal lock are re-charted (``m.switching``) and counted in ``switches`` (per body); the run
+    stops at the first failed evaluation, non-finite state, frame speed above ``max_speed``, or
+    orientation coordinates turning more than ``MAX_TURN`` rad in a step. On a failure ``y`` holds
+    the failed step's result."""
     n = y.shape[0]
     s = tb.shape[0]
     for step in range(n_steps):
