@@ -236,3 +236,28 @@ def test_compiled_configuration_and_gaps_equal_numpy(setup):
         for field in ("alpha", "alpha_dot", "n", "d", "point"):
             got, exp = getattr(gp, field), getattr(want, field)
             assert got.shape == exp.shape and np.abs(got - exp).max() <= tol, field
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853", "rk4"])
+def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
+    """``ExplicitRK.step`` on a kernel field runs the whole step compiled (``CompiledField.rk_step``).
+    Against the same tableau stepped from Python over the same compiled right-hand side (the NumPy
+    one is compared above): the stage arguments are summed in the same order, so stages and state
+    agree exactly; the error estimate (a dot product in another order) to round-off of its terms."""
+    from viz3d.integrators import make_integrator
+
+    system, state = setup
+    integrator = make_integrator(method)
+    field = VectorField(system, Index1(), state.chart, state.memory)
+    compiled_field = K.CompiledField(field, K.KernelStepper(K.kernel_for(system, Index1()), None))
+    t, h = TIMES[1], 1e-4
+    f0 = compiled_field(t, state.y)
+    ref = integrator.step(lambda t, y: compiled_field(t, y), t, state.y, h, f0=f0)  # stage by stage
+    out = integrator.step(compiled_field, t, state.y, h, f0=f0)
+    np.testing.assert_array_equal(out.stages, ref.stages)
+    np.testing.assert_array_equal(out.y, ref.y)
+    assert (out.error is None) == (ref.error is None) and (out.f1 is None) == (ref.f1 is None)
+    if ref.error is not None:
+        tab = integrator.tableau
+        terms = h * np.abs(tab.b - tab.b_hat) @ np.abs(ref.stages)
+        assert np.all(np.abs(out.error - ref.error) <= len(tab.b) * np.finfo(float).eps * terms)

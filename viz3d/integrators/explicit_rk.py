@@ -35,6 +35,12 @@ class ExplicitRK(Integrator):
 
     def step(self, rhs, t, y, h, f0=None, state=None):
         tab = self.tableau
+        compiled = getattr(rhs, "rk_step", None)  # a field that steps in compiled code (viz3d.kernel)
+        if compiled is not None:
+            done = compiled(tab, t, y, h, f0)
+            if done is not None:
+                y_new, error, stages = done
+                return StepResult(y_new, error, f0=stages[0], f1=stages[-1] if tab.fsal else None, stages=stages)
         k = []
         for i, ci in enumerate(tab.c):
             if i == 0 and f0 is not None:

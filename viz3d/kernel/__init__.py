@@ -20,7 +20,7 @@ import numpy as np
 from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
-from viz3d.kernel.stepping import advance
+from viz3d.kernel.stepping import advance, rk_step
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "KernelData", "kernel_for", "kernel_coverage",
            "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
@@ -78,6 +78,23 @@ class CompiledField:
 
     def retract(self, q, w):
         return self.field.retract(q, w)
+
+    def rk_step(self, tableau, t: float, y: np.ndarray, h: float, f0: np.ndarray | None):
+        """One explicit Runge-Kutta step of ``tableau`` in the kernel: ``(y1, error, stages)``
+        (error None without an embedded solution), or None when an evaluation fails (the caller
+        then takes the NumPy path, which raises the detailed error)."""
+        st = self.stepper
+        n, s = y.shape[0], len(tableau.b)
+        k, y1, err = np.empty((s, n)), np.empty(n), np.empty(n)
+        te = tableau.b - tableau.b_hat if tableau.embedded else np.zeros(s)
+        use_f0 = f0 is not None
+        d = st.data
+        status = st._call(rk_step, t, h, y, self.chart, f0 if use_f0 else y, use_f0, tableau.a, tableau.b, te, tableau.c,
+                          d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1, err)
+        self.field.n_evals += s - use_f0
+        if status != OK:
+            return None
+        return y1, (err if tableau.embedded else None), k
 
 
 def _entry_point(dispatcher, args):

@@ -70,3 +70,38 @@ def _check_frames(nq, switching, frame_body, centre, centre_R, R, y, chart, swit
             y[6 * f + 3], y[6 * f + 4], y[6 * f + 5] = centre[0], centre[1], centre[2]
             switches[frame_body[f]] += 1
     return OK
+
+
+@entry
+def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err):
+    """One step of the tableau ``(ta, tb, tc)`` from ``y`` (what ``viz3d.integrators.explicit_rk``
+    does, for adaptive runs): the stages into ``k`` (stages, n), with ``f0`` as the first one when
+    ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i`` (``te = b - b_hat``). Returns
+    the status of the first failed evaluation (``OK`` when none)."""
+    n = y.shape[0]
+    s = tb.shape[0]
+    for i in range(s):
+        if i == 0 and use_f0:
+            for j in range(n):
+                k[0, j] = f0[j]
+            continue
+        for j in range(n):
+            acc = y[j]
+            for l in range(i):
+                if ta[i, l] != 0.0:
+                    acc += h * ta[i, l] * k[l, j]
+            yi[j] = acc
+        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+        if status != OK:
+            return status
+    for j in range(n):
+        acc = y[j]
+        e = 0.0
+        for i in range(s):
+            if tb[i] != 0.0:
+                acc += h * tb[i] * k[i, j]
+            if te[i] != 0.0:
+                e += te[i] * k[i, j]
+        y1[j] = acc
+        err[j] = h * e
+    return OK
