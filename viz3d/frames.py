@@ -6,11 +6,11 @@ formulations; conversions to a back-end's conventions (quaternion order) happen 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import constraint_rows
 from viz3d.dynamics import accelerations, body_state, centres_of_mass, energies
 from viz3d.forces import SpringDamper
 from viz3d.system import State, System
@@ -213,14 +213,15 @@ class FlexibleDrawing:
 
 
 def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
-                     reference_energy: float | None = None, lam: FloatArray | None = None,
+                     reference_energy: float | None = None, solved: tuple | None = None,
                      kinematics: tuple | None = None) -> Frame:
     """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side).
 
     ``drawings``: the ``FlexibleDrawing`` of each flexible body to draw deformed; with contacts,
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``;
-    ``lam``: the multipliers at ``state`` (n_c,) if the caller has them (the compiled kernel's),
-    else they are solved for here; ``kinematics``: the ``Configuration`` at ``state`` and each
+    ``solved``: ``(lam, C, J)`` at ``state`` if the caller has them (the compiled kernel's
+    multipliers (n_c,), residuals (n_c,) and Jacobian blocks (n_c, 2, 6)), else they are solved for
+    here; ``kinematics``: the ``Configuration`` at ``state`` and each
     contact set's ``Gap`` if the caller has them (``viz3d.kernel.KernelStepper.configuration``).
     """
     if kinematics is None:
@@ -237,12 +238,13 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         T, V = energies(system, state, cfg, gaps)
     reactions, points, violation = [], [], 0.0
     joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
-    rows = None
-    if system.n_c and lam is None:  # multipliers: joint reactions, kinematic contact forces
+    lam = rows = None
+    if solved is not None:
+        lam, C, J = solved
+        rows = _Rows(C, J)
+    elif system.n_c:  # multipliers: joint reactions, kinematic contact forces
         acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
         lam, rows = acc.lam, acc.rows
-    elif joints:
-        rows = constraint_rows(system.joints, cfg, state.memory)
     lam = np.zeros(0) if lam is None else lam
     if joints:
         violation = _joint_violation(system, rows.C)
@@ -266,6 +268,13 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         constraint_violation=violation, scalars=scalars,
         deformed={d.name: d.vertices(cfg) for d in drawings},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
+
+
+class _Rows(NamedTuple):
+    """The residuals and frame Jacobian blocks of the constraint rows (as ``ConstraintRows``)."""
+
+    C: FloatArray
+    J: FloatArray
 
 
 def _joint_violation(system: System, C: FloatArray) -> float:

@@ -124,13 +124,14 @@ class Simulation:
         self._contacts = ContactStepping(self.system, self.formulation, kernel=self._kernel)
         self.state = self._inner = self._contacts.start(state)
 
-    def multipliers(self, state: State) -> np.ndarray | None:
-        """The multipliers at ``state`` (n_c,) from the compiled kernel, for frames; None without
-        constraint rows or kernel (or where the kernel cannot evaluate: the NumPy path then says why)."""
+    def solved_rows(self, state: State) -> tuple | None:
+        """``(lam, C, J)`` at ``state`` from the compiled kernel (``KernelStepper.solved_rows``), for
+        frames; None without constraint rows or kernel (or where the kernel cannot evaluate: the
+        NumPy path then says why)."""
         if self._kernel is None or not self.system.n_c:
             return None
         try:
-            return self._kernel.multipliers(state.t, state.y, state.chart, state.memory)
+            return self._kernel.solved_rows(state.t, state.y, state.chart, state.memory)
         except np.linalg.LinAlgError:
             return None
 
@@ -142,7 +143,7 @@ class Simulation:
         if self._kernel is not None:
             kinematics = self._kernel.configuration(self.system, state.t, state.y, state.chart)
         return frame_from_state(self.system, self.formulation, state, drawings,
-                                contacts.E0 if contacts is not None else None, self.multipliers(state), kinematics)
+                                contacts.E0 if contacts is not None else None, self.solved_rows(state), kinematics)
 
     @property
     def contacts(self):

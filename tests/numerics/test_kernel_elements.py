@@ -261,3 +261,24 @@ def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
         tab = integrator.tableau
         terms = h * np.abs(tab.b - tab.b_hat) @ np.abs(ref.stages)
         assert np.all(np.abs(out.error - ref.error) <= len(tab.b) * np.finfo(float).eps * terms)
+
+
+def test_compiled_rows_and_multipliers_equal_numpy(setup):
+    """What output frames take from the kernel for reactions and the violation
+    (``KernelStepper.solved_rows``): multipliers, residuals and frame Jacobian blocks of every row,
+    joints and kinematic contacts, against ``accelerations``; the multipliers to FACTOR times the
+    round-off of the NumPy solve (measured as for the right-hand side)."""
+    from viz3d.dynamics import accelerations
+
+    system, state = setup
+    stepper = K.KernelStepper(K.kernel_for(system, Index1()), None)
+    t = TIMES[1]
+    lam, C, J = stepper.solved_rows(t, state.y, state.chart, state.memory)
+    acc = accelerations(system, Index1(), t, state.q, state.v, state.chart, state.memory)
+    eps = np.finfo(float).eps
+    assert np.abs(C - acc.rows.C).max() <= 100 * eps * (1 + np.abs(state.y).max())
+    assert np.abs(J - acc.rows.J).max() <= 100 * eps * (1 + np.abs(acc.rows.J).max())
+    signs = np.random.default_rng(2).choice([-1.0, 1.0], size=(SAMPLES, len(state.y)))
+    change = max(np.abs(accelerations(system, Index1(), t, *system.split_y(state.y * (1 + eps * s))[:2], state.chart,
+                                      state.memory).lam - acc.lam).max() for s in signs)
+    assert np.abs(lam - acc.lam).max() <= FACTOR * max(change, eps * np.abs(acc.lam).max())

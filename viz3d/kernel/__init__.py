@@ -146,6 +146,12 @@ class KernelStepper:
             raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
         return self.ws[1].lam.copy()
 
+    def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple:
+        """``(lam, C, J)`` at ``(t, y)``: the multipliers (n_c,), residuals (n_c,) and frame Jacobian
+        blocks (n_c, 2, 6) of every constraint row (``viz3d.constraints.ConstraintRows``' C and J)."""
+        lam = self.multipliers(t, y, chart, memory)
+        return lam, self.ws[0].C.copy(), self.ws[0].J.copy()
+
     def gaps(self, t: float, y: np.ndarray, chart: np.ndarray) -> np.ndarray:
         """Every contact's gap, (n_contacts, 11): ``alpha`` [m], ``alpha_dot`` [m/s], world normal,
         ``a - b`` [m] and contact point [m] (``viz3d.contact.contacts.Gap``, columns 2-4, 5-7, 8-10)."""
