@@ -116,6 +116,7 @@ class KernelStepper:
         self.ws = workspace(data)
         self._entries: dict = {}
         self._memory_id, self._view = None, self.ws[0]
+        self._slices_of = None
         n = data.model.n_q + data.model.n_v + data.model.n_aux
         stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
         self._k, self._yi = np.empty((stages, n)), np.empty(n)
@@ -168,14 +169,21 @@ class KernelStepper:
 
         g = self.gaps(t, y, chart)
         v, w = self.ws
-        e0 = np.cumsum([0] + [fb.n for fb in system.bodies.flexible])
-        eta = tuple(w.eta[a:b].copy() for a, b in zip(e0[:-1], e0[1:]))
-        eta_dot = tuple(w.eta_dot[a:b].copy() for a, b in zip(e0[:-1], e0[1:]))
+        elastic, contacts = self._slices(system)
+        eta = tuple(w.eta[sl].copy() for sl in elastic)
+        eta_dot = tuple(w.eta_dot[sl].copy() for sl in elastic)
         cfg = Configuration(t, Pose(w.r.copy(), v.R.copy()), Twist(w.vW.copy(), w.wB.copy(), v.wW.copy()), eta,
                             eta_dot)
-        k0 = np.cumsum([0] + [c.k for c in system.contacts])
-        sets = tuple(Gap(g[a:b, 0], g[a:b, 1], g[a:b, 2:5], g[a:b, 5:8], g[a:b, 8:11]) for a, b in zip(k0[:-1], k0[1:]))
-        return cfg, sets
+        return cfg, tuple(Gap(g[sl, 0], g[sl, 1], g[sl, 2:5], g[sl, 5:8], g[sl, 8:11]) for sl in contacts)
+
+    def _slices(self, system) -> tuple:
+        """Each flexible body's slice of the elastic coordinates and each contact set's of the contacts."""
+        if self._slices_of is None or self._slices_of[0] is not system:
+            e0 = np.cumsum([0] + [fb.n for fb in system.bodies.flexible])
+            k0 = np.cumsum([0] + [c.k for c in system.contacts])
+            self._slices_of = (system, [slice(a, b) for a, b in zip(e0[:-1], e0[1:])],
+                               [slice(a, b) for a, b in zip(k0[:-1], k0[1:])])
+        return self._slices_of[1:]
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
              max_speed: float, n_steps: int = 1) -> tuple[int, int]:
