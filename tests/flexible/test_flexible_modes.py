@@ -310,3 +310,21 @@ def test_impact_initial_conditions_reproduce_the_thesis_modal_amplitudes_5_22_an
         C = v * f(k * L) / (omega * (rhoA / m1 * (L / 2 + sign * np.sin(2 * k * L) / (4 * k)) + f(k * L) ** 2))
         thesis = f(np.outer(x, k)) * C
         assert np.abs(ours - thesis).max() < ORTHO_TOL * np.abs(thesis).max(), name
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 3, 4])
+def test_elementary_at_one_point_equals_the_vectorized_form(order):
+    """The end conditions evaluate the elementary functions at one point with scalar math; it must
+    give the array form's values (both are the same libm functions: a few ulps of the result)."""
+    from viz3d.flexible.modes import COS, EXP_LEFT, EXP_RIGHT, SIN, elementary
+
+    rng = np.random.default_rng(order)
+    types = np.array([COS, SIN, EXP_LEFT, EXP_RIGHT, COS, SIN])
+    rates = rng.uniform(0.1, 40.0, 6)
+    length = 1.3
+    for x in (0.0, length, rng.uniform(0, length)):
+        point = elementary(types, rates, np.array([x]), order, length)
+        X = np.array([x, 0.5 * length])  # two points: the array form
+        array = elementary(types, rates, X, order, length)[:1]
+        scale = np.abs(array) + rates**order * np.finfo(float).tiny
+        assert np.all(np.abs(point - array) <= 8 * np.finfo(float).eps * scale * (1 + rates * x))

@@ -41,6 +41,7 @@ beta = 1. With the printed form the modes are not orthogonal with the end mass.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,6 +81,8 @@ NORMALIZATIONS = ("mass", "unit")
 # ----------------------------------------------------------------------------------------------
 def elementary(types: IntArray, rates: FloatArray, x: FloatArray, order: int, length: float) -> FloatArray:
     """d^order/dx^order of the elementary functions at ``x`` (p,); ``types``, ``rates`` (...): (p, ...)."""
+    if x.size == 1 and rates.ndim == 1 and rates.size <= 8:  # one point (end conditions): scalar math, 10x faster
+        return _elementary_at(types.tolist(), rates.tolist(), float(x.reshape(-1)[0]), order, length)[None]
     X = x.reshape((-1,) + (1,) * rates.ndim)
     s = rates[None]
     c, sn = np.cos(s * X), np.sin(s * X)
@@ -90,6 +93,22 @@ def elementary(types: IntArray, rates: FloatArray, x: FloatArray, order: int, le
     t = types[None]
     f = np.where(t == COS, d_cos, np.where(t == SIN, d_sin, np.where(t == EXP_LEFT, e_left, e_right)))
     return f * s**order
+
+
+def _elementary_at(types: list, rates: list, x: float, order: int, length: float) -> FloatArray:
+    """``elementary`` at one point ``x`` for (m,) types and rates, with scalar math."""
+    k = order % 4
+    out = np.empty(len(rates))
+    for j, (t, s) in enumerate(zip(types, rates)):
+        if t == COS or t == SIN:
+            c, sn = math.cos(s * x), math.sin(s * x)
+            f = (c, -sn, -c, sn)[k] if t == COS else (sn, c, -sn, -c)[k]
+        elif t == EXP_LEFT:
+            f = (-1.0) ** order * math.exp(-s * x)
+        else:
+            f = math.exp(-s * (length - x))
+        out[j] = f * s**order
+    return out
 
 
 @dataclass(frozen=True)
@@ -345,8 +364,11 @@ def frequency_roots(theory, n_modes: int, supports, end_masses) -> FloatArray:
 
     roots: list[float] = []
     s_max = (n_modes + SCAN_EXTRA_PI) * np.pi
+    b_prev, f_prev = None, None
     for a, b in _scan_intervals(theory, s_max):
-        fa, fb = det(a), det(b)
+        fa = f_prev if a == b_prev else det(a)  # consecutive intervals share their end point
+        fb = det(b)
+        b_prev, f_prev = b, fb
         if fa == 0.0:
             roots.append(a)
         elif fa * fb < 0:
