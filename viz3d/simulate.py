@@ -366,7 +366,8 @@ class Simulation:
         """An integration step's end state after projections, checks, normalization and re-charting;
         keeps ``f1`` (the vector field at ``raw``) for the next step while ``raw`` is unchanged."""
         new = self.formulation.post_step(self.system, raw) if post_step else raw
-        check_state(self.system, new, self.blowup_speed, h)
+        if self._kernel is None or not self._kernel.state_ok(new.y, h, self.blowup_speed):
+            check_state(self.system, new, self.blowup_speed, h)
         W_r, theta0 = self.system.split_q(new.q)
         normal = self.system.rotation.normalize(theta0)
         theta, chart, switched = self.system.rotation.rechart(normal, new.chart)

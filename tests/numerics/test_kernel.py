@@ -136,3 +136,43 @@ def test_fixed_steps_with_contacts_locate_every_event_on_the_compiled_path(tmp_p
     a, b = (runs[c].extras for c in (True, False))
     np.testing.assert_allclose(a["contacts"], b["contacts"], rtol=STEP_TOL, atol=STEP_TOL)
     np.testing.assert_allclose(a["contact_force"], b["contact_force"], rtol=STEP_TOL, atol=STEP_TOL * np.abs(b["contact_force"]).max())
+
+
+@pytest.mark.parametrize("rotation", ["euler_switching", "euler_zxz"])
+def test_compiled_state_check_passes_exactly_what_check_state_passes(rotation):
+    """Adaptive steps skip the NumPy ``check_state`` when the compiled ``state_ok`` passes: it must
+    never pass a state the NumPy check refuses (non-finite values, speed, turn per step, plain Euler
+    angles at the pole), and pass the ordinary ones. Random states, half of them broken one way."""
+    from viz3d.diagnosis import SimulationFailure, check_state
+
+    scene = viz3d.load_scene(SCENES / "chain.toml", {"chain.n": 3, "sim.rotation": rotation})
+    system, state = viz3d.build(scene)
+    stepper = K.KernelStepper(K.kernel_for(system, make_formulation(scene.data["sim"])), None)
+    rng = np.random.default_rng(5)
+    nq, nf = system.n_q, system.n_frames
+    outcomes = set()
+    for trial in range(400):
+        y = state.y.copy()
+        y[:nq] += rng.normal(scale=2.0, size=nq)
+        y[nq:nq + system.n_v] = rng.normal(scale=3.0, size=system.n_v)
+        h = 10.0 ** rng.uniform(-4, -0.5)
+        f = rng.integers(nf)
+        kind = trial % 8
+        if kind == 1:
+            y[rng.integers(nq + system.n_v)] = rng.choice([np.nan, np.inf])
+        elif kind == 2:
+            y[nq + 6 * f] = 2e4  # beyond the speed limit below
+        elif kind == 3:
+            y[6 * f + 4] = rng.choice([0.0, np.pi, 1e-13, -1e-13])  # at the pole
+        elif kind == 4:
+            y[6 * f + 4] = -abs(y[6 * f + 4])  # negative sin(theta): the signed rate map
+        s = state.replace(q=y[:nq], v=y[nq:nq + system.n_v])
+        try:
+            with np.errstate(all="ignore"):  # the rate map divides by sin(theta) = 0 at the pole
+                check_state(system, s, 1e4, h)
+            numpy_ok = True
+        except SimulationFailure:
+            numpy_ok = False
+        assert stepper.state_ok(s.y, h, 1e4) == numpy_ok, (trial, kind)
+        outcomes.add(numpy_ok)
+    assert outcomes == {True, False}

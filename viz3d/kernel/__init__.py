@@ -20,7 +20,7 @@ import numpy as np
 from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
-from viz3d.kernel.stepping import advance, rk_step
+from viz3d.kernel.stepping import advance, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "KernelData", "kernel_for", "kernel_coverage",
            "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
@@ -146,6 +146,12 @@ class KernelStepper:
         if self.evaluate(t, y, chart, self.view(memory), out) != OK:
             raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
         return self.ws[1].lam.copy()
+
+    def state_ok(self, y: np.ndarray, h: float, max_speed: float) -> bool:
+        """True when ``viz3d.diagnosis.check_state`` passes ``y`` after a step ``h`` (compiled);
+        False means: run that check for its diagnosis."""
+        m = self.data.model
+        return bool(self._call(state_ok, m.n_q, m.n_v, m.switching, m.frame_body.shape[0], y, h, max_speed))
 
     def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple:
         """``(lam, C, J)`` at ``(t, y)``: the multipliers (n_c,), residuals (n_c,) and frame Jacobian

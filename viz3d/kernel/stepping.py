@@ -55,10 +55,11 @@ def _check_frames(nq, switching, frame_body, centre, centre_R, R, y, chart, swit
         v = nq + 6 * f
         if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
             return SPEED
-        st = abs(math.sin(y[6 * f + 4]))
+        s2 = math.sin(y[6 * f + 4])
+        st = abs(s2)
         s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
         w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
-        psi_d = (w1 * s3 + w2 * c3) / st if st > 0.0 else math.inf
+        psi_d = (w1 * s3 + w2 * c3) / s2 if st > 0.0 else math.inf  # as euler_rates_from_body_omega
         turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
         if turn > MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
             return ROTATION
@@ -105,3 +106,29 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
         y1[j] = acc
         err[j] = h * e
     return OK
+
+
+@entry
+def state_ok(n_q, n_v, switching, n_frames, y, h, max_speed):
+    """True when ``viz3d.diagnosis.check_state`` would pass ``y`` after a step ``h``: finite
+    positions and velocities, frame speeds within ``max_speed``, no orientation coordinates turning
+    more than ``MAX_TURN`` per step, no plain Euler chart at its gimbal lock (the NumPy check then
+    runs only to write the diagnosis)."""
+    for j in range(n_q + n_v):
+        if not math.isfinite(y[j]):
+            return False
+    for f in range(n_frames):
+        v = n_q + 6 * f
+        if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
+            return False
+        s2 = math.sin(y[6 * f + 4])
+        st = abs(s2)
+        s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
+        w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
+        if not st > 0.0:
+            return False
+        psi_d = (w1 * s3 + w2 * c3) / s2  # as euler_rates_from_body_omega (signed sin)
+        turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
+        if not turn <= MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
+            return False
+    return True
