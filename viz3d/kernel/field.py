@@ -111,10 +111,10 @@ def generalized_forces(m, v, w):
 
 
 @inline
-def _rigid_solve(mass, inertia_inv, b, x, out):
+def _rigid_solve(mass_inv, inertia_inv, b, x, out):
     """``out = M_b^-1 x`` (6,) for a rigid body."""
     for i in range(3):
-        out[i] = x[i] / mass[b]
+        out[i] = x[i] * mass_inv[b]
         out[3 + i] = inertia_inv[b, i, 0] * x[3] + inertia_inv[b, i, 1] * x[4] + inertia_inv[b, i, 2] * x[5]
 
 
@@ -127,7 +127,7 @@ def free_accelerations(m, v, w):
     for b in range(m.nb + 1):
         kind = m.body_kind[b]
         if kind == RIGID:
-            _rigid_solve(m.mass, m.inertia_inv, b, w.Q[b], w.a[b])
+            _rigid_solve(m.mass_inv, m.inertia_inv, b, w.Q[b], w.a[b])
         elif kind == GROUND:
             for i in range(6):
                 w.a[b, i] = 0.0
@@ -198,7 +198,7 @@ def _schur_rhs(m, v, w):
             b = m.row_body[r, s]
             kind = m.body_kind[b]
             if kind == RIGID:
-                _rigid_solve(m.mass, m.inertia_inv, b, v.J[r, s], w.W6[r, s])
+                _rigid_solve(m.mass_inv, m.inertia_inv, b, v.J[r, s], w.W6[r, s])
             elif kind == GROUND:
                 for i in range(6):
                     w.W6[r, s, i] = 0.0
@@ -250,7 +250,8 @@ def _correct(m, v, w):
 @jit
 def banded_cholesky_solve(ab, n, kd, b):
     """Solve ``A x = b`` in place (``b``), A SPD in upper band storage ``ab[(kd + i - j) n + j]``;
-    False if not positive definite."""
+    False if not positive definite. The factor's diagonal is kept as its reciprocal (multiplies,
+    not divisions, in the factorization and both solves)."""
     for j in range(n):
         s = ab[kd * n + j]
         for k in range(max(0, j - kd), j):
@@ -258,23 +259,23 @@ def banded_cholesky_solve(ab, n, kd, b):
             s -= u * u
         if not s > 0.0:
             return False
-        d = math.sqrt(s)
-        ab[kd * n + j] = d
+        r = 1.0 / math.sqrt(s)
+        ab[kd * n + j] = r
         for i in range(j + 1, min(n, j + kd + 1)):
             s = ab[(kd + j - i) * n + i]
             for k in range(max(0, i - kd), j):
                 s -= ab[(kd + k - j) * n + j] * ab[(kd + k - i) * n + i]
-            ab[(kd + j - i) * n + i] = s / d
+            ab[(kd + j - i) * n + i] = s * r
     for i in range(n):  # U^T z = b
         s = b[i]
         for k in range(max(0, i - kd), i):
             s -= ab[(kd + k - i) * n + i] * b[k]
-        b[i] = s / ab[kd * n + i]
+        b[i] = s * ab[kd * n + i]
     for i in range(n - 1, -1, -1):  # U x = z
         s = b[i]
         for k in range(i + 1, min(n, i + kd + 1)):
             s -= ab[(kd + i - k) * n + k] * b[k]
-        b[i] = s / ab[kd * n + i]
+        b[i] = s * ab[kd * n + i]
     return True
 
 

@@ -50,6 +50,7 @@ class Model(NamedTuple):
     body_frame: np.ndarray    # (nb + 1,) int: floating-frame index, -1
     body_flex: np.ndarray     # (nb + 1,) int: flexible index, -1
     mass: np.ndarray          # (nb + 1,) [kg] (ground 0)
+    mass_inv: np.ndarray      # (nb + 1,) [1/kg] of the rigid bodies (0 elsewhere), as Bodies.M_inv
     inertia: np.ndarray       # (nb + 1, 3, 3) rigid bodies [kg m^2]
     inertia_inv: np.ndarray   # (nb + 1, 3, 3)
     r0: np.ndarray            # (nb + 1, 3) frame origins of fixed frames (and ground) [m]
@@ -276,7 +277,8 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     fx_i, fx_f, fx_pool, fx_bij, fx_work = pack_flexible(b.flexible, e_offsets)
     row_body, row_je, n_je, perm, pair, kd = _rows(system, flex)
     form = np.array(FORMULATIONS[formulation.name](formulation), dtype=float)
-    model = Model(nb, kind, frame, flex, mass, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
+    mass_inv = np.append(b.M_inv[:nb, 0, 0], 0.0).astype(float)
+    model = Model(nb, kind, frame, flex, mass, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
                   row_body, perm, pair, kd, form, int(isinstance(system.rotation, EulerSwitching)),
                   CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux)
