@@ -605,7 +605,7 @@ def contact_forces(system: System, state: State, lam: FloatArray, gaps: tuple = 
     for k, c in enumerate(system.contacts):
         phases = state.memory[k] if state.memory else c.initial_phases()
         F = c.magnitudes(gaps[k], phases)
-        for i in c.rigid_rows():
+        for i in c.rigid_indices:
             if phases[i].touching:
                 F[i] = max(float(lam[_row_index(system, k, i)]), 0.0)
         out.append(F)

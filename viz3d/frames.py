@@ -294,7 +294,8 @@ def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: di
             scalars[f"contact/{name}/force"] = float(F[i])
             scalars[f"contact/{name}/indentation"] = float(max(gp.alpha[i], 0.0))
         on = F > 0.0
-        out.append((gp.point[on], F[on, None] * gp.n[on]))
+        if on.any():
+            out.append((gp.point[on], F[on, None] * gp.n[on]))
     return out
 
 

@@ -269,7 +269,8 @@ class Simulation:
             return s.replace(t=target) if self.controller is None else s
         sample = self._span.sample(target)
         W_r, theta = self.system.split_q(sample.q)
-        return sample.replace(q=self.system.with_frames(sample.q, W_r, self.system.rotation.normalize(theta)))
+        normal = self.system.rotation.normalize(theta)
+        return sample if normal is theta else sample.replace(q=self.system.with_frames(sample.q, W_r, normal))
 
     def _event_step(self, s: State, target: float) -> State:
         """One accepted step from ``s``, cut at the first contact event inside it (then handled)."""

@@ -29,6 +29,8 @@ Sign of the multiplier of a rigid contact row: ``lambda >= 0`` is compressive (t
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -235,7 +237,12 @@ class ContactSet:
 
     def rigid_rows(self) -> IntArray:
         """Indices of the contacts with a kinematic (constraint-row) treatment."""
-        return np.array([i for i, m in enumerate(self.models) if m == "rigid"], dtype=int)
+        return np.array(self.rigid_indices, dtype=int)
+
+    @functools.cached_property
+    def rigid_indices(self) -> tuple[int, ...]:
+        """``rigid_rows`` as a tuple, computed once."""
+        return tuple(i for i, m in enumerate(self.models) if m == "rigid")
 
     # ------------------------------------------------------------------ kinematics
 
