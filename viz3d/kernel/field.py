@@ -205,9 +205,12 @@ def _schur_rhs(m, v, w):
             else:
                 j0 = v.row_je[r, s]
                 solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, m.body_flex[b], v.J[r, s], v.Je, j0, w.W6[r, s], w.We, j0)
-        C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot)
         Ca = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.a, w.ae)
-        w.lam[r] = Ca - (v.gam[r] - 2.0 * m.form[0] * C_d - m.form[1] ** 2 * v.C[r])
+        if m.form[0] != 0.0:  # velocity feedback (baumgarte, penalty); index1 has none
+            C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot)
+            w.lam[r] = Ca - (v.gam[r] - 2.0 * m.form[0] * C_d - m.form[1] ** 2 * v.C[r])
+        else:
+            w.lam[r] = Ca - (v.gam[r] - m.form[1] ** 2 * v.C[r])
 
 
 @jit
