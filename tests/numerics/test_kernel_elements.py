@@ -282,3 +282,29 @@ def test_compiled_rows_and_multipliers_equal_numpy(setup):
     change = max(np.abs(accelerations(system, Index1(), t, *system.split_y(state.y * (1 + eps * s))[:2], state.chart,
                                       state.memory).lam - acc.lam).max() for s in signs)
     assert np.abs(lam - acc.lam).max() <= FACTOR * max(change, eps * np.abs(acc.lam).max())
+
+
+def test_the_kernel_reads_strided_and_integer_arrays_as_their_values(setup):
+    """The compiled entries are looked up once, for the first call's argument types: a later state
+    given as a strided view or another dtype is converted, not read as if it were C-contiguous
+    float64 (which would be a wrong answer without an error)."""
+    system, state = setup
+    field = VectorField(system, Index1(), state.chart, state.memory)
+    compiled_field = K.CompiledField(field, K.KernelStepper(K.kernel_for(system, Index1()), None))
+    t = TIMES[1]
+    ref = compiled_field(t, state.y)  # fixes the entry for contiguous float64
+    strided = np.repeat(state.y, 2)[::2]
+    assert not strided.flags.c_contiguous
+    np.testing.assert_array_equal(compiled_field(t, strided), ref)
+    stepper = compiled_field.stepper
+    g = stepper.gaps(t, state.y, state.chart)
+    np.testing.assert_array_equal(stepper.gaps(t, strided, np.asfortranarray(state.chart)), g)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        K.KernelStepper(K.kernel_for(system, Index1()), make_rk4()).step(t, 1e-4, strided, state.chart.copy(),
+                                                                          np.zeros(system.n_bodies, np.int64), 1e4)
+
+
+def make_rk4():
+    from viz3d.integrators.tableaus import RK4
+
+    return RK4

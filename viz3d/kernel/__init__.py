@@ -71,6 +71,7 @@ class CompiledField:
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         self.field.n_evals += 1
+        y = _c(y)
         out = np.empty_like(y)
         if self.stepper.evaluate(t, y, self.chart, self.v, out) != OK:
             return self.field(t, y)  # the NumPy path raises the detailed error
@@ -84,17 +85,25 @@ class CompiledField:
         (error None without an embedded solution), or None when an evaluation fails (the caller
         then takes the NumPy path, which raises the detailed error)."""
         st = self.stepper
+        y, f0 = _c(y), (None if f0 is None else _c(f0))
         n, s = y.shape[0], len(tableau.b)
         k, y1, err = np.empty((s, n)), np.empty(n), np.empty(n)
         te = tableau.b - tableau.b_hat if tableau.embedded else np.zeros(s)
         use_f0 = f0 is not None
         d = st.data
-        status = st._call(rk_step, t, h, y, self.chart, f0 if use_f0 else y, use_f0, tableau.a, tableau.b, te, tableau.c,
+        status = st._call(rk_step, t, h, y, _c(self.chart), f0 if use_f0 else y, use_f0, tableau.a, tableau.b, te, tableau.c,
                           d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1, err)
         self.field.n_evals += s - use_f0
         if status != OK:
             return None
         return y1, (err if tableau.embedded else None), k
+
+
+def _c(a: np.ndarray) -> np.ndarray:
+    """``a`` as the compiled entries were compiled for: C-contiguous float64 (copied only when it is
+    not). ``KernelStepper`` reuses the entry of the first call's argument types, which would read an
+    array of another layout or dtype wrongly."""
+    return a if a.dtype == np.float64 and a.flags.c_contiguous else np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _entry_point(dispatcher, args):
@@ -138,7 +147,7 @@ class KernelStepper:
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
         """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""
         d = self.data
-        return self._call(evaluate, t, y, chart, d.model, v, self.ws[1], d.forces, d.rows, out)
+        return self._call(evaluate, t, _c(y), _c(chart), d.model, v, self.ws[1], d.forces, d.rows, out)
 
     def multipliers(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> np.ndarray:
         """The constraint multipliers at ``(t, y)`` (n_c,) (those of kinematic contacts included)."""
@@ -151,7 +160,7 @@ class KernelStepper:
         """True when ``viz3d.diagnosis.check_state`` passes ``y`` after a step ``h`` (compiled);
         False means: run that check for its diagnosis."""
         m = self.data.model
-        return bool(self._call(state_ok, m.n_q, m.n_v, m.switching, m.frame_body.shape[0], y, h, max_speed))
+        return bool(self._call(state_ok, m.n_q, m.n_v, m.switching, m.frame_body.shape[0], _c(y), h, max_speed))
 
     def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple:
         """``(lam, C, J)`` at ``(t, y)``: the multipliers (n_c,), residuals (n_c,) and frame Jacobian
@@ -164,7 +173,7 @@ class KernelStepper:
         ``a - b`` [m] and contact point [m] (``viz3d.contact.contacts.Gap``, columns 2-4, 5-7, 8-10)."""
         d = self.data
         out = np.empty((d.n_contacts, 11))
-        self._call(gaps, t, y, chart, d.model, self.ws[0], self.ws[1], d.geometry, out)
+        self._call(gaps, t, _c(y), _c(chart), d.model, self.ws[0], self.ws[1], d.geometry, out)
         return out
 
     def configuration(self, system, t: float, y: np.ndarray, chart: np.ndarray) -> tuple:
@@ -197,6 +206,8 @@ class KernelStepper:
         0). On a failure ``y`` holds the failed step's result."""
         tab, d = self.tableau, self.data
         v, w = self.ws
+        if _c(y) is not y or _c(chart) is not chart:
+            raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
         return advance(n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w, d.forces,
                        d.rows, self._k, self._yi)
 
