@@ -221,8 +221,8 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``;
     ``solved``: ``(lam, C, J)`` at ``state`` if the caller has them (the compiled kernel's
     multipliers (n_c,), residuals (n_c,) and Jacobian blocks (n_c, 2, 6)), else they are solved for
-    here; ``kinematics``: the ``Configuration`` at ``state`` and each
-    contact set's ``Gap`` if the caller has them (``viz3d.kernel.KernelStepper.configuration``).
+    here; ``kinematics``: the ``Configuration`` at ``state`` and each contact set's ``Gap`` if the
+    caller has them (``viz3d.kernel.KernelStepper.configuration``).
     """
     if kinematics is None:
         cfg = body_state(system, state.q, state.v, state.chart, state.t)
