@@ -196,7 +196,7 @@ class ContactStepping:
         kernel when the run has one."""
         if self.kernel is None:
             return ledger(self.system, state)
-        return ledger(self.system, state, *self.kernel.configuration(self.system, state.t, state.y, state.chart))
+        return ledger(self.system, state, *self.kernel.configuration(state.t, state.y, state.chart))
 
     def state_at(self, t: float, y: FloatArray, like: State) -> State:
         """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""

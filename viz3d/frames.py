@@ -6,7 +6,6 @@ formulations; conversions to a back-end's conventions (quaternion order) happen 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 
@@ -238,19 +237,18 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         T, V = energies(system, state, cfg, gaps)
     reactions, points, violation = [], [], 0.0
     joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
-    lam = rows = None
+    lam = C = J = None
     if solved is not None:
         lam, C, J = solved
-        rows = _Rows(C, J)
     elif system.n_c:  # multipliers: joint reactions, kinematic contact forces
         acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
-        lam, rows = acc.lam, acc.rows
+        lam, C, J = acc.lam, acc.rows.C, acc.rows.J
     lam = np.zeros(0) if lam is None else lam
-    if joints:
-        violation = _joint_violation(system, rows.C)
+    if joints:  # (a kinematic contact's row is its indentation, not a violation)
+        violation = float(max(np.max(np.abs(C[sl])) for _, sl in joints))
         for js, sl in joints:
-            J = rows.J[sl].reshape(js.n_joints, js.n_eq, 2, 6)
-            reactions.append(js.reaction_force(J, lam[sl].reshape(js.n_joints, js.n_eq)))
+            reactions.append(js.reaction_force(J[sl].reshape(js.n_joints, js.n_eq, 2, 6),
+                                               lam[sl].reshape(js.n_joints, js.n_eq)))
             points.append(js.points(cfg))
     springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
     contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]
@@ -268,20 +266,6 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         constraint_violation=violation, scalars=scalars,
         deformed={d.name: d.vertices(cfg) for d in drawings},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
-
-
-class _Rows(NamedTuple):
-    """The residuals and frame Jacobian blocks of the constraint rows (as ``ConstraintRows``)."""
-
-    C: FloatArray
-    J: FloatArray
-
-
-def _joint_violation(system: System, C: FloatArray) -> float:
-    """max |C| over the joints' rows [m] (a kinematic contact's row is its indentation, not a violation)."""
-    rows = [C[sl] for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
-    rows = np.concatenate(rows) if rows else np.zeros(0)
-    return float(np.max(np.abs(rows))) if rows.size else 0.0
 
 
 def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: dict) -> list:

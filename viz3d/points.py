@@ -252,38 +252,28 @@ def add_row(v, row, side, p, u, sign):
     """Add ``sign u^T J_p`` to side ``side`` of constraint row ``row``: the velocity Jacobian of point
     ``p`` along the world vector ``u`` (3,), i.e. ``[u, s x R^T u]`` on the frame twist and
     ``N^T R^T u`` on the elastic velocities."""
-    _add_row(v.pt_i, v.pt_N, v.R, v.ps, v.J, v.Je, v.row_je, v.v3, row, side, p, u, sign)
-
-
-@inline
-def _add_row(pt_i, pt_N, R, ps, J, Je, row_je, v3, row, side, p, u, sign):
-    b, off, n = pt_i[p, 0], pt_i[p, 1], pt_i[p, 2]
-    uB, t = v3[4], v3[5]
-    tmatvec3(R[b], u, uB)
-    cross3(ps[p], uB, t)
+    b, off, n = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2]
+    uB, t = v.v3[4], v.v3[5]
+    tmatvec3(v.R[b], u, uB)
+    cross3(v.ps[p], uB, t)
     for c in range(3):
-        J[row, side, c] += sign * u[c]
-        J[row, side, 3 + c] += sign * t[c]
-    j0 = row_je[row, side]
+        v.J[row, side, c] += sign * u[c]
+        v.J[row, side, 3 + c] += sign * t[c]
+    j0 = v.row_je[row, side]
     for q in range(n):
         acc = 0.0
         for c in range(3):
-            acc += pt_N[off + c * n + q] * uB[c]
-        Je[j0 + q] += sign * acc
+            acc += v.pt_N[off + c * n + q] * uB[c]
+        v.Je[j0 + q] += sign * acc
 
 
 @inline
 def bias(v, p, out):
     """``J_dot v`` of point ``p`` (3,) [m/s^2], world: ``w x (w x rho) + 2 w x (R N eta_dot)``."""
-    _bias(v.pt_i, v.wW, v.prho, v.pud, v.v3, p, out)
-
-
-@inline
-def _bias(pt_i, wW, prho, pud, v3, p, out):
-    b = pt_i[p, 0]
-    t = v3[6]
-    cross3(wW[b], prho[p], t)
-    cross3(wW[b], t, out)
-    cross3(wW[b], pud[p], t)
+    b = v.pt_i[p, 0]
+    t = v.v3[6]
+    cross3(v.wW[b], v.prho[p], t)
+    cross3(v.wW[b], t, out)
+    cross3(v.wW[b], v.pud[p], t)
     for c in range(3):
         out[c] += 2.0 * t[c]

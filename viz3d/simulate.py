@@ -141,7 +141,7 @@ class Simulation:
         contacts = self._contacts
         kinematics = None
         if self._kernel is not None:
-            kinematics = self._kernel.configuration(self.system, state.t, state.y, state.chart)
+            kinematics = self._kernel.configuration(state.t, state.y, state.chart)
         return frame_from_state(self.system, self.formulation, state, drawings,
                                 contacts.E0 if contacts is not None else None, self.solved_rows(state), kinematics)
 

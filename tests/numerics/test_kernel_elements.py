@@ -221,7 +221,7 @@ def test_compiled_configuration_and_gaps_equal_numpy(setup):
     system, state = setup
     stepper = K.KernelStepper(K.kernel_for(system, Index1()), None)
     t = TIMES[1]
-    cfg, gaps = stepper.configuration(system, t, state.y, state.chart)
+    cfg, gaps = stepper.configuration(t, state.y, state.chart)
     ref = body_state(system, state.q, state.v, state.chart, t)
     scale = 1.0 + np.abs(state.y).max()
     tol = 100 * np.finfo(float).eps * scale

@@ -54,7 +54,7 @@ class ExplicitRK(Integrator):
         for j, b in self._b:
             y_new += (h * b) * k[j]
         stages = np.asarray(k)
-        error = h * np.tensordot(tab.b - tab.b_hat, stages, axes=1) if tab.embedded else None
+        error = h * np.tensordot(tab.error_weights, stages, axes=1) if tab.embedded else None
         return StepResult(y_new, error, f0=k[0], f1=k[-1] if tab.fsal else None, stages=stages)
 
     def interpolant(self, rhs, t: float, y: FloatArray, h: float, res: StepResult,

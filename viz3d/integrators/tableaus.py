@@ -136,6 +136,7 @@ class ButcherTableau:
             if abs(self.b_hat.sum() - 1) > TABLEAU_TOL or self.b_hat.shape != self.b.shape:
                 raise ValueError(f"{self.name}: b_hat must have the shape of b and sum to 1")
         s = len(self.b)
+        object.__setattr__(self, "_error_weights", self.b - self.b_hat if self.b_hat is not None else np.zeros(s))
         if self.a.shape != (s, s) or self.c.shape != (s,):
             raise ValueError(f"{self.name}: inconsistent stage count")
         if np.any(np.triu(self.a) != 0):
@@ -157,6 +158,12 @@ class ButcherTableau:
     @property
     def embedded(self) -> bool:
         return self.b_hat is not None
+
+    @property
+    def error_weights(self) -> np.ndarray:
+        """``b - b_hat`` (s,): the step's error estimate is ``h sum (b - b_hat)_i k_i`` (zeros without
+        an embedded solution)."""
+        return self._error_weights
 
 
 EULER = ButcherTableau("euler", 1, c=[0.0], a=[[0.0]], b=[1.0])

@@ -88,11 +88,11 @@ class CompiledField:
         y, f0 = _c(y), (None if f0 is None else _c(f0))
         n, s = y.shape[0], len(tableau.b)
         k, y1, err = np.empty((s, n)), np.empty(n), np.empty(n)
-        te = tableau.b - tableau.b_hat if tableau.embedded else np.zeros(s)
         use_f0 = f0 is not None
         d = st.data
-        status = st._call(rk_step, t, h, y, _c(self.chart), f0 if use_f0 else y, use_f0, tableau.a, tableau.b, te, tableau.c,
-                          d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1, err)
+        status = st._call(rk_step, t, h, y, _c(self.chart), f0 if use_f0 else y, use_f0, tableau.a, tableau.b,
+                          tableau.error_weights, tableau.c, d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1,
+                          err)
         self.field.n_evals += s - use_f0
         if status != OK:
             return None
@@ -125,7 +125,6 @@ class KernelStepper:
         self.ws = workspace(data)
         self._entries: dict = {}
         self._memory_id, self._view = None, self.ws[0]
-        self._slices_of = None
         n = data.model.n_q + data.model.n_v + data.model.n_aux
         stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
         self._k, self._yi = np.empty((stages, n)), np.empty(n)
@@ -176,7 +175,7 @@ class KernelStepper:
         self._call(gaps, t, _c(y), _c(chart), d.model, self.ws[0], self.ws[1], d.geometry, out)
         return out
 
-    def configuration(self, system, t: float, y: np.ndarray, chart: np.ndarray) -> tuple:
+    def configuration(self, t: float, y: np.ndarray, chart: np.ndarray) -> tuple:
         """``(Configuration, gaps)`` at ``(t, y)``: what ``viz3d.dynamics.body_state`` and each contact
         set's ``gap`` compute, from one compiled call (for output frames)."""
         from viz3d.contact.contacts import Gap
@@ -184,21 +183,11 @@ class KernelStepper:
 
         g = self.gaps(t, y, chart)
         v, w = self.ws
-        elastic, contacts = self._slices(system)
-        eta = tuple(w.eta[sl].copy() for sl in elastic)
-        eta_dot = tuple(w.eta_dot[sl].copy() for sl in elastic)
+        eta = tuple(w.eta[sl].copy() for sl in self.data.elastic_slices)
+        eta_dot = tuple(w.eta_dot[sl].copy() for sl in self.data.elastic_slices)
         cfg = Configuration(t, Pose(w.r.copy(), v.R.copy()), Twist(w.vW.copy(), w.wB.copy(), v.wW.copy()), eta,
                             eta_dot)
-        return cfg, tuple(Gap(g[sl, 0], g[sl, 1], g[sl, 2:5], g[sl, 5:8], g[sl, 8:11]) for sl in contacts)
-
-    def _slices(self, system) -> tuple:
-        """Each flexible body's slice of the elastic coordinates and each contact set's of the contacts."""
-        if self._slices_of is None or self._slices_of[0] is not system:
-            e0 = np.cumsum([0] + [fb.n for fb in system.bodies.flexible])
-            k0 = np.cumsum([0] + [c.k for c in system.contacts])
-            self._slices_of = (system, [slice(a, b) for a, b in zip(e0[:-1], e0[1:])],
-                               [slice(a, b) for a, b in zip(k0[:-1], k0[1:])])
-        return self._slices_of[1:]
+        return cfg, tuple(Gap(g[sl, 0], g[sl, 1], g[sl, 2:5], g[sl, 5:8], g[sl, 8:11]) for sl in self.data.contact_slices)
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
              max_speed: float, n_steps: int = 1) -> tuple[int, int]:

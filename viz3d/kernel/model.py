@@ -49,7 +49,6 @@ class Model(NamedTuple):
     body_kind: np.ndarray     # (nb + 1,) int: RIGID, FLOATING_FLEXIBLE, FIXED_FLEXIBLE, GROUND
     body_frame: np.ndarray    # (nb + 1,) int: floating-frame index, -1
     body_flex: np.ndarray     # (nb + 1,) int: flexible index, -1
-    mass: np.ndarray          # (nb + 1,) [kg] (ground 0)
     mass_inv: np.ndarray      # (nb + 1,) [1/kg] of the rigid bodies (0 elsewhere), as Bodies.M_inv
     inertia: np.ndarray       # (nb + 1, 3, 3) rigid bodies [kg m^2]
     inertia_inv: np.ndarray   # (nb + 1, 3, 3)
@@ -138,6 +137,8 @@ class KernelData:
     pt_i: np.ndarray
     pt_N: np.ndarray
     row_je: np.ndarray
+    elastic_slices: tuple     # each flexible body's slice of the stacked elastic coordinates
+    contact_slices: tuple     # each contact set's slice of the contacts (global contact indices)
 
 
 class Packer:
@@ -224,7 +225,14 @@ def pack(system, formulation) -> KernelData:
     forces, rows, geometry = (_by_class(target, parts) for target in (force_piece, row_piece, gap_piece))
     pt_i, pt_s, pt_N = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
-    return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, row_je)
+    return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, row_je,
+                      _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]))
+
+
+def _slices(sizes: list[int]) -> tuple[slice, ...]:
+    """Consecutive slices of the given sizes."""
+    ends = np.cumsum([0] + sizes)
+    return tuple(slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:]))
 
 
 def _check(system, formulation) -> None:
@@ -268,7 +276,6 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
         r0[fb.index], R0[fb.index] = fb.W_r0, fb.R0
     frame = np.full(nb + 1, -1, np.int64)
     frame[system.frame_body] = np.arange(system.n_frames)
-    mass = np.append(b.mass, 0.0).astype(float)
     inertia = np.zeros((nb + 1, 3, 3))
     inertia_inv = np.zeros((nb + 1, 3, 3))
     inertia[:nb][b.is_rigid] = b.inertia[b.is_rigid]
@@ -278,7 +285,7 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     row_body, row_je, n_je, perm, pair, kd = _rows(system, flex)
     form = np.array(FORMULATIONS[formulation.name](formulation), dtype=float)
     mass_inv = np.append(b.M_inv[:nb, 0, 0], 0.0).astype(float)
-    model = Model(nb, kind, frame, flex, mass, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
+    model = Model(nb, kind, frame, flex, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
                   row_body, perm, pair, kd, form, int(isinstance(system.rotation, EulerSwitching)),
                   CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux)

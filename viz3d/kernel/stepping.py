@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from viz3d.compiled import entry, jit
+from viz3d.compiled import entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
 from viz3d.kernel.field import NONFINITE, OK, ROTATION, SPEED, evaluate, rotation
@@ -22,17 +22,9 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     n = y.shape[0]
     s = tb.shape[0]
     for step in range(n_steps):
-        t = t0 + step * h
-        for i in range(s):
-            for j in range(n):
-                acc = y[j]
-                for l in range(i):
-                    if ta[i, l] != 0.0:
-                        acc += h * ta[i, l] * k[l, j]
-                yi[j] = acc
-            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-            if status != OK:
-                return step, status
+        status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        if status != OK:
+            return step, status
         for j in range(n):
             acc = y[j]
             for i in range(s):
@@ -49,20 +41,52 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     return n_steps, OK
 
 
+@inline
+def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
+    """Stages ``first`` to the last of a step from ``(t, y)`` into ``k`` (the rows before ``first``
+    given); the status of the first failed evaluation, ``OK`` when none."""
+    n = y.shape[0]
+    for i in range(first, ta.shape[0]):
+        for j in range(n):
+            acc = y[j]
+            for l in range(i):
+                if ta[i, l] != 0.0:
+                    acc += h * ta[i, l] * k[l, j]
+            yi[j] = acc
+        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+        if status != OK:
+            return status
+    return OK
+
+
+@inline
+def _frame_health(nq, switching, y, f, h, max_speed):
+    """``(status, |sin theta|)`` of floating frame ``f`` of ``y`` after a step ``h``, as
+    ``viz3d.diagnosis.check_state`` judges it: ``SPEED`` above ``max_speed``, ``ROTATION`` when its
+    Euler angles turn more than ``MAX_TURN`` (the rate map of ``euler_rates_from_body_omega``, signed
+    sin) or a plain Euler chart sits at its gimbal lock, else ``OK``."""
+    v = nq + 6 * f
+    if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
+        return SPEED, 0.0
+    s2 = math.sin(y[6 * f + 4])
+    st = abs(s2)
+    if not st > 0.0:
+        return ROTATION, st
+    s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
+    w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
+    psi_d = (w1 * s3 + w2 * c3) / s2
+    turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
+    if not turn <= MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
+        return ROTATION, st
+    return OK, st
+
+
 @jit
 def _check_frames(nq, switching, frame_body, centre, centre_R, R, y, chart, switches, h, max_speed):
     for f in range(frame_body.shape[0]):
-        v = nq + 6 * f
-        if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
-            return SPEED
-        s2 = math.sin(y[6 * f + 4])
-        st = abs(s2)
-        s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
-        w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
-        psi_d = (w1 * s3 + w2 * c3) / s2 if st > 0.0 else math.inf  # as euler_rates_from_body_omega
-        turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
-        if turn > MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
-            return ROTATION
+        status, st = _frame_health(nq, switching, y, f, h, max_speed)
+        if status != OK:
+            return status
         if switching == 1 and st < SWITCH_SIN:
             rotation(chart[f], y[6 * f + 3:6 * f + 6], R)
             for i in range(3):
@@ -80,25 +104,16 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
     ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i`` (``te = b - b_hat``). Returns
     the status of the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
-    s = tb.shape[0]
-    for i in range(s):
-        if i == 0 and use_f0:
-            for j in range(n):
-                k[0, j] = f0[j]
-            continue
+    if use_f0:
         for j in range(n):
-            acc = y[j]
-            for l in range(i):
-                if ta[i, l] != 0.0:
-                    acc += h * ta[i, l] * k[l, j]
-            yi[j] = acc
-        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-        if status != OK:
-            return status
+            k[0, j] = f0[j]
+    status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    if status != OK:
+        return status
     for j in range(n):
         acc = y[j]
         e = 0.0
-        for i in range(s):
+        for i in range(tb.shape[0]):
             if tb[i] != 0.0:
                 acc += h * tb[i] * k[i, j]
             if te[i] != 0.0:
@@ -111,24 +126,12 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
 @entry
 def state_ok(n_q, n_v, switching, n_frames, y, h, max_speed):
     """True when ``viz3d.diagnosis.check_state`` would pass ``y`` after a step ``h``: finite
-    positions and velocities, frame speeds within ``max_speed``, no orientation coordinates turning
-    more than ``MAX_TURN`` per step, no plain Euler chart at its gimbal lock (the NumPy check then
-    runs only to write the diagnosis)."""
+    positions and velocities and every frame's ``_frame_health`` ``OK`` (the NumPy check then runs
+    only to write the diagnosis)."""
     for j in range(n_q + n_v):
         if not math.isfinite(y[j]):
             return False
     for f in range(n_frames):
-        v = n_q + 6 * f
-        if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
-            return False
-        s2 = math.sin(y[6 * f + 4])
-        st = abs(s2)
-        s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
-        w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
-        if not st > 0.0:
-            return False
-        psi_d = (w1 * s3 + w2 * c3) / s2  # as euler_rates_from_body_omega (signed sin)
-        turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
-        if not turn <= MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
+        if _frame_health(n_q, switching, y, f, h, max_speed)[0] != OK:
             return False
     return True
