@@ -68,6 +68,22 @@ def test_a_step_count_beyond_the_limit_is_refused_at_once(capsys):
     _refused(["run", SCENES / "heavy_top.toml", "--dt", "1e-300"], capsys, "sim.dt", "limits.max_steps")
 
 
+def test_a_step_count_that_overflows_is_refused(capsys):
+    """t_end / dt = inf (a 1e-300 s step over 1.8e8 s): refused by the limit, not an OverflowError
+    from rounding the step count (the run-flag fuzzer found it on a fresh clone)."""
+    _refused(["run", SCENES / "chain.toml", "--dt", "1e-300", "--t-end", "179769314.0"], capsys, "sim.dt",
+             "limits.max_steps")
+
+
+def test_methods_that_cannot_run_together_are_refused_before_the_run_is_announced(capsys, tmp_path):
+    """A tolerance with a fixed-step integrator: exit 2 with one message and no "running" line
+    (it was refused after the announcement, so a SIGTERM sent on seeing it could kill the process)."""
+    code, out, err = _run(["run", SCENES / "chain.toml", "--set", "sim.rtol=0.0625", "--out", tmp_path / "x.npz"], capsys)
+    assert code == 2 and "running" not in out, (out, err)
+    lines = [line for line in err.splitlines() if "error:" in line]
+    assert len(lines) == 1 and "sim.rtol" in lines[0] and "embedded error estimate" in lines[0], err
+
+
 def test_dt_on_an_impact_scene_sets_its_output_interval(tmp_path, capsys):
     out = tmp_path / "bar.npz"
     code, text, _ = _run(["run", SCENES / "impact_free_bar.toml", "--dt", "2e-5", "--t-end", "2e-4", "--out", out], capsys)

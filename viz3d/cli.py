@@ -283,12 +283,13 @@ def port_number(x):
 
 def cmd_run(args) -> int:
     from viz3d.scene.load import load_scene, with_sim
-    from viz3d.simulate import simulate
+    from viz3d.simulate import check_methods, simulate
 
     scene = with_sim(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), t_end=args.t_end, dt=args.dt)
     if args.view:
         return _view(scene, args)
     record = _writable_file(args.record, ".rrd") if args.record else None
+    check_methods(scene)  # refused before the run is announced
     print(run_header(scene), flush=True)
     sinks = [_recorder(record)] if record else []
     with warnings.catch_warnings(record=True) as caught:

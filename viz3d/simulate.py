@@ -511,6 +511,17 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     return run(sim, scene, formulation, progress, sinks)
 
 
+def check_methods(scene: Scene) -> None:
+    """Refuse a scene whose integrator, formulation, rotation coordinates and tolerance cannot run
+    together (``viz3d.methods.check_combination``): ``SceneError`` naming the key, before anything
+    is built or announced."""
+    sim = scene.data["sim"]
+    try:
+        check_combination(sim["integrator"], sim["formulation"], sim["rotation"], sim.get("rtol"))
+    except MethodError as exc:
+        raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
+
+
 def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Drive ``sim`` to ``sim.t_end``: frames every ``output_dt`` into the trajectory, and to
     the ``sinks`` (after every step for full-rate sinks)."""

@@ -73,10 +73,11 @@ def check_budget(data: dict, source: str) -> Estimate:
     if n_bodies > limits["max_bodies"]:
         raise _over(source, "bodies", f"at most {limits['max_bodies']} bodies", n_bodies, "max_bodies")
     dt = sim["dt"]
-    steps = 0.0 if "rtol" in sim else math.ceil(t_end / dt - 1e-9)
-    if steps > limits["max_steps"]:
+    ratio = 0.0 if "rtol" in sim else t_end / dt  # inf for a tiny dt and a long run: refused, not rounded
+    if not ratio <= limits["max_steps"]:
         raise _over(source, "sim.dt", f"a step giving at most {limits['max_steps']} steps over sim.t_end = {t_end:g} s "
                     f"(t_end / dt = {t_end / dt:.3g})", dt, "max_steps")
+    steps = float(math.ceil(ratio - 1e-9)) if ratio else 0.0
     output_dt = sim.get("output_dt", max(DEFAULT_OUTPUT_DT, dt))
     frames = t_end / max(output_dt, dt) + 1
     per_frame = BYTES_PER_FRAME + BYTES_PER_BODY_FRAME * n_bodies + BYTES_PER_JOINT_FRAME * n_joints
