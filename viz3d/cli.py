@@ -283,6 +283,7 @@ def port_number(x):
 
 def cmd_run(args) -> int:
     from viz3d.scene.load import load_scene, with_sim
+    from viz3d.interrupts import InterruptGuard
     from viz3d.simulate import check_methods, simulate
 
     scene = with_sim(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), t_end=args.t_end, dt=args.dt)
@@ -299,8 +300,9 @@ def cmd_run(args) -> int:
         print(f"recorded    {record}  (replay: viz3d replay {record})")
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
-    out = save_or_fallback(traj, args.out or Path("out") / f"{scene.name}.npz", scene.name)
-    print(summary(traj, out))
+    with InterruptGuard() as guard, guard.held():  # the computed run is written whole, then interrupted
+        out = save_or_fallback(traj, args.out or Path("out") / f"{scene.name}.npz", scene.name)
+        print(summary(traj, out))
     return 0 if traj.ok else 1
 
 

@@ -23,6 +23,7 @@ from viz3d.dynamics import VectorField, body_state
 from viz3d.extras import run_extras
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
+from viz3d.interrupts import InterruptGuard
 from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
@@ -534,35 +535,37 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
     status, wall0 = "ok", time.perf_counter()
     conservative = all(e.conservative for e in sim.system.forces) and all(c.conservative for c in sim.system.contacts)
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], conservative)
-    emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"], energy)
-    try:
-        emitter.open(scene)
-        emitter.emit(output=True)
-        n = 0
-        while n < n_steps:  # to the next output frame in one call (every step for full-rate sinks)
-            k = 1 if full_rate else min(every - n % every, n_steps - n)
-            sim.steps(k)
-            n += k
-            emitter.emit_events()
-            output = n % every == 0 or n == n_steps
-            if output or full_rate:
-                emitter.emit(output)
-            if bar is not None:
-                bar.update(n)
-    except SimulationFailure as exc:
-        status = str(exc)
-    except KeyboardInterrupt:
-        status = f"interrupted at t = {sim.state.t:.6g} s"
-    except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly
-        import traceback
+    with InterruptGuard() as guard:
+        emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"], energy, guard)
+        try:
+            emitter.open(scene)
+            emitter.emit(output=True)
+            n = 0
+            while n < n_steps:  # to the next output frame in one call (every step for full-rate sinks)
+                k = 1 if full_rate else min(every - n % every, n_steps - n)
+                sim.steps(k)
+                n += k
+                emitter.emit_events()
+                output = n % every == 0 or n == n_steps
+                if output or full_rate:
+                    emitter.emit(output)
+                if bar is not None:
+                    bar.update(n)
+        except SimulationFailure as exc:
+            status = str(exc)
+        except KeyboardInterrupt:
+            status = f"interrupted at t = {sim.state.t:.6g} s"
+        except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly
+            import traceback
 
-        traceback.print_exc()
-        status = f"stopped by an internal error at t = {sim.state.t:.6g} s: {type(exc).__name__}: {exc}"
-    finally:
-        if bar is not None:
-            bar.close()
-        emitter.emit_events()
-        emitter.close(status)  # (events after the last returned state are not on the trajectory)
+            traceback.print_exc()
+            status = f"stopped by an internal error at t = {sim.state.t:.6g} s: {type(exc).__name__}: {exc}"
+        finally:
+            if bar is not None:
+                bar.close()
+            with guard.held(deliver=False):  # the run ends here anyway: an interrupt now cuts no file
+                emitter.emit_events()
+                emitter.close(status)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
     extras = run_extras(sim, scene, recorder.frames) if sim.system.contacts or sim.system.outputs else None
     return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
@@ -572,9 +575,10 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
 class _Emitter:
     """Computes frames and hands them to the trajectory recorder and the sinks."""
 
-    def __init__(self, sim, formulation, recorder, sinks, blowup_violation, energy: EnergyWatch):
+    def __init__(self, sim, formulation, recorder, sinks, blowup_violation, energy: EnergyWatch,
+                 guard: InterruptGuard):
         self.sim, self.formulation, self.recorder, self.sinks = sim, formulation, recorder, list(sinks)
-        self.blowup_violation, self.energy = blowup_violation, energy
+        self.blowup_violation, self.energy, self.guard = blowup_violation, energy, guard
         self.opened: list[Sink] = []
         self.drawings: tuple = ()
         self.logged = 0
@@ -594,11 +598,12 @@ class _Emitter:
 
     def emit(self, output: bool) -> None:
         frame = self._frame(self.sim.state)
-        if output:
-            self.recorder.record(frame)
-        for s in self.sinks:
-            if output or s.full_rate:
-                s.log(frame)
+        with self.guard.held():  # the trajectory and every sink get the frame, or none does
+            if output:
+                self.recorder.record(frame)
+            for s in self.sinks:
+                if output or s.full_rate:
+                    s.log(frame)
         check_violation(self.sim.system, self.sim.state, frame.constraint_violation, self.blowup_violation)
         self.energy.check(frame)
 
@@ -606,15 +611,17 @@ class _Emitter:
         """Frames at the contact events since the last call (every sink gets them), and their texts."""
         for state in self.sim.drain_events(self.sim.state.t):
             frame = self._frame(state)
-            self.recorder.record(frame)
-            for s in self.sinks:
-                s.log(frame)
+            with self.guard.held():
+                self.recorder.record(frame)
+                for s in self.sinks:
+                    s.log(frame)
         contacts = self.sim.contacts
         if contacts is not None:
-            for t, text in contacts.log[self.logged:]:
-                for s in self.opened:
-                    s.event(t, text)
-            self.logged = len(contacts.log)
+            with self.guard.held():
+                for t, text in contacts.log[self.logged:]:
+                    for s in self.opened:
+                        s.event(t, text)
+                self.logged = len(contacts.log)
 
     def close(self, status: str) -> None:
         for s in self.opened:

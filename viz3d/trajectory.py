@@ -27,6 +27,7 @@ scene_json             ()              resolved scene + viz3d version, integrato
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -102,14 +103,22 @@ class Trajectory:
         return list(self.body_names).index(name)
 
     def save(self, path: str | Path) -> Path:
-        """Write the ``.npz`` file (compressed); returns its path."""
+        """Write the ``.npz`` file (compressed); returns its path. The file appears whole or not at
+        all: it is written beside ``path`` under a temporary name and renamed (an interrupt or a
+        full disk never leaves a truncated archive, nor destroys a previous one)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extras"}
         clash = set(self.extras) & set(data)
         if clash:
             raise ValueError(f"extras may not reuse field names: {sorted(clash)}")
-        np.savez_compressed(path, **data, **self.extras)
+        partial = path.with_name(f".{path.name}.partial")
+        try:
+            with open(partial, "wb") as f:
+                np.savez_compressed(f, **data, **self.extras)
+            os.replace(partial, path)
+        finally:
+            partial.unlink(missing_ok=True)
         return path
 
     @classmethod
