@@ -11,7 +11,9 @@ written next to its NumPy code and registered here for one of four **targets**:
 * ``gap_piece(d, v, out)``: contacts write their indentation, its rate (the event functions), normal,
   separation and contact point;
 * ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max)``: a normal law's magnitude
-  (its parameters in ``d.f[k, p0:]``).
+  (its parameters in ``d.f[k, p0:]``);
+* ``energy_piece(d, v, V)``: force elements with a potential energy add it to ``V`` (output frames;
+  a force element whose ``potential_energy`` is its own must have one, or frames take the NumPy path).
 
 ``d`` is the element's packed data: an instance of its own ``Items`` subclass (a named tuple of an
 int64 table ``i`` and a float64 table ``f``, one row per item; the columns are the piece's
@@ -135,7 +137,15 @@ def normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
     raise NotImplementedError
 
 
-TARGETS = (force_piece, row_piece, gap_piece, normal_force)
+def energy_piece(d, v, V):
+    """Add the potential energy [J] of the elements ``d`` (positions in ``v``) to ``V`` (2,):
+    ``V[0]`` the part that may be negative (gravity, loads), ``V[1]`` the part that may not (springs)
+    (``viz3d.events.Ledger``'s ``signed_potential`` and the rest of ``potential``)."""
+    raise NotImplementedError
+
+
+#: Targets in order: a data class registered for several belongs to the first (its packing group).
+TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece)
 
 #: Registered data classes per target, in registration order.
 REGISTRY: dict[str, list[type[Items]]] = {t.__name__: [] for t in TARGETS}

@@ -13,7 +13,12 @@ from viz3d.system import State, System
 
 
 class SimulationFailure(RuntimeError):
-    """A run that cannot go on; ``str(exc)`` is the diagnosis."""
+    """A run that cannot go on; ``str(exc)`` is the diagnosis. ``frame``: the index of the failing
+    frame among those a check was given (None when the failure is the state being stepped)."""
+
+    def __init__(self, message: str, frame: int | None = None):
+        super().__init__(message)
+        self.frame = frame
 
 
 #: A body whose orientation coordinates change faster than this per step [rad] is unresolved.
@@ -70,11 +75,16 @@ def _singular(system: System, state: State, b: int, theta, turn) -> str:
             f"(> {MAX_COORDINATE_TURN} rad): the step cannot resolve the rotation; try a smaller sim.dt")
 
 
-def check_violation(system: System, state: State, violation: float, limit: float) -> None:
-    """Raise ``SimulationFailure`` when ``violation`` = max |C| [m] exceeds ``limit``."""
-    if violation > limit:
-        raise SimulationFailure(f"t = {state.t:.6g} s: constraint violation {violation:.3g} m exceeds sim.blowup_violation = "
-                                f"{limit:.3g} m{_worst_joint(system, state)}; try a smaller sim.dt or a stabilizing formulation")
+def check_violation(system: System, states, violation, limit: float) -> None:
+    """Raise ``SimulationFailure`` at the first of ``states`` whose ``violation`` = max |C| [m]
+    (one per state) exceeds ``limit``."""
+    bad = np.flatnonzero(np.asarray(violation) > limit)
+    if bad.size:
+        i = int(bad[0])
+        state = states[i]
+        raise SimulationFailure(f"t = {state.t:.6g} s: constraint violation {violation[i]:.3g} m exceeds sim.blowup_violation = "
+                                f"{limit:.3g} m{_worst_joint(system, state)}; try a smaller sim.dt or a stabilizing formulation",
+                                frame=i)
 
 
 class EnergyWatch:
@@ -83,34 +93,42 @@ class EnergyWatch:
     before anything becomes non-finite, and a one-sided contact may even return the body intact
     with the energy it gained.
 
-    ``check(frame)`` raises ``SimulationFailure`` when ``E - E0`` exceeds ``limit`` times the
-    largest kinetic energy seen so far (``sim.blowup_energy``); non-conservative scenes are not
-    watched (their energy may legitimately grow)."""
+    ``check(frames)`` raises ``SimulationFailure`` at the first frame where ``E - E0`` exceeds
+    ``limit`` times the largest kinetic energy seen so far (``sim.blowup_energy``); non-conservative
+    scenes are not watched (their energy may legitimately grow)."""
 
     def __init__(self, system: System, limit: float, conservative: bool):
         self.system, self.limit, self.active = system, float(limit), conservative
         self.E0: float | None = None
         self.T_max = 0.0
 
-    def check(self, frame) -> None:
-        if not self.active:
+    def check(self, frames) -> None:
+        """Watch the next frames of the run, in order (``viz3d.columns.FrameColumns``: arrays over
+        instants of ``t``, ``energy_kinetic``, ``energy_potential``, ``R_WB``, ``W_v``, ``W_omega``)."""
+        if not self.active or not len(frames.t):
             return
-        E = frame.energy_kinetic + frame.energy_potential
-        self.E0 = E if self.E0 is None else self.E0
-        self.T_max = max(self.T_max, frame.energy_kinetic)
+        T = frames.energy_kinetic
+        E = T + frames.energy_potential
+        self.E0 = float(E[0]) if self.E0 is None else self.E0
+        T_max = np.maximum.accumulate(np.maximum(T, self.T_max))
         growth = E - self.E0
-        if self.T_max > 0.0 and growth > self.limit * self.T_max:
-            raise SimulationFailure(
-                f"t = {frame.t:.6g} s: total energy grew by {growth:.3g} J = {growth / self.T_max:.3g} of the largest kinetic "
-                f"energy (> sim.blowup_energy = {self.limit:g}) in a conservative scene: diverged, the step is beyond the "
-                f"method's stability limit; body {self._most_energetic(frame)!r} carries the most kinetic energy; "
-                f"try a smaller sim.dt or an implicit integrator")
+        bad = np.flatnonzero((T_max > 0.0) & (growth > self.limit * T_max))
+        if not bad.size:
+            self.T_max = float(T_max[-1])
+            return
+        i = int(bad[0])
+        self.T_max = float(T_max[i])
+        raise SimulationFailure(
+            f"t = {frames.t[i]:.6g} s: total energy grew by {growth[i]:.3g} J = {growth[i] / self.T_max:.3g} of the "
+            f"largest kinetic energy (> sim.blowup_energy = {self.limit:g}) in a conservative scene: diverged, the step "
+            f"is beyond the method's stability limit; body {self._most_energetic(frames, i)!r} carries the most kinetic "
+            f"energy; try a smaller sim.dt or an implicit integrator", frame=i)
 
-    def _most_energetic(self, frame) -> str:
+    def _most_energetic(self, frames, i: int) -> str:
         b = self.system.bodies
-        R = frame.R_WB
-        B_omega = np.einsum("nji,nj->ni", R, frame.W_omega)
-        T = 0.5 * b.mass * np.sum(frame.W_v**2, axis=1) + 0.5 * np.einsum("ni,nij,nj->n", B_omega, b.inertia, B_omega)
+        B_omega = np.einsum("nji,nj->ni", frames.R_WB[i], frames.W_omega[i])
+        W_v = frames.W_v[i]
+        T = 0.5 * b.mass * np.sum(W_v**2, axis=1) + 0.5 * np.einsum("ni,nij,nj->n", B_omega, b.inertia, B_omega)
         return b.names[int(np.argmax(T))]
 
 

@@ -262,7 +262,7 @@ def energy_terms(system: System, state: State, cfg: Configuration | None = None,
     T = system.bodies.kinetic_energy(cfg.twist.W_v[:-1], cfg.twist.B_omega[:-1])
     strain = []
     for i, fb in enumerate(system.bodies.flexible):
-        T += _flexible_kinetic(fb, cfg, i)
+        T += flexible_kinetic(fb, cfg, i)
         strain.append(float(ffr.strain_energy(fb.bar, cfg.eta[i])))
     U = []
     for k, c in enumerate(system.contacts):
@@ -271,7 +271,8 @@ def energy_terms(system: System, state: State, cfg: Configuration | None = None,
     return EnergyTerms(float(T), [e.potential_energy(cfg) for e in system.forces], strain, U)
 
 
-def _flexible_kinetic(fb, cfg: Configuration, i: int) -> float:
+def flexible_kinetic(fb, cfg: Configuration, i: int) -> float:
+    """Kinetic energy [J] of flexible body ``fb`` (the ``i``-th) at ``cfg``: frame and deformation."""
     if not fb.floating:
         return 0.5 * float(cfg.eta_dot[i] @ fb.bar.M_ee @ cfg.eta_dot[i])
     v = np.concatenate([cfg.twist.W_v[fb.index], cfg.twist.B_omega[fb.index], cfg.eta_dot[i]])

@@ -24,7 +24,8 @@ LEDGER = ("strain", "contact_elastic", "dissipated", "work_in", "balance_error")
 
 
 def run_extras(sim, scene, frames) -> dict:
-    """The extra trajectory fields of a finished (or stopped) run of ``sim`` on ``scene``."""
+    """The extra trajectory fields of a finished (or stopped) run of ``sim`` on ``scene``; ``frames``:
+    its ``viz3d.columns.FrameColumns``."""
     system = sim.system
     names = [n for c in system.contacts for n in c.names]
     gauges = [(n, float(x)) for g in system.outputs for n, x in zip(g.names, g.x)]
@@ -45,8 +46,9 @@ def run_extras(sim, scene, frames) -> dict:
 
 
 def _series(frames, keys: list[str]) -> np.ndarray:
-    """Frame scalars ``keys`` as columns, shape (n, len(keys)) (nan where a frame lacks one)."""
-    return np.array([[f.scalars.get(k, np.nan) for k in keys] for f in frames], float).reshape(len(frames), len(keys))
+    """Frame scalars ``keys`` as columns, shape (n, len(keys)) (nan where the frames lack one)."""
+    n = len(frames)
+    return np.array([frames.scalars.get(k, np.full(n, np.nan)) for k in keys], float).reshape(len(keys), n).T
 
 
 def _contact_fields(sim, scene, frames, names: list[str]) -> dict:
@@ -107,17 +109,14 @@ def _approach_velocities(sim, frames) -> np.ndarray:
     """Relative normal velocity of each contact's bodies' centres of mass per frame (n, k) [m/s]:
     ``n . (v_B - v_A)`` with ``n`` the contact normal (positive approaching)."""
     system = sim.system
+    n_frames, ground = len(frames), system.n_bodies
     cols = []
     for c in system.contacts:
-        normals = [c.normal[i] if c.body[i, 1] == system.n_bodies else None for i in range(c.k)]
         for i in range(c.k):
             a, b = c.body[i]
-            rows = []
-            for f in frames:
-                R_b = np.eye(3) if b == system.n_bodies else f.R_WB[b]
-                n = normals[i] if normals[i] is not None else R_b @ c.normal[i]
-                v_b = np.zeros(3) if b == system.n_bodies else f.W_v[b]
-                rows.append(float(n @ (v_b - f.W_v[a])))
-            cols.append(rows)
-    return np.array(cols, float).T.reshape(len(frames), -1)
-
+            if b == ground:
+                n, v_b = np.broadcast_to(c.normal[i], (n_frames, 3)), np.zeros((n_frames, 3))
+            else:
+                n, v_b = frames.R_WB[:, b] @ c.normal[i], frames.W_v[:, b]
+            cols.append(np.einsum("ni,ni->n", n, v_b - frames.W_v[:, a]))
+    return np.array(cols, float).T.reshape(n_frames, -1)

@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, dot3, force_piece, inline, items, matvec3
+from viz3d.compiled import Items, compiled_piece, dot3, energy_piece, force_piece, inline, items, matvec3
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, apply_force, rigid_points, scatter
 from viz3d.timefunctions import TimeFunctions, value
@@ -126,6 +126,12 @@ def _gravity(d, t, v, power):
         apply_force(v, d.i[k, 0], d.f[k])
 
 
+@compiled_piece(energy_piece, GravityItems)
+def _gravity_energy(d, v, V):
+    for k in range(d.i.shape[0]):
+        V[0] -= dot3(d.f[k], v.px[d.i[k, 0]])
+
+
 @dataclass(frozen=True)
 class SpringDamper(ForceElement):
     """Linear spring-dampers between body points (or a body point and ground).
@@ -225,6 +231,18 @@ def _spring(d, t, v, power):
             f[c] = -f[c]
         apply_force(v, p2, f)
         power[power.shape[0] - 1] -= D * length_d * length_d
+
+
+@compiled_piece(energy_piece, SpringItems)
+def _spring_energy(d, v, V):
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        s = 0.0
+        for c in range(3):
+            x = v.px[p2, c] - v.px[p1, c]
+            s += x * x
+        stretch = math.sqrt(s) - d.f[k, 2]
+        V[1] += 0.5 * d.f[k, 0] * stretch * stretch
 
 
 @dataclass(frozen=True)

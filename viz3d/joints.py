@@ -68,13 +68,13 @@ class Joint(ABC):
         return self.residual(cfg), self.jacobian(cfg), self.gamma(cfg)
 
     def reaction_force(self, J: FloatArray, lam: FloatArray) -> FloatArray:
-        """World force on body 1 of each joint, shape (nj, 3) [N], from the frame Jacobian blocks
-        (nj, n_eq, 2, 6) and the multipliers (nj, n_eq).
+        """World force on body 1 of each joint, shape (..., nj, 3) [N], from the frame Jacobian blocks
+        (..., nj, n_eq, 2, 6) and the multipliers (..., nj, n_eq) (leading axes: instants).
 
         The constraint force on the bodies is ``-C_v^T lam`` (docs/notation.md, sign of lambda);
         its translational part on side 0 is this reaction.
         """
-        return -np.einsum("jei,je->ji", J[:, :, 0, :3], lam)
+        return -np.einsum("...jei,...je->...ji", J[..., 0, :3], lam)
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_chart, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
 from viz3d.extras import run_extras
+from viz3d.columns import FrameColumns, StateLog
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
 from viz3d.interrupts import InterruptGuard
@@ -135,6 +136,12 @@ class Simulation:
             return self._kernel.solved_rows(state.t, state.y, state.chart, state.memory)
         except np.linalg.LinAlgError:
             return None
+
+    def kernel_sampler(self):
+        """The compiled kernel's stepper when output frames can be sampled in it (``viz3d.columns``;
+        every force element's potential energy has a compiled piece), else None."""
+        k = self._kernel
+        return k if k is not None and k.data.energy_gap is None else None
 
     def frame(self, state: State, drawings: tuple = ()) -> Frame:
         """The output frame of ``state`` (``viz3d.frames.frame_from_state``), with the multipliers,
@@ -450,34 +457,18 @@ def _compiled(system, integrator, formulation):
     return KernelStepper(data, getattr(integrator, "tableau", None)), "compiled kernel"
 
 
-class FrameRecorder:
-    """Collects output frames of a run into a ``Trajectory``."""
-
-    def __init__(self, system: System):
-        self.system = system
-        self.frames: list[Frame] = []
-
-    def record(self, frame: Frame) -> None:
-        self.frames.append(frame)
-
-    def trajectory(self, status: str, scene_json: str, chart_switches, extras: dict | None = None, **cost) -> Trajectory:
-        b, fr = self.system.bodies, self.frames
-        nb, nj = b.n_bodies, len(self.system.joint_names)
-
-        def stack(key, shape):
-            return np.array([getattr(f, key) for f in fr], dtype=float).reshape((len(fr),) + shape)
-
-        kinetic, potential = stack("energy_kinetic", ()), stack("energy_potential", ())
-        rotation = stack("R_WB", (nb, 3, 3))
-        return Trajectory(
-            t=stack("t", ()), body_names=np.array(b.names), mass=b.mass.copy(), inertia_body=b.inertia.copy(),
-            position=stack("W_r", (nb, 3)), rotation=rotation, euler=euler_from_matrix(rotation),
-            velocity=stack("W_v", (nb, 3)), omega=stack("W_omega", (nb, 3)), energy_kinetic=kinetic,
-            energy_potential=potential, energy_total=kinetic + potential,
-            constraint_violation=stack("constraint_violation", ()),
-            joint_names=np.array(self.system.joint_names, dtype=str), reaction_force=stack("reaction_force", (nj, 3)),
-            chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json,
-            extras=extras or {}, **cost)
+def _trajectory(system: System, cols: FrameColumns, status: str, scene_json: str, chart_switches,
+                extras: dict | None = None, **cost) -> Trajectory:
+    """The run's ``Trajectory`` from its frames as columns."""
+    b = system.bodies
+    return Trajectory(
+        t=cols.t, body_names=np.array(b.names), mass=b.mass.copy(), inertia_body=b.inertia.copy(),
+        position=cols.W_r, rotation=cols.R_WB, euler=euler_from_matrix(cols.R_WB), velocity=cols.W_v,
+        omega=cols.W_omega, energy_kinetic=cols.energy_kinetic, energy_potential=cols.energy_potential,
+        energy_total=cols.energy_kinetic + cols.energy_potential, constraint_violation=cols.constraint_violation,
+        joint_names=np.array(system.joint_names, dtype=str), reaction_force=cols.reaction_force,
+        chart_switches=np.asarray(chart_switches, int), status=status, scene_json=scene_json, extras=extras or {},
+        **cost)
 
 
 def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None = None, dt: float | None = None,
@@ -524,19 +515,25 @@ def check_methods(scene: Scene) -> None:
 
 
 def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
-    """Drive ``sim`` to ``sim.t_end``: frames every ``output_dt`` into the trajectory, and to
-    the ``sinks`` (after every step for full-rate sinks)."""
+    """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory (their
+    frames computed a chunk at a time, ``viz3d.columns``, and checked), and frames to the ``sinks``
+    (after every step for full-rate sinks)."""
     cfg = scene.data["sim"]
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
-    recorder = FrameRecorder(sim.system)
     full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
     conservative = all(e.conservative for e in sim.system.forces) and all(c.conservative for c in sim.system.contacts)
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], conservative)
+
+    def check(cols, states):
+        check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
+        energy.check(cols)
+
+    log = StateLog(sim, check)
     with InterruptGuard() as guard:
-        emitter = _Emitter(sim, formulation, recorder, sinks, cfg["blowup_violation"], energy, guard)
+        emitter = _Emitter(sim, log, sinks, guard)
         try:
             emitter.open(scene)
             emitter.emit(output=True)
@@ -551,8 +548,10 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
                     emitter.emit(output)
                 if bar is not None:
                     bar.update(n)
+            emitter.emit_events()
+            log.flush()
         except SimulationFailure as exc:
-            status = str(exc)
+            status = _earliest_failure(log, exc)
         except KeyboardInterrupt:
             status = f"interrupted at t = {sim.state.t:.6g} s"
         except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly
@@ -564,21 +563,33 @@ def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sink
             if bar is not None:
                 bar.close()
             with guard.held(deliver=False):  # the run ends here anyway: an interrupt now cuts no file
-                emitter.emit_events()
+                if status != "ok":  # the frames of events before the stop, unchecked (the run has stopped)
+                    log.check = None
+                    emitter.emit_events()
                 emitter.close(status)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
-    extras = run_extras(sim, scene, recorder.frames) if sim.system.contacts or sim.system.outputs else None
-    return recorder.trajectory(status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
-                               n_steps=sim.n_steps, n_rhs=sim.n_rhs)
+    cols = log.columns(check=False)
+    extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
+    return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
+                       n_steps=sim.n_steps, n_rhs=sim.n_rhs)
+
+
+def _earliest_failure(log: StateLog, exc: SimulationFailure) -> str:
+    """The diagnosis of the earliest failure: a step that failed (``exc.frame`` None) may follow
+    frames, not yet checked, whose check fails first."""
+    if exc.frame is None:
+        try:
+            log.flush()
+        except SimulationFailure as earlier:
+            return str(earlier)
+    return str(exc)
 
 
 class _Emitter:
-    """Computes frames and hands them to the trajectory recorder and the sinks."""
+    """Hands the run's output states to the trajectory's log and frames to the sinks."""
 
-    def __init__(self, sim, formulation, recorder, sinks, blowup_violation, energy: EnergyWatch,
-                 guard: InterruptGuard):
-        self.sim, self.formulation, self.recorder, self.sinks = sim, formulation, recorder, list(sinks)
-        self.blowup_violation, self.energy, self.guard = blowup_violation, energy, guard
+    def __init__(self, sim, log: StateLog, sinks, guard: InterruptGuard):
+        self.sim, self.log, self.sinks, self.guard = sim, log, list(sinks), guard
         self.opened: list[Sink] = []
         self.drawings: tuple = ()
         self.logged = 0
@@ -593,28 +604,13 @@ class _Emitter:
                 s.open(visuals)
                 self.opened.append(s)
 
-    def _frame(self, state: State) -> Frame:
-        return self.sim.frame(state, self.drawings)
-
     def emit(self, output: bool) -> None:
-        frame = self._frame(self.sim.state)
-        with self.guard.held():  # the trajectory and every sink get the frame, or none does
-            if output:
-                self.recorder.record(frame)
-            for s in self.sinks:
-                if output or s.full_rate:
-                    s.log(frame)
-        check_violation(self.sim.system, self.sim.state, frame.constraint_violation, self.blowup_violation)
-        self.energy.check(frame)
+        self._deliver(self.sim.state, output)
 
     def emit_events(self) -> None:
-        """Frames at the contact events since the last call (every sink gets them), and their texts."""
+        """The states at the contact events since the last call (every sink gets them), and their texts."""
         for state in self.sim.drain_events(self.sim.state.t):
-            frame = self._frame(state)
-            with self.guard.held():
-                self.recorder.record(frame)
-                for s in self.sinks:
-                    s.log(frame)
+            self._deliver(state, True)
         contacts = self.sim.contacts
         if contacts is not None:
             with self.guard.held():
@@ -622,6 +618,15 @@ class _Emitter:
                     for s in self.opened:
                         s.event(t, text)
                 self.logged = len(contacts.log)
+
+    def _deliver(self, state: State, output: bool) -> None:
+        to = [s for s in self.sinks if output or s.full_rate]
+        frame = self.sim.frame(state, self.drawings) if to else None
+        with self.guard.held():  # the trajectory and every sink get the state, or none does
+            for s in to:
+                s.log(frame)
+            if output:
+                self.log.record(state)  # (may compute a chunk of frames and fail its checks)
 
     def close(self, status: str) -> None:
         for s in self.opened:

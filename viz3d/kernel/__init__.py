@@ -15,11 +15,14 @@ Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK ste
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
+from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "KernelData", "kernel_for", "kernel_coverage",
@@ -97,6 +100,40 @@ class CompiledField:
         if status != OK:
             return None
         return y1, (err if tableau.embedded else None), k
+
+
+class Samples(NamedTuple):
+    """Output samples of N states (``KernelStepper.sample``; nb + 1 bodies, ground last).
+
+    r, vW, wW, wB : (N, nb + 1, 3)
+        Frame origins [m], their velocities [m/s], angular velocities in world and body axes [rad/s].
+    R : (N, nb + 1, 3, 3)
+        Rotations body -> world.
+    eta, eta_dot : (N, n_e)
+        Elastic coordinates and rates.
+    lam, C : (N, n_c)
+        Multipliers and residuals of the constraint rows; J (N, n_c, 2, 6) their frame Jacobian blocks.
+    gap : (N, k, 11)
+        Every contact's gap (``KernelStepper.gaps``).
+    T : (N,)
+        Kinetic energy of the rigid bodies [J].
+    V : (N, 2)
+        Potential energy of the force elements: the part that may be negative, the rest [J].
+    """
+
+    r: np.ndarray
+    R: np.ndarray
+    vW: np.ndarray
+    wW: np.ndarray
+    wB: np.ndarray
+    eta: np.ndarray
+    eta_dot: np.ndarray
+    lam: np.ndarray
+    C: np.ndarray
+    J: np.ndarray
+    gap: np.ndarray
+    T: np.ndarray
+    V: np.ndarray
 
 
 def _c(a: np.ndarray) -> np.ndarray:
@@ -188,6 +225,23 @@ class KernelStepper:
         cfg = Configuration(t, Pose(w.r.copy(), v.R.copy()), Twist(w.vW.copy(), w.wB.copy(), v.wW.copy()), eta,
                             eta_dot)
         return cfg, tuple(Gap(g[sl, 0], g[sl, 1], g[sl, 2:5], g[sl, 5:8], g[sl, 8:11]) for sl in self.data.contact_slices)
+
+    def sample(self, ts: np.ndarray, Y: np.ndarray, charts: np.ndarray, memory: tuple) -> "Samples":
+        """What output frames need at the states ``(ts[i], Y[i], charts[i])`` (N,), (N, n_y),
+        (N, nf, 3, 3), all with the contacts' memory ``memory``, from one compiled call (see
+        ``Samples``); raises ``LinAlgError`` naming the first state whose evaluation fails."""
+        d, m = self.data, self.data.model
+        n, nb1, n_c = ts.shape[0], m.nb + 1, self.ws[0].C.shape[0]
+        z = np.empty
+        out = Samples(z((n, nb1, 3)), z((n, nb1, 3, 3)), z((n, nb1, 3)), z((n, nb1, 3)), z((n, nb1, 3)),
+                      z((n, m.n_e)), z((n, m.n_e)), z((n, n_c)), z((n, n_c)), z((n, n_c, 2, 6)),
+                      z((n, d.n_contacts, 11)), z(n), z((n, 2)))
+        v, w = self.view(memory), self.ws[1]
+        done = self._call(sample, _c(ts), _c(Y), _c(charts), m, v, w, d.forces, d.rows, d.geometry, d.energies,
+                          np.empty(m.n_q + m.n_v + m.n_aux), *out)
+        if done < n:
+            raise np.linalg.LinAlgError(f"t = {ts[done]:.6g} s: mass block or constraint matrix is not positive definite")
+        return out
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
              max_speed: float, n_steps: int = 1) -> tuple[int, int]:

@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.compiled import Items, concat, force_piece, gap_piece, items, registered, row_piece, target_of
+from viz3d.compiled import Items, concat, energy_piece, force_piece, gap_piece, items, registered, row_piece, target_of
 from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ
 from viz3d.flexible.floating_kernel import pack_flexible
 from viz3d.rotations import matrix_from_euler
@@ -139,6 +139,8 @@ class KernelData:
     row_je: np.ndarray
     elastic_slices: tuple     # each flexible body's slice of the stacked elastic coordinates
     contact_slices: tuple     # each contact set's slice of the contacts (global contact indices)
+    energies: tuple           # the force elements' data per registered energy piece
+    energy_gap: str | None    # why output frames cannot take their energies from the kernel (None: they can)
 
 
 class Packer:
@@ -221,12 +223,28 @@ def pack(system, formulation) -> KernelData:
     """``system`` and ``formulation`` packed for the kernel; ``Unsupported`` names what it lacks."""
     _check(system, formulation)
     packer = Packer(system)
-    parts = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
-    forces, rows, geometry = (_by_class(target, parts) for target in (force_piece, row_piece, gap_piece))
+    parts, classes = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
+    forces, rows, geometry, energies = (_by_class(target, parts)
+                                        for target in (force_piece, row_piece, gap_piece, energy_piece))
     pt_i, pt_s, pt_N = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
     return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, row_je,
-                      _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]))
+                      _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]),
+                      energies, _energy_gap(system.forces, classes))
+
+
+def _energy_gap(forces, classes: dict[int, list[type]]) -> str | None:
+    """Why the kernel cannot give the force elements' potential energy (an element with its own
+    ``potential_energy`` whose data has no ``energy_piece``), or None; ``classes``: the data classes
+    each element packed itself into, by ``id``."""
+    from viz3d.forces import ForceElement
+
+    with_piece = registered(energy_piece)
+    for e in forces:
+        if type(e).potential_energy is not ForceElement.potential_energy and not all(
+                issubclass(c, with_piece) for c in classes[id(e)]):
+            return f"{getattr(e, 'type_name', type(e).__name__)!r} has no compiled energy piece"
+    return None
 
 
 def _slices(sizes: list[int]) -> tuple[slice, ...]:
@@ -242,9 +260,11 @@ def _check(system, formulation) -> None:
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
 
 
-def _parts(elements, packer) -> dict[type, list]:
-    """Every element's packed data (``compiled(packer)``), grouped by data class."""
+def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
+    """Every element's packed data (``compiled(packer)``) grouped by data class, and the classes of
+    each element's data (by ``id``)."""
     found: dict[type, list] = {}
+    classes: dict[int, list[type]] = {}
     for e in elements:
         if not hasattr(e, "compiled"):
             what = getattr(e, "type_name", type(e).__name__)
@@ -254,7 +274,8 @@ def _parts(elements, packer) -> dict[type, list]:
             if target_of(type(part)) is None:
                 raise Unsupported(f"{type(part).__name__} is not registered for a compiled target")
             found.setdefault(type(part), []).append(part)
-    return found
+            classes.setdefault(id(e), []).append(type(part))
+    return found, classes
 
 
 def _by_class(target, found: dict[type, list]) -> tuple:

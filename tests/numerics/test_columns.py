@@ -1,0 +1,136 @@
+"""Output frames sampled in the compiled kernel, a chunk at a time (``viz3d.columns``), equal the
+NumPy reference frames (``viz3d.frames.frame_from_state`` with nothing from the kernel) to round-off,
+on every shipped scene: rigid chains and their reactions, springs, law and kinematic contacts in and
+out of touch (their forces, stored and dissipated energy), flexible bodies and gauges."""
+
+import numpy as np
+import pytest
+
+import viz3d
+from viz3d.columns import FrameColumns, StateLog
+from viz3d.frames import frame_from_state
+from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
+from viz3d.simulate import Simulation
+
+from conftest import SCENES
+
+#: As in test_kernel: the two evaluate the same formulas in another order; their difference is
+#: bounded by the computation's round-off, measured as the reference's change when the state is
+#: perturbed by eps (relative, random signs); allowed this many times that, and at least
+#: FLOOR_ULPS ulps of the largest entry of the quantity.
+ROUNDOFF_FACTOR = 10.0
+FLOOR_ULPS = 64
+#: States compared per scene: every state with a contact acting, and this many more spread over the run.
+SPREAD = 12
+FIELDS = ("W_r", "R_WB", "W_v", "W_omega", "energy_kinetic", "energy_potential", "constraint_violation",
+          "reaction_force")
+
+
+def _run(path):
+    scene = viz3d.load_scene(path)
+    system, state = viz3d.build(scene)
+    cfg = scene.data["sim"]
+    sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"], cfg["blowup_speed"],
+                     make_controller(cfg))
+    if sim.kernel_sampler() is None:
+        pytest.skip(f"{path.stem}: {sim.kernel_note}")
+    t_end = min(cfg["t_end"], 0.12)  # past the first touch of every shipped contact scene
+    states = [sim.state]
+    while sim.state.t < t_end - 1e-12:
+        sim.step()
+        states += sim.drain_events(sim.state.t)
+        states.append(sim.state)
+    return sim, states
+
+
+def _touching(sim, state) -> bool:
+    if not sim.system.contacts:
+        return False
+    g = sim.kernel_sampler().gaps(state.t, state.y, state.chart)
+    return bool((g[:, 0] > 0).any() or any(p.touching for ph in state.memory for p in ph))
+
+
+def _reference(sim, states) -> FrameColumns:
+    E0 = sim.contacts.E0 if sim.contacts is not None else None
+    frames = [frame_from_state(sim.system, sim.formulation, s, (), E0) for s in states]
+    return FrameColumns.from_frames(frames, sim.system.n_bodies, len(sim.system.joint_names))
+
+
+def _perturbed(state, rng):
+    eps = np.finfo(float).eps
+    n_q, n_v = state.q.size, state.v.size
+    y = state.y * (1 + eps * rng.choice([-1.0, 1.0], state.y.size))
+    return state.replace(q=y[:n_q], v=y[n_q:n_q + n_v], w=y[n_q + n_v:])
+
+
+SCENE_PATHS = sorted(SCENES.glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", SCENE_PATHS, ids=lambda p: p.stem)
+def test_sampled_frames_equal_the_numpy_frames(path):
+    sim, states = _run(path)
+    touching = [i for i, s in enumerate(states) if _touching(sim, s)]
+    spread = np.linspace(0, len(states) - 1, SPREAD).round().astype(int).tolist()
+    pick = sorted(set(touching + spread))
+    chosen = [states[i] for i in pick]
+    log = StateLog(sim)
+    for s in chosen:
+        log.record(s)
+    got = log.columns()
+    ref = _reference(sim, chosen)
+    rng = np.random.default_rng(0)
+    moved = [_reference(sim, [_perturbed(s, rng) for s in chosen]) for _ in range(2)]
+    np.testing.assert_array_equal(got.t, ref.t)
+    for name in FIELDS:
+        _close(name, getattr(got, name), getattr(ref, name), [getattr(m, name) for m in moved], _scale(name, ref))
+    assert set(got.scalars) == set(ref.scalars), set(got.scalars) ^ set(ref.scalars)
+    for key in ref.scalars:
+        _close(key, got.scalars[key], ref.scalars[key], [m.scalars[key] for m in moved], _scale(key, ref))
+    if sim.system.contacts:
+        assert touching, "no state with a contact acting: the contact path was not compared"
+
+
+def _scale(name: str, ref: FrameColumns) -> float:
+    """The magnitude whose round-off bounds quantity ``name``: differences of larger terms carry
+    theirs (energies and the ledger's balance: every energy term; an indentation: the positions
+    it subtracts), other quantities their own largest entry."""
+    own = getattr(ref, name) if hasattr(ref, name) else ref.scalars[name]
+    if name.startswith("energy"):
+        terms = [ref.energy_kinetic, ref.energy_potential] + [v for k, v in ref.scalars.items() if k.startswith("energy/")]
+        return float(np.max(np.sum([np.abs(x) for x in terms], axis=0)))
+    if name.endswith("indentation"):
+        return float(np.abs(ref.W_r).max() + np.abs(own).max())
+    return float(np.abs(own).max(initial=0.0))
+
+
+def _close(name, got, ref, moved, scale):
+    """|got - ref| within the round-off bound, per frame (the first axis)."""
+    assert got.shape == ref.shape, (name, got.shape, ref.shape)
+    if not ref.size:
+        return
+    axes = tuple(range(1, ref.ndim))
+    change = np.max([np.abs(m - ref).max(axis=axes) if axes else np.abs(m - ref) for m in moved], axis=0)
+    floor = FLOOR_ULPS * np.finfo(float).eps * max(scale, np.finfo(float).tiny)
+    bound = ROUNDOFF_FACTOR * np.maximum(change, floor)
+    err = np.abs(got - ref).max(axis=axes) if axes else np.abs(got - ref)
+    worst = int(np.argmax(err / bound))
+    assert np.all(err <= bound), f"{name}: frame {worst} differs by {err[worst]:.3g} (> {bound[worst]:.3g})"
+
+
+def test_a_check_that_fails_keeps_the_frames_up_to_the_failing_one():
+    """A chunk whose check fails at its frame i keeps frames 0..i (the failing frame is the last)."""
+    sim, states = _run(SCENES / "double_pendulum.toml")
+
+    class Failure(Exception):
+        frame = 4
+
+    def check(cols, chunk):
+        raise Failure()
+
+    log = StateLog(sim, check)
+    with pytest.raises(Failure):
+        for s in states[:10]:
+            log.record(s)
+        log.flush()
+    cols = log.columns(check=False)
+    np.testing.assert_array_equal(cols.t, [s.t for s in states[:5]])

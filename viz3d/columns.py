@@ -1,0 +1,262 @@
+"""A run's output frames as columns, computed many states at a time.
+
+The trajectory needs, per output instant, what a ``viz3d.frames.Frame`` holds minus the drawing
+(centres of mass, rotations, velocities, energies, constraint violation, joint reactions and the
+named scalars: contact forces and indentations, the energy ledger, gauges). ``StateLog`` keeps the
+states of a run's output instants and turns them into ``FrameColumns`` a chunk at a time:
+
+* with the compiled kernel (``viz3d.kernel.KernelStepper.sample``), one call per chunk evaluates
+  every state's kinematics, multipliers, gaps, rigid kinetic and force-element potential energies;
+  the rest is array arithmetic, plus per-state NumPy only where the kernel has nothing to offer:
+  states with a contact acting (its law's elastic energy and force), flexible bodies' energies,
+  and output elements (gauges);
+* without it, each state's ``Frame`` from ``frame_from_state`` (the NumPy reference).
+
+The live viewer and full-rate recorders still take one ``Frame`` per step (they draw it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from viz3d._typing import FloatArray
+from viz3d.dynamics import flexible_kinetic
+from viz3d.frames import Frame
+from viz3d.kinematics import Configuration, Pose, Twist
+from viz3d.system import State, System
+
+#: States turned into columns at a time (the run's health checks on energy and constraint
+#: violation see frames in chunks this long; a chunk of a 50-link chain holds about 2 MB).
+CHUNK = 256
+
+
+@dataclass
+class FrameColumns:
+    """Output frames as arrays over n instants (nb bodies, nj joints).
+
+    Attributes
+    ----------
+    t : (n,) [s]
+    W_r, W_v, W_omega : (n, nb, 3)
+        Centres of mass [m], their velocities [m/s], angular velocities [rad/s], world.
+    R_WB : (n, nb, 3, 3)
+    energy_kinetic, energy_potential, constraint_violation : (n,) [J, J, m]
+    reaction_force : (n, nj, 3) [N]
+    scalars : dict of str -> (n,)
+        ``Frame.scalars`` as columns (nan where a frame lacks the key).
+    """
+
+    t: FloatArray
+    W_r: FloatArray
+    R_WB: FloatArray
+    W_v: FloatArray
+    W_omega: FloatArray
+    energy_kinetic: FloatArray
+    energy_potential: FloatArray
+    constraint_violation: FloatArray
+    reaction_force: FloatArray
+    scalars: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+    @classmethod
+    def from_frames(cls, frames: list[Frame], nb: int, nj: int) -> "FrameColumns":
+        """Columns of ``frames`` (the NumPy path)."""
+        n = len(frames)
+
+        def stack(key, shape):
+            return np.array([getattr(f, key) for f in frames], dtype=float).reshape((n,) + shape)
+
+        keys = list(dict.fromkeys(k for f in frames for k in f.scalars))
+        return cls(stack("t", ()), stack("W_r", (nb, 3)), stack("R_WB", (nb, 3, 3)), stack("W_v", (nb, 3)),
+                   stack("W_omega", (nb, 3)), stack("energy_kinetic", ()), stack("energy_potential", ()),
+                   stack("constraint_violation", ()), stack("reaction_force", (nj, 3)),
+                   {k: np.array([f.scalars.get(k, np.nan) for f in frames], float) for k in keys})
+
+    @classmethod
+    def join(cls, parts: list["FrameColumns"], nb: int, nj: int) -> "FrameColumns":
+        """One set of columns from consecutive ones (scalars missing in a part are nan there)."""
+        if not parts:
+            return cls.from_frames([], nb, nj)
+        keys = list(dict.fromkeys(k for p in parts for k in p.scalars))
+        arrays = {f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls) if f.name != "scalars"}
+        scalars = {k: np.concatenate([p.scalars.get(k, np.full(len(p), np.nan)) for p in parts]) for k in keys}
+        return cls(**arrays, scalars=scalars)
+
+    def head(self, n: int) -> "FrameColumns":
+        """The first ``n`` frames."""
+        arrays = {f.name: getattr(self, f.name)[:n] for f in fields(self) if f.name != "scalars"}
+        return FrameColumns(**arrays, scalars={k: v[:n] for k, v in self.scalars.items()})
+
+
+class StateLog:
+    """The states of a run's output instants, turned into ``FrameColumns`` a chunk at a time.
+
+    Parameters
+    ----------
+    sim : viz3d.simulate.Simulation
+        The run (its system, formulation, compiled kernel and contact stepping).
+    check : callable, optional
+        ``check(columns)`` on every chunk as it is computed (the run's health checks); it may raise.
+    """
+
+    def __init__(self, sim, check=None):
+        self.sim, self.check = sim, check
+        self.states: list[State] = []
+        self.parts: list[FrameColumns] = []
+        system = sim.system
+        self.nb, self.nj = system.n_bodies, len(system.joint_names)
+
+    def record(self, state: State) -> None:
+        """Keep ``state`` (an output instant); compute the chunk when it is full."""
+        self.states.append(state)
+        if len(self.states) >= CHUNK:
+            self.flush()
+
+    def flush(self, check: bool = True) -> None:
+        """Turn the states kept so far into columns and check them; a check that fails at frame
+        ``i`` of the chunk (its exception's ``frame``) leaves the frames up to ``i`` only."""
+        if not self.states:
+            return
+        states, self.states = self.states, []
+        part = self._columns(states)
+        try:
+            if check and self.check is not None:
+                self.check(part, states)
+        except Exception as exc:
+            if getattr(exc, "frame", None) is not None:
+                part = part.head(exc.frame + 1)
+            raise
+        finally:
+            self.parts.append(part)
+
+    def columns(self, check: bool = True) -> FrameColumns:
+        """Every frame recorded, as columns (flushes first)."""
+        self.flush(check)
+        return FrameColumns.join(self.parts, self.nb, self.nj)
+
+    # ------------------------------------------------------------------ the two paths
+
+    def _columns(self, states: list[State]) -> FrameColumns:
+        stepper = self.sim.kernel_sampler()
+        if stepper is None:
+            frames = [self.sim.frame(s) for s in states]
+            return FrameColumns.from_frames(frames, self.nb, self.nj)
+        try:
+            return _sampled(self.sim, stepper, states)
+        except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
+            frames = [self.sim.frame(s) for s in states]
+            return FrameColumns.from_frames(frames, self.nb, self.nj)
+
+
+def _groups(states: list[State]) -> list[tuple[int, int]]:
+    """Runs ``[a, b)`` of consecutive states sharing one contact memory object."""
+    out, a = [], 0
+    for i in range(1, len(states) + 1):
+        if i == len(states) or states[i].memory is not states[a].memory:
+            out.append((a, i))
+            a = i
+    return out
+
+
+def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
+    """Columns of ``states`` from the kernel's samples (see the module docstring)."""
+    system = sim.system
+    nb = system.n_bodies
+    ts = np.array([s.t for s in states])
+    Y = np.array([s.y for s in states])
+    charts = np.array([s.chart for s in states]).reshape(len(states), -1, 3, 3)
+    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory) for a, b in _groups(states)]
+    s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
+    W_G, W_v = _centres_of_mass(system, stepper.data, s)
+    T, strain = s.T.copy(), np.zeros(len(states))
+    cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs) else None
+    for k, fb in enumerate(system.bodies.flexible):
+        sl = stepper.data.elastic_slices[k]
+        T += [flexible_kinetic(fb, cfg, k) for cfg in cfgs]
+        strain += 0.5 * np.einsum("ni,ij,nj->n", s.eta[:, sl], fb.bar.K, s.eta[:, sl])
+    V = s.V[:, 0] + s.V[:, 1] + strain
+    scalars: dict[str, FloatArray] = {}
+    for out in system.outputs:
+        values = [out.values(cfg) for cfg in cfgs]
+        for key in values[0] if values else ():
+            scalars[key] = np.array([v[key] for v in values], float)
+    if system.contacts:
+        V = V + _contact_columns(sim, stepper.data, states, s, T, s.V, strain, scalars)
+    violation, reactions = _rows(system, s)
+    return FrameColumns(ts, W_G, s.R[:, :nb], W_v, s.wW[:, :nb], T, V, violation, reactions, scalars)
+
+
+def _centres_of_mass(system: System, data, s) -> tuple[FloatArray, FloatArray]:
+    """Centres of mass and their velocities (n, nb, 3): the frame origins, shifted on flexible
+    bodies by ``R S eta / m`` (``viz3d.dynamics.centres_of_mass``)."""
+    nb = system.n_bodies
+    W_G, W_v = s.r[:, :nb].copy(), s.vW[:, :nb].copy()
+    for k, fb in enumerate(system.bodies.flexible):
+        b, sl, bar = fb.index, data.elastic_slices[k], fb.bar
+        shift = np.einsum("nij,nj->ni", s.R[:, b], s.eta[:, sl] @ bar.S.T) / bar.mass
+        W_G[:, b] += shift
+        W_v[:, b] += np.cross(s.wW[:, b], shift) + np.einsum("nij,nj->ni", s.R[:, b], s.eta_dot[:, sl] @ bar.S.T) / bar.mass
+    return W_G, W_v
+
+
+def _configurations(data, ts: FloatArray, s) -> list[Configuration]:
+    """Each state's ``Configuration`` from the samples (for the NumPy-only quantities)."""
+    sl = data.elastic_slices
+    return [Configuration(ts[i], Pose(s.r[i], s.R[i]), Twist(s.vW[i], s.wB[i], s.wW[i]),
+                          tuple(s.eta[i, x] for x in sl), tuple(s.eta_dot[i, x] for x in sl)) for i in range(len(ts))]
+
+
+def _rows(system: System, s) -> tuple[FloatArray, FloatArray]:
+    """Constraint violation max |C| over the joints' rows (n,) [m] and each joint's reaction on
+    body 1 (n, nj, 3) [N] (a kinematic contact's row is its indentation, not a violation)."""
+    n = s.T.shape[0]
+    joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
+    if not joints:
+        return np.zeros(n), np.zeros((n, 0, 3))
+    rows = np.concatenate([np.arange(system.n_c)[sl] for _, sl in joints])
+    violation = np.max(np.abs(s.C[:, rows]), axis=1)
+    reactions = [js.reaction_force(s.J[:, sl].reshape(n, js.n_joints, js.n_eq, 2, 6),
+                                   s.lam[:, sl].reshape(n, js.n_joints, js.n_eq)) for js, sl in joints]
+    return violation, np.concatenate(reactions, axis=1)
+
+
+def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, scalars: dict) -> FloatArray:
+    """The contacts' scalars (force, indentation per contact; the energy ledger) into ``scalars``;
+    returns the contacts' elastic energy (n,) [J]. A contact's law force and stored energy are
+    zero unless it overlaps or touches: only such states are evaluated one by one."""
+    from viz3d.contact.contacts import Gap
+    from viz3d.events import contact_forces
+
+    system = sim.system
+    n = len(states)
+    k_all = data.n_contacts
+    U, F = np.zeros((n, k_all)), np.zeros((n, k_all))
+    alpha = s.gap[:, :, 0]
+    touching = {id(st.memory): any(p.touching for phases in st.memory for p in phases) for st in states}
+    for i in np.flatnonzero((alpha > 0.0).any(axis=1) | np.array([touching[id(st.memory)] for st in states])):
+        st = states[i]
+        g = s.gap[i]
+        gaps = tuple(Gap(g[x, 0], g[x, 1], g[x, 2:5], g[x, 5:8], g[x, 8:11]) for x in data.contact_slices)
+        for k, (c, x, gp) in enumerate(zip(system.contacts, data.contact_slices, gaps)):
+            U[i, x] = c.elastic_energy(None, st.memory[k] if st.memory else c.initial_phases(), gp)
+        F[i] = np.concatenate(contact_forces(system, st, s.lam[i], gaps))
+    names = [nm for c in system.contacts for nm in c.names]
+    for j, nm in enumerate(names):
+        scalars[f"contact/{nm}/force"] = F[:, j]
+        scalars[f"contact/{nm}/indentation"] = np.maximum(alpha[:, j], 0.0)
+    W = np.array([st.w if st.w.size else np.zeros(k_all + 2) for st in states])  # (no work integrals yet: none)
+    losses = {id(st.memory): sum(p.impulse_loss for phases in st.memory for p in phases) for st in states}
+    dissipated = (W[:, :k_all] - U).sum(axis=1) + np.array([losses[id(st.memory)] for st in states]) + W[:, -2]
+    contact_elastic = U.sum(axis=1)
+    potential = V_forces[:, 0] + V_forces[:, 1]
+    ledger = {"energy/kinetic": T, "energy/potential": potential, "energy/strain": strain,
+              "energy/contact_elastic": contact_elastic, "energy/dissipated": dissipated, "energy/work_in": W[:, -1]}
+    E0 = sim.contacts.E0 if sim.contacts is not None else None
+    if E0 is not None:
+        ledger["energy/balance_error"] = T + potential + strain + contact_elastic + dissipated - W[:, -1] - E0
+    scalars.update(ledger)
+    return contact_elastic
