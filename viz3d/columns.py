@@ -168,7 +168,7 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
     nb = system.n_bodies
     ts = np.array([s.t for s in states])
     Y = np.array([s.y for s in states])
-    charts = np.array([s.chart for s in states]).reshape(len(states), -1, 3, 3)
+    charts = np.stack([s.chart for s in states])  # (N, nf, 3, 3), nf may be 0
     samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory) for a, b in _groups(states)]
     s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)

@@ -18,7 +18,7 @@ from viz3d import kernel as K
 from viz3d.constraints import build_layout
 from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
 from viz3d.contact.laws import NORMAL_LAWS
-from viz3d.dynamics import VectorField, body_state
+from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.formulation import Baumgarte, Index1, Penalty
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, SpringDamper
 from viz3d.kernel.model import FORMULATIONS
@@ -236,6 +236,34 @@ def test_compiled_configuration_and_gaps_equal_numpy(setup):
         for field in ("alpha", "alpha_dot", "n", "d", "point"):
             got, exp = getattr(gp, field), getattr(want, field)
             assert got.shape == exp.shape and np.abs(got - exp).max() <= tol, field
+
+
+def test_sampled_energies_equal_numpy(setup):
+    """Every registered energy piece is exercised and, with the rigid kinetic energy the kernel
+    samples (``KernelStepper.sample``), equals the NumPy energies (``energy_terms``): potentials by
+    their sign class (gravity and loads, the rest), to round-off of the energies' scale."""
+    from viz3d.dynamics import energy_terms
+    from viz3d.forces import Gravity
+
+    system, state = setup
+    data = K.kernel_for(system, Index1())
+    assert data.energy_gap is None, data.energy_gap
+    classes = compiled.registered(compiled.energy_piece)
+    empty = [cls.__name__ for cls, d in zip(classes, data.energies) if d.i.shape[0] == 0]
+    assert classes and not empty, f"registered energy pieces with no item in the test system: {empty}"
+    stepper = K.KernelStepper(data, None)
+    ts = np.array(TIMES, float)
+    n = len(ts)
+    s = stepper.sample(ts, np.repeat(state.y[None], n, 0), np.repeat(state.chart[None], n, 0), state.memory)
+    for i, t in enumerate(ts):
+        e = energy_terms(system, state.replace(t=float(t)))
+        signed = sum(V for f, V in zip(system.forces, e.potentials) if isinstance(f, (Gravity, AppliedForce)))
+        rigid = e.kinetic - sum(flexible_kinetic(fb, body_state(system, state.q, state.v, state.chart, t), k)
+                                for k, fb in enumerate(system.bodies.flexible))
+        scale = abs(e.kinetic) + sum(abs(V) for V in e.potentials)
+        tol = 100 * np.finfo(float).eps * scale
+        assert abs(s.T[i] - rigid) <= tol, (t, s.T[i], rigid)
+        assert abs(s.V[i, 0] - signed) <= tol and abs(s.V[i, 1] - (sum(e.potentials) - signed)) <= tol, (t, s.V[i])
 
 
 @pytest.mark.parametrize("method", ["dopri5", "dop853", "rk4"])
