@@ -23,7 +23,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.dynamics import flexible_kinetic
-from viz3d.frames import Frame
+from viz3d.frames import Frame, ledger_scalars
 from viz3d.kinematics import Configuration, Pose, Twist
 from viz3d.system import State, System
 
@@ -142,14 +142,12 @@ class StateLog:
 
     def _columns(self, states: list[State]) -> FrameColumns:
         stepper = self.sim.kernel_sampler()
-        if stepper is None:
-            frames = [self.sim.frame(s) for s in states]
-            return FrameColumns.from_frames(frames, self.nb, self.nj)
-        try:
-            return _sampled(self.sim, stepper, states)
-        except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
-            frames = [self.sim.frame(s) for s in states]
-            return FrameColumns.from_frames(frames, self.nb, self.nj)
+        if stepper is not None:
+            try:
+                return _sampled(self.sim, stepper, states)
+            except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
+                pass
+        return FrameColumns.from_frames([self.sim.frame(s) for s in states], self.nb, self.nj)
 
 
 def _groups(states: list[State]) -> list[tuple[int, int]]:
@@ -229,15 +227,15 @@ def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, sca
     returns the contacts' elastic energy (n,) [J]. A contact's law force and stored energy are
     zero unless it overlaps or touches: only such states are evaluated one by one."""
     from viz3d.contact.contacts import Gap
-    from viz3d.events import contact_forces
+    from viz3d.events import contact_forces, impulse_loss, ledger_of, work_integrals
 
     system = sim.system
     n = len(states)
     k_all = data.n_contacts
     U, F = np.zeros((n, k_all)), np.zeros((n, k_all))
     alpha = s.gap[:, :, 0]
-    touching = {id(st.memory): any(p.touching for phases in st.memory for p in phases) for st in states}
-    for i in np.flatnonzero((alpha > 0.0).any(axis=1) | np.array([touching[id(st.memory)] for st in states])):
+    touching = np.array([any(p.touching for phases in st.memory for p in phases) for st in states], dtype=bool)
+    for i in np.flatnonzero((alpha > 0.0).any(axis=1) | touching):
         st = states[i]
         g = s.gap[i]
         gaps = tuple(Gap(g[x, 0], g[x, 1], g[x, 2:5], g[x, 5:8], g[x, 8:11]) for x in data.contact_slices)
@@ -248,15 +246,8 @@ def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, sca
     for j, nm in enumerate(names):
         scalars[f"contact/{nm}/force"] = F[:, j]
         scalars[f"contact/{nm}/indentation"] = np.maximum(alpha[:, j], 0.0)
-    W = np.array([st.w if st.w.size else np.zeros(k_all + 2) for st in states])  # (no work integrals yet: none)
-    losses = {id(st.memory): sum(p.impulse_loss for phases in st.memory for p in phases) for st in states}
-    dissipated = (W[:, :k_all] - U).sum(axis=1) + np.array([losses[id(st.memory)] for st in states]) + W[:, -2]
-    contact_elastic = U.sum(axis=1)
-    potential = V_forces[:, 0] + V_forces[:, 1]
-    ledger = {"energy/kinetic": T, "energy/potential": potential, "energy/strain": strain,
-              "energy/contact_elastic": contact_elastic, "energy/dissipated": dissipated, "energy/work_in": W[:, -1]}
-    E0 = sim.contacts.E0 if sim.contacts is not None else None
-    if E0 is not None:
-        ledger["energy/balance_error"] = T + potential + strain + contact_elastic + dissipated - W[:, -1] - E0
-    scalars.update(ledger)
-    return contact_elastic
+    W = np.array([work_integrals(system, st) for st in states])
+    losses = np.array([impulse_loss(system, st) for st in states])
+    led = ledger_of(T, V_forces[:, 0] + V_forces[:, 1], V_forces[:, 0], strain, U, W, losses)
+    scalars.update(ledger_scalars(led, sim.contacts.E0 if sim.contacts is not None else None))
+    return led.contact_elastic

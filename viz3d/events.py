@@ -102,18 +102,30 @@ def ledger(system: System, state: State, cfg=None, gaps: tuple = ()) -> Ledger:
     gaps = gaps or tuple(c.gap(cfg) for c in system.contacts)
     e = energy_terms(system, state, cfg, gaps)
     signed = sum(V for f, V in zip(system.forces, e.potentials) if isinstance(f, (Gravity, AppliedForce)))
-    elastic, dissipated, k0 = 0.0, 0.0, 0
-    for k, (c, U) in enumerate(zip(system.contacts, e.contact_elastic)):
-        phases = state.memory[k] if state.memory else c.initial_phases()
-        W = state.w[k0:k0 + c.k] if state.w.size else np.zeros(c.k)
-        elastic += float(U.sum())
-        dissipated += float(np.sum(W - U)) + sum(p.impulse_loss for p in phases)
-        k0 += c.k
-    if state.w.size:
-        dissipated += float(state.w[-2])
-    work_in = float(state.w[-1]) if state.w.size else 0.0
-    return Ledger(e.kinetic, float(sum(e.potentials)), float(sum(e.strain)), elastic, float(signed), dissipated,
-                  work_in)
+    U = np.concatenate(e.contact_elastic) if e.contact_elastic else np.zeros(0)
+    return ledger_of(e.kinetic, float(sum(e.potentials)), float(signed), float(sum(e.strain)), U,
+                     work_integrals(system, state), impulse_loss(system, state))
+
+
+def ledger_of(kinetic, potential, signed, strain, U, w, losses) -> Ledger:
+    """The ledger from its terms, of one state or of n (arrays over instants on the leading axis):
+    ``U`` (..., k) every contact's stored energy, ``w`` (..., k + 2) the work integrals (the contact
+    laws' work, then the energy taken by dampers and the work in, ``System.n_aux``), ``losses`` (...)
+    the kinetic energy taken by impulses [J]."""
+    k = U.shape[-1]
+    dissipated = (w[..., :k] - U).sum(axis=-1) + losses + w[..., -2]
+    return Ledger(kinetic, potential, strain, U.sum(axis=-1), signed, dissipated, w[..., -1])
+
+
+def work_integrals(system: System, state: State) -> FloatArray:
+    """``state.w`` (n_aux,) [J], zeros before the run has started them."""
+    return state.w if state.w.size else np.zeros(sum(c.k for c in system.contacts) + 2)
+
+
+def impulse_loss(system: System, state: State) -> float:
+    """Kinetic energy taken by every contact's impulses so far [J]."""
+    memory = state.memory or tuple(c.initial_phases() for c in system.contacts)
+    return float(sum(p.impulse_loss for phases in memory for p in phases))
 
 
 # ---------------------------------------------------------------------------- contact records

@@ -257,7 +257,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         scalars.update(out.values(cfg))
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)
-        scalars.update(_ledger_scalars(led, reference_energy))
+        scalars.update(ledger_scalars(led, reference_energy))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
@@ -283,7 +283,9 @@ def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: di
     return out
 
 
-def _ledger_scalars(led, reference_energy: float | None) -> dict[str, float]:
+def ledger_scalars(led, reference_energy: float | None) -> dict:
+    """The ledger's plot scalars (``energy/...``), floats or arrays over instants as ``led`` holds;
+    ``energy/balance_error`` against ``reference_energy`` (the ledger's initial total) if given."""
     out = {"energy/kinetic": led.kinetic, "energy/potential": led.potential, "energy/strain": led.strain,
            "energy/contact_elastic": led.contact_elastic, "energy/dissipated": led.dissipated,
            "energy/work_in": led.work_in}

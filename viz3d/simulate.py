@@ -500,7 +500,7 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
                          sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"])
     except MethodError as exc:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
-    return run(sim, scene, formulation, progress, sinks)
+    return run(sim, scene, progress, sinks)
 
 
 def check_methods(scene: Scene) -> None:
@@ -514,7 +514,7 @@ def check_methods(scene: Scene) -> None:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
 
 
-def run(sim: Simulation, scene: Scene, formulation, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
+def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory (their
     frames computed a chunk at a time, ``viz3d.columns``, and checked), and frames to the ``sinks``
     (after every step for full-rate sinks)."""
