@@ -17,7 +17,7 @@ from viz3d.dynamics import body_state, retract
 from viz3d.flexible import Material, Section, analytic_modes, fe_model, reduce
 from viz3d.flexible.floating import floating_bar
 from viz3d.forces import Gravity, SpringDamper
-from viz3d.joints import BallJoint
+from viz3d.joints import JOINTS, BallJoint
 from viz3d.points import body_points
 from viz3d.system import State, System
 
@@ -54,10 +54,11 @@ def flexible_bars(rng):
     return bars, (True, True, False)
 
 
-def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False):
+def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False, kinds=("ball",)):
     """A chain 0-1-...-(nb-1) hung from ground plus ``extra_pairs`` joints, random inertia; with
     ``flexible``, three flexible bars after the rigid bodies, joined to the chain (and to each other)
-    at random sections."""
+    at random sections by ball joints. The joints between rigid bodies (and ground) cycle through the
+    joint types ``kinds`` (``viz3d.joints.JOINTS``), with random joint frames."""
     rng = np.random.default_rng(seed)
     names = tuple(f"b{i}" for i in range(nb))
     mass, inertia, flex = rng.uniform(0.5, 2.0, nb), random_inertia(rng, nb), ()
@@ -73,7 +74,7 @@ def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=Fa
     pairs = [(0, n_all)] + [(i, i - 1) for i in range(1, nb)] + list(extra_pairs)
     if flexible:
         pairs += [(nb, nb - 1), (nb + 1, nb), (nb + 2, nb + 1), (nb + 1, 0)]
-    joints = (_joints(rng, bodies, pairs),)
+    joints = _joints_of_kinds(rng, bodies, pairs, kinds, nb)
     forces = [Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), flex, sum(fb.n for fb in flex))]
     if springs:
         sp = [[0, n_all], [nb - 1, 0], [1, 2 % nb]] + ([[nb, n_all], [nb + 2, 1]] if flexible else [])
@@ -93,10 +94,29 @@ def _sides(rng, bodies, pairs):
     return B_s, tuple(body_points(bodies, pairs[:, s], B_s[:, s], x[:, s]) for s in (0, 1))
 
 
-def _joints(rng, bodies, pairs):
+def _joints(rng, bodies, pairs, kind="ball", first=0):
     pairs = np.asarray(pairs, dtype=int)
     B_s, sides = _sides(rng, bodies, pairs)
-    return BallJoint(tuple(f"j{i}" for i in range(len(pairs))), pairs, B_s, sides)
+    names = tuple(f"j{first + i}" for i in range(len(pairs)))
+    if kind == "ball":
+        return BallJoint(names, pairs, B_s, sides)
+    B_A = Rotation.random(2 * len(pairs), random_state=rng.integers(1 << 31)).as_matrix().reshape(len(pairs), 2, 3, 3)
+    return JOINTS[kind](names, pairs, B_s, B_A, sides)
+
+
+def _joints_of_kinds(rng, bodies, pairs, kinds, nb):
+    """Joint sets for ``pairs``: pairs of rigid bodies (or ground) take the types ``kinds`` in turn,
+    pairs with a flexible body ball joints."""
+    n_all = bodies.n_bodies
+    kind_of = []
+    for k, (a, b) in enumerate(pairs):
+        rigid = all(x < nb or x == n_all for x in (a, b))
+        kind_of.append(kinds[len(kind_of) % len(kinds)] if rigid else "ball")
+    sets = []
+    for kind in dict.fromkeys(kind_of):
+        which = [k for k, x in enumerate(kind_of) if x == kind]
+        sets.append(_joints(rng, bodies, [pairs[k] for k in which], kind, first=len(sets) * 100))
+    return tuple(sets)
 
 
 def _springs(rng, bodies, pairs):

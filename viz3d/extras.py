@@ -45,6 +45,18 @@ def run_extras(sim, scene, frames) -> dict:
     return out
 
 
+def joint_fields(system, frames) -> dict:
+    """The joints' relative coordinates as trajectory fields (none when no joint has one):
+    ``joint_coordinate_names`` (m,) ``<joint>/<coordinate>``, ``joint_coordinates`` and
+    ``joint_coordinate_rates`` (n, m) [rad, m; rad/s, m/s] (``viz3d.joints.relative_coordinates``)."""
+    names = [f"{n}/{c}" for js in system.joints.joints for n in js.names for c in getattr(js, "coordinate_names", ())]
+    if not names:
+        return {}
+    return {"joint_coordinate_names": np.array(names, dtype=str),
+            "joint_coordinates": _series(frames, [f"joint/{n}" for n in names]),
+            "joint_coordinate_rates": _series(frames, [f"joint/{n}_rate" for n in names])}
+
+
 def _series(frames, keys: list[str]) -> np.ndarray:
     """Frame scalars ``keys`` as columns, shape (n, len(keys)) (nan where the frames lack one)."""
     n = len(frames)

@@ -12,6 +12,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.dynamics import accelerations, body_state, centres_of_mass, energies
 from viz3d.forces import SpringDamper
+from viz3d.joints import relative_coordinates
 from viz3d.system import State, System
 
 
@@ -255,6 +256,8 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     scalars: dict[str, float] = {}
     for out in system.outputs:
         scalars.update(out.values(cfg))
+    coordinates = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+    scalars.update({k: float(x) for k, x in coordinates.items()})
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)
         scalars.update(ledger_scalars(led, reference_energy))

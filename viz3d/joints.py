@@ -22,9 +22,10 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, items, row_piece
+from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, matvec3, row_piece, tmatvec3
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, bias, rigid_points
+from viz3d.rotations import cross
 
 
 @dataclass(frozen=True)
@@ -118,14 +119,7 @@ class BallJoint(Joint):
         return self.sides[0].positions(cfg) - self.sides[1].positions(cfg)
 
     def jacobian(self, cfg):
-        nj, ne = self.n_joints, self.n_elastic
-        J = np.zeros((nj, 3, 2, 6))
-        Je = np.zeros((nj, 3, 2, ne))
-        for k, sign in ((0, 1.0), (1, -1.0)):
-            Jf, Jel = self.sides[k].jacobian(cfg)
-            J[:, :, k, :] = sign * Jf
-            Je[:, :, k, :] = sign * Jel
-        return J, Je
+        return point_jacobian(self.sides, cfg)
 
     def gamma(self, cfg):
         return self.sides[1].bias(cfg) - self.sides[0].bias(cfg)
@@ -142,18 +136,367 @@ class BallItems(Items):
 
 @compiled_piece(row_piece, BallItems)
 def _ball(d, t, v):
-    e, a1, a2 = v.v3[8], v.v3[9], v.v3[10]
     for k in range(d.i.shape[0]):
-        r0, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
-        bias(v, p1, a1)
-        bias(v, p2, a2)
-        for c in range(3):
-            e[0], e[1], e[2] = 0.0, 0.0, 0.0
-            e[c] = 1.0
-            add_row(v, r0 + c, 0, p1, e, 1.0)
-            add_row(v, r0 + c, 1, p2, e, -1.0)
-            v.C[r0 + c] = v.px[p1, c] - v.px[p2, c]
-            v.gam[r0 + c] = a2[c] - a1[c]
+        point_rows(v, d.i[k, 0], d.i[k, 1], d.i[k, 2])
 
 
-JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint,)}
+@inline
+def point_rows(v, r0, p1, p2):
+    """Rows ``r0 .. r0 + 2``: point ``p1`` coincides with point ``p2`` (``C = x1 - x2``, world axes)."""
+    e, a1, a2 = v.v3[8], v.v3[9], v.v3[10]
+    bias(v, p1, a1)
+    bias(v, p2, a2)
+    for c in range(3):
+        e[0], e[1], e[2] = 0.0, 0.0, 0.0
+        e[c] = 1.0
+        add_row(v, r0 + c, 0, p1, e, 1.0)
+        add_row(v, r0 + c, 1, p2, e, -1.0)
+        v.C[r0 + c] = v.px[p1, c] - v.px[p2, c]
+        v.gam[r0 + c] = a2[c] - a1[c]
+
+
+def point_jacobian(sides: tuple[BodyPoints, BodyPoints], cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+    """``C_v`` of ``C = x1 - x2`` (3 rows per joint): frame (nj, 3, 2, 6) and elastic (nj, 3, 2, n_e) parts."""
+    nj, ne = sides[0].k, sides[0].n_elastic
+    J = np.zeros((nj, 3, 2, 6))
+    Je = np.zeros((nj, 3, 2, ne))
+    for k, sign in ((0, 1.0), (1, -1.0)):
+        Jf, Jel = sides[k].jacobian(cfg)
+        J[:, :, k, :] = sign * Jf
+        Je[:, :, k, :] = sign * Jel
+    return J, Je
+
+
+
+
+# ---------------------------------------------------------------------------- joints with frames
+
+
+@dataclass(frozen=True)
+class FramedJoint(Joint):
+    """A joint with a frame on each side: a point ``p_k`` and orthonormal axes ``a_k = R_k A_k``
+    (columns x, y, z) fixed in body k; the scene makes both frames coincide in its initial
+    configuration, so every relative coordinate starts at zero. The equations come from three
+    primitives (Haug, *Computer-Aided Kinematics and Dynamics*, ch. 9), chosen by the subclass:
+
+    * ``POINT``: ``p1 - p2 = 0``, 3 rows (world axes), as the ball joint;
+    * ``PERPENDICULAR`` pairs ``(i, j)``: ``a1_i . a2_j = 0``, one row each, with
+      ``C_v = [0, R1^T (a1_i x a2_j) | 0, -R2^T (a1_i x a2_j)]`` and
+      ``gamma = -(w1 - w2) . ((w1 x a1_i) x a2_j + a1_i x (w2 x a2_j))``;
+    * ``ON_PLANE`` axes ``i``: ``a1_i . (p2 - p1) = 0``, one row each, with
+      ``C_v = a1_i^T (J_p2 - J_p1) + [0, R1^T (a1_i x d) | 0]`` and
+      ``gamma = -((w1 x (w1 x a1_i)) . d + 2 (w1 x a1_i) . d_dot + a1_i . (b2 - b1))``,
+      ``d = p2 - p1``, ``b`` the points' bias accelerations (``viz3d.points``).
+
+    Rows are ordered point, perpendicular, on-plane. The axes need a rigid body (or ground) on each
+    side: a flexible section's rotation is not a material point's (ball joints attach there).
+
+    Attributes
+    ----------
+    B_s : ndarray, shape (nj, 2, 3)
+        The joint point in each body's axes, from its centre of mass [m] (ground: world).
+    B_A : ndarray, shape (nj, 2, 3, 3)
+        Each side's joint axes (columns x, y, z) in its body's axes.
+    sides : tuple of BodyPoints, optional
+        The two sides' points (default: rigid points at ``B_s``).
+    """
+
+    POINT: ClassVar[bool] = True
+    PERPENDICULAR: ClassVar[tuple[tuple[int, int], ...]] = ()
+    ON_PLANE: ClassVar[tuple[int, ...]] = ()
+    #: Names of the relative coordinates the joint leaves free (``relative``): angles [rad], distances [m].
+    coordinate_names: ClassVar[tuple[str, ...]] = ()
+
+    B_s: FloatArray = field(default=None)
+    B_A: FloatArray = field(default=None)
+    sides: tuple[BodyPoints, BodyPoints] | None = field(default=None)
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.n_eq = 3 * cls.POINT + len(cls.PERPENDICULAR) + len(cls.ON_PLANE)
+
+    def __post_init__(self):
+        if self.sides is None:
+            sides = tuple(rigid_points(self.body[:, k], self.B_s[:, k]) for k in (0, 1))
+            object.__setattr__(self, "sides", sides)
+        flexible = sorted({self.names[i] for s in self.sides for g in s.flex for i in g.which})
+        if flexible:
+            raise ValueError(f"{self.type_name} joints {flexible} need a rigid body or ground on each side: their "
+                             "axes turn with the body's frame (ball joints attach to sections of flexible bodies)")
+
+    def points(self, cfg: Configuration) -> FloatArray:
+        """World joint points of side 0 (on body 1), shape (nj, 3) [m]."""
+        return self.sides[0].positions(cfg)
+
+    def axes(self, R_WB: FloatArray) -> FloatArray:
+        """World joint axes of both sides (columns), shape (..., nj, 2, 3, 3), from every body's
+        rotation ``R_WB`` (..., nb + 1, 3, 3) (leading axes: instants)."""
+        return R_WB[..., self.body, :, :] @ self.B_A
+
+    def residual(self, cfg):
+        return self.rows(cfg)[0]
+
+    def jacobian(self, cfg):
+        return self.rows(cfg)[1]
+
+    def gamma(self, cfg):
+        return self.rows(cfg)[2]
+
+    def rows(self, cfg):
+        nj, ne = self.n_joints, self.sides[0].n_elastic
+        R = cfg.pose.R_WB[self.body]
+        a = self.axes(cfg.pose.R_WB)
+        w1, w2 = cfg.twist.W_omega[self.body[:, 0]], cfg.twist.W_omega[self.body[:, 1]]
+        x = [s.positions(cfg) for s in self.sides]
+        bias_ = [s.bias(cfg) for s in self.sides]
+        C, J, Je, g = [], [], [], []
+        if self.POINT:
+            C.append(x[0] - x[1])
+            Jp, Jpe = point_jacobian(self.sides, cfg)
+            J.append(Jp)
+            Je.append(Jpe)
+            g.append(bias_[1] - bias_[0])
+        for i, j in self.PERPENDICULAR:
+            A, B = a[:, 0, :, i], a[:, 1, :, j]
+            n = cross(A, B)
+            Jr = np.zeros((nj, 1, 2, 6))
+            Jr[:, 0, 0, 3:] = np.einsum("kji,kj->ki", R[:, 0], n)
+            Jr[:, 0, 1, 3:] = -np.einsum("kji,kj->ki", R[:, 1], n)
+            C.append(_dot(A, B)[:, None])
+            J.append(Jr)
+            Je.append(np.zeros((nj, 1, 2, ne)))
+            g.append(-_dot(w1 - w2, cross(cross(w1, A), B) + cross(A, cross(w2, B)))[:, None])
+        if self.ON_PLANE:
+            d = x[1] - x[0]
+            d_dot = self.sides[1].velocities(cfg) - self.sides[0].velocities(cfg)
+            (Jf0, Je0), (Jf1, Je1) = (s.jacobian(cfg) for s in self.sides)
+        for i in self.ON_PLANE:
+            A = a[:, 0, :, i]
+            Jr = np.zeros((nj, 1, 2, 6))
+            Jr[:, 0, 0] = -np.einsum("ki,kij->kj", A, Jf0)
+            Jr[:, 0, 0, 3:] += np.einsum("kji,kj->ki", R[:, 0], cross(A, d))
+            Jr[:, 0, 1] = np.einsum("ki,kij->kj", A, Jf1)
+            Jre = np.stack([-np.einsum("ki,kiq->kq", A, Je0), np.einsum("ki,kiq->kq", A, Je1)], axis=1)[:, None]
+            wA = cross(w1, A)
+            C.append(_dot(A, d)[:, None])
+            J.append(Jr)
+            Je.append(Jre)
+            g.append(-(_dot(cross(w1, wA), d) + 2.0 * _dot(wA, d_dot) + _dot(A, bias_[1] - bias_[0]))[:, None])
+        return np.concatenate(C, axis=1), (np.concatenate(J, axis=1), np.concatenate(Je, axis=1)), np.concatenate(g, axis=1)
+
+    def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """The relative coordinates ``coordinate_names`` and their rates at ``cfg``, shapes (nj, m)."""
+        return self.relative(cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+
+    def relative(self, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray
+                 ) -> tuple[FloatArray, FloatArray]:
+        """Relative coordinates and rates, shapes (..., nj, m), from every body's pose and twist
+        (..., nb + 1, ...), ground last (leading axes: instants): the motion of body 1 relative to
+        body 2 (the reference; ground by default), zero in the initial configuration. Rates are exact
+        on the constraint manifold (``omega_1 - omega_2`` along the free axes)."""
+        a = self.axes(R_WB)
+        rho = R_WB[..., self.body, :, :] @ self.B_s[..., None]
+        p = W_r[..., self.body, :] + rho[..., 0]
+        p_dot = W_v[..., self.body, :] + cross(W_omega[..., self.body, :], rho[..., 0])
+        w = W_omega[..., self.body, :]
+        values, rates = self._relative(a[..., 0, :, :], a[..., 1, :, :], p[..., 1, :] - p[..., 0, :],
+                                       p_dot[..., 1, :] - p_dot[..., 0, :], w[..., 0, :], w[..., 1, :] - w[..., 0, :])
+        shape = a.shape[:-3] + (0,)
+        return (-np.stack(values, axis=-1) if values else np.zeros(shape),
+                -np.stack(rates, axis=-1) if rates else np.zeros(shape))
+
+    def _relative(self, a1, a2, d, d_dot, w1, w_rel) -> tuple[list, list]:
+        """Each coordinate of body 2 relative to body 1, and its rate (lists of (..., nj); ``relative``
+        negates them: on the manifold, body 1's motion relative to body 2), from the world axes of both
+        sides (..., nj, 3, 3), ``d = p2 - p1``, its rate, ``w1`` and ``w2 - w1`` (..., nj, 3)."""
+        return [], []
+
+    def compiled(self, pack) -> Items:
+        n = self.n_joints
+        rows = pack.row_start(self) + self.n_eq * np.arange(n)
+        code = np.zeros((n, 11), np.int64)
+        code[:, 0] = self.POINT
+        code[:, 1], code[:, 2] = len(self.PERPENDICULAR), len(self.ON_PLANE)
+        code[:, 3:3 + 2 * len(self.PERPENDICULAR)] = np.ravel(self.PERPENDICULAR)
+        code[:, 9:9 + len(self.ON_PLANE)] = self.ON_PLANE
+        i = np.column_stack([rows, pack.points(self.sides[0]), pack.points(self.sides[1]), code])
+        return items(FramedItems, i, self.B_A.reshape(n, 18), k=n)
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _angle_about(x1, y1, x2):
+    """The angle of ``x2`` about ``z1`` from ``x1`` towards ``y1`` [rad]."""
+    return np.arctan2(_dot(x2, y1), _dot(x2, x1))
+
+
+def _axis_of(a, i):
+    return a[..., :, i]
+
+
+@dataclass(frozen=True)
+class RevoluteJoint(FramedJoint):
+    """Revolute joint (hinge) about the joint z axis: the points coincide and ``z1`` stays normal to
+    ``x2`` and ``y2`` (5 equations). Coordinate: ``angle``, the turn of body 1 about the axis."""
+
+    type_name = "revolute"
+    PERPENDICULAR = ((2, 0), (2, 1))
+    coordinate_names = ("angle",)
+
+    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
+        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
+        return [_angle_about(x1, y1, _axis_of(a2, 0))], [_dot(w_rel, z1)]
+
+
+@dataclass(frozen=True)
+class UniversalJoint(FramedJoint):
+    """Universal (Cardan) joint: the points coincide and the first axis ``x1`` (on body 1) stays normal
+    to the second axis ``y2`` (on body 2): 4 equations, two relative rotations. Coordinates: ``angle1``
+    about ``x1`` and ``angle2`` about ``y2``: body 1's joint frame is body 2's turned by
+    ``Ry(angle2) Rx(angle1)`` (axes of body 2's joint frame); the third relative rotation, about
+    ``x1 x y2``, is what the constraint removes."""
+
+    type_name = "universal"
+    PERPENDICULAR = ((0, 1),)
+    coordinate_names = ("angle1", "angle2")
+
+    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
+        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
+        x2, y2, z2 = (_axis_of(a2, i) for i in range(3))
+        return ([np.arctan2(_dot(y2, z1), _dot(y2, y1)), np.arctan2(_dot(z2, x1), _dot(x2, x1))],
+                [_dot(w_rel, x1), _dot(w_rel, y2)])
+
+
+def _distance(z1, d, d_dot, w1):
+    """Slide along ``z1`` and its rate: ``z1 . d`` and ``z1 . d_dot + (w1 x z1) . d``."""
+    return _dot(z1, d), _dot(z1, d_dot) + _dot(cross(w1, z1), d)
+
+
+@dataclass(frozen=True)
+class PrismaticJoint(FramedJoint):
+    """Prismatic joint (slider) along the joint z axis: the frames keep their orientation (``z1``
+    normal to ``x2``, ``y2``; ``x1`` normal to ``y2``) and ``p2`` stays on the line through ``p1``
+    along ``z1`` (5 equations). Coordinate: ``distance`` ``z . (p1 - p2)``, body 1's slide along the axis."""
+
+    type_name = "prismatic"
+    POINT = False
+    PERPENDICULAR = ((2, 0), (2, 1), (0, 1))
+    ON_PLANE = (0, 1)
+    coordinate_names = ("distance",)
+
+    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
+        s, s_dot = _distance(_axis_of(a1, 2), d, d_dot, w1)
+        return [s], [s_dot]
+
+
+@dataclass(frozen=True)
+class CylindricalJoint(FramedJoint):
+    """Cylindrical joint: turns about and slides along the joint z axis (4 equations: ``z1`` normal to
+    ``x2``, ``y2``; ``p2`` on the line through ``p1`` along ``z1``). Coordinates: ``angle``, ``distance``."""
+
+    type_name = "cylindrical"
+    POINT = False
+    PERPENDICULAR = ((2, 0), (2, 1))
+    ON_PLANE = (0, 1)
+    coordinate_names = ("angle", "distance")
+
+    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
+        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
+        s, s_dot = _distance(z1, d, d_dot, w1)
+        return [_angle_about(x1, y1, _axis_of(a2, 0)), s], [_dot(w_rel, z1), s_dot]
+
+
+@dataclass(frozen=True)
+class FixedJoint(FramedJoint):
+    """Fixed joint (weld): the points coincide and the frames keep their orientation (6 equations)."""
+
+    type_name = "fixed"
+    PERPENDICULAR = ((2, 0), (2, 1), (0, 1))
+
+
+class FramedItems(Items):
+    """Joints with frames: i = [first row, point 1, point 2, POINT, number of PERPENDICULAR pairs,
+    number of ON_PLANE axes, the pairs (3 x 2), the axes (2)]; f = [A1, A2] row-major (18)."""
+
+
+@inline
+def _world_axis(v, f, side, b, i, out):
+    """``out = R_b A[:, i]`` with ``A`` of side ``side`` row-major in ``f[9 side:]``."""
+    k = 9 * side + i
+    for r in range(3):
+        out[r] = v.R[b, r, 0] * f[k] + v.R[b, r, 1] * f[k + 3] + v.R[b, r, 2] * f[k + 6]
+
+
+@compiled_piece(row_piece, FramedItems)
+def _framed(d, t, v):
+    A, B, n, u, t1, t2, t3, b1, b2 = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21], v.v3[22], v.v3[23], v.v3[24]
+    for k in range(d.i.shape[0]):
+        r, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
+        f = d.f[k]
+        q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
+        if d.i[k, 3] == 1:
+            point_rows(v, r, p1, p2)
+            r += 3
+        for e in range(d.i[k, 4]):
+            _world_axis(v, f, 0, q1, d.i[k, 6 + 2 * e], A)
+            _world_axis(v, f, 1, q2, d.i[k, 7 + 2 * e], B)
+            cross3(A, B, n)
+            v.C[r] = dot3(A, B)
+            tmatvec3(v.R[q1], n, u)
+            tmatvec3(v.R[q2], n, t1)
+            for c in range(3):
+                v.J[r, 0, 3 + c] += u[c]
+                v.J[r, 1, 3 + c] -= t1[c]
+            cross3(v.wW[q1], A, t1)
+            cross3(t1, B, t2)
+            cross3(v.wW[q2], B, t1)
+            cross3(A, t1, t3)
+            acc = 0.0
+            for c in range(3):
+                acc += (v.wW[q1, c] - v.wW[q2, c]) * (t2[c] + t3[c])
+            v.gam[r] = -acc
+            r += 1
+        if d.i[k, 5] > 0:
+            bias(v, p1, b1)
+            bias(v, p2, b2)
+        for e in range(d.i[k, 5]):
+            _world_axis(v, f, 0, q1, d.i[k, 12 + e], A)
+            for c in range(3):
+                n[c] = v.px[p2, c] - v.px[p1, c]
+            add_row(v, r, 0, p1, A, -1.0)
+            add_row(v, r, 1, p2, A, 1.0)
+            cross3(A, n, t1)
+            tmatvec3(v.R[q1], t1, u)
+            for c in range(3):
+                v.J[r, 0, 3 + c] += u[c]
+            v.C[r] = dot3(A, n)
+            cross3(v.wW[q1], A, t1)
+            cross3(v.wW[q1], t1, t2)
+            acc = 0.0
+            for c in range(3):
+                acc += t2[c] * n[c] + 2.0 * t1[c] * (v.pv[p2, c] - v.pv[p1, c]) + A[c] * (b2[c] - b1[c])
+            v.gam[r] = -acc
+            r += 1
+
+
+JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint, RevoluteJoint, UniversalJoint,
+                                                                 PrismaticJoint, CylindricalJoint, FixedJoint)}
+
+
+def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray
+                         ) -> dict[str, FloatArray]:
+    """Every joint's relative coordinates and rates as named values: ``joint/<name>/<coordinate>``
+    [rad or m] and ``joint/<name>/<coordinate>_rate`` [rad/s or m/s], each of the leading shape of
+    the poses and twists (..., nb + 1, ...) (leading axes: instants), from ``joints`` (joint sets)."""
+    out: dict[str, FloatArray] = {}
+    for js in joints:
+        if not getattr(js, "coordinate_names", ()):
+            continue
+        values, rates = js.relative(R_WB, W_r, W_v, W_omega)
+        for j, name in enumerate(js.names):
+            for c, coordinate in enumerate(js.coordinate_names):
+                out[f"joint/{name}/{coordinate}"] = values[..., j, c]
+                out[f"joint/{name}/{coordinate}_rate"] = rates[..., j, c]
+    return out

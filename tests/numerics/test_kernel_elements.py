@@ -20,6 +20,7 @@ from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.formulation import Baumgarte, Index1, Penalty
+from viz3d.joints import JOINTS
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, SpringDamper
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
@@ -127,7 +128,7 @@ def every_element_system(seed: int = 3):
     """(system, state, memory) with every registered element type, on rigid bodies and flexible
     bars on floating and fixed frames (``tests.systems.random_system(flexible=True)``)."""
     rng = np.random.default_rng(seed)
-    base = random_system(flexible=True, seed=seed)
+    base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS))  # every joint type on rigid bodies
     state = random_state(base, seed=seed + 1)
     forces = base.forces + tuple(build(rng, base.bodies) for build in ELEMENT_BUILDERS.values())
     contacts, memory = _contacts(rng, base, state)

@@ -20,7 +20,8 @@ GAMMA_TOL = 1e-6
 
 #: How the tests build a system holding each registered joint type (also on sections of flexible
 #: bars). A new joint type must be added here, or ``test_every_registered_joint_type_is_covered`` fails.
-SYSTEMS = {"ball": lambda seed, flexible: random_system(nb=4, seed=seed, flexible=flexible)}
+SYSTEMS = {kind: (lambda seed, flexible, kind=kind: random_system(nb=4, seed=seed, flexible=flexible, kinds=(kind,)))
+           for kind in ("ball", "revolute", "universal", "prismatic", "cylindrical", "fixed")}
 
 
 def _C_v(system, rows, x):

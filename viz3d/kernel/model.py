@@ -33,8 +33,9 @@ FORMULATIONS = {
     "baumgarte": lambda f: (f.alpha, f.beta, 0.0),
     "penalty": lambda f: (f.xi * f.omega, f.omega, 1.0 / f.alpha),
 }
-#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies.
-N_V3 = 16
+#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-27 for
+#: pieces that call the ball joint's rows (``viz3d.joints``).
+N_V3 = 28
 
 
 class Unsupported(Exception):

@@ -25,7 +25,7 @@ from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
-from viz3d.joints import BallJoint
+from viz3d.joints import JOINTS, BallJoint
 from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.rotations import matrix_from_euler
 from viz3d.outputs import StrainGauges
@@ -233,20 +233,73 @@ def _points(bodies: Bodies, pose, body: np.ndarray, entries: list[dict], side: s
 def build_joints(scene: Scene, bodies: Bodies, pose0) -> tuple:
     """One joint set per joint type present, in the order of ``JOINT_BUILDERS``."""
     groups: dict[str, list[dict]] = {}
-    for j in scene.data["joints"]:
+    paths: dict[str, list[str]] = {}
+    for i, j in enumerate(scene.data["joints"]):
         groups.setdefault(j["type"], []).append(j)
-    return tuple(make(groups[kind], bodies, pose0) for kind, make in JOINT_BUILDERS.items() if kind in groups)
+        paths.setdefault(j["type"], []).append(f"joints[{i}]")
+    return tuple(make(groups[kind], bodies, pose0, scene.source(), paths[kind])
+                 for kind, make in JOINT_BUILDERS.items() if kind in groups)
 
 
-def _ball_joints(entries: list[dict], bodies: Bodies, pose0) -> BallJoint:
+def _ball_joints(entries: list[dict], bodies: Bodies, pose0, source: str, paths: list[str]) -> BallJoint:
     body = np.array([[bodies.index(j["body1"]), bodies.index(j["body2"])] for j in entries], dtype=int)
     s1, p1 = _points(bodies, pose0, body[:, 0], entries, "1", "point", "local1")
     s2, p2 = _points(bodies, pose0, body[:, 1], entries, "2", "point", "local2")
     return BallJoint(tuple(j["name"] for j in entries), body, np.stack([s1, s2], axis=1), (p1, p2))
 
 
+def _frame_axes(entry: dict) -> FloatArray:
+    """The joint frame in world axes (columns x, y, z) in the initial configuration: ``axis`` is z;
+    a universal joint's ``axis1`` is x and ``axis2``, made normal to it, y."""
+    if "axis1" in entry:
+        x = np.asarray(entry["axis1"], float)
+        x = x / np.linalg.norm(x)
+        y = np.asarray(entry["axis2"], float)
+        y = y - (y @ x) * x
+        if np.linalg.norm(y) < 1e-6 * np.linalg.norm(entry["axis2"]):
+            raise ValueError("axis2", "a direction not parallel to axis1")
+        y = y / np.linalg.norm(y)
+        return np.column_stack([x, y, np.cross(x, y)])
+    z = np.asarray(entry.get("axis", [0.0, 0.0, 1.0]), float)
+    z = z / np.linalg.norm(z)
+    helper = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = helper - (helper @ z) * z
+    x = x / np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _framed_joints(kind: str):
+    """Builder of a ``FramedJoint`` set of type ``kind``: each side's point and axes in its body's axes,
+    the two frames coinciding in the initial pose ``pose0``."""
+
+    def make(entries: list[dict], bodies: Bodies, pose0, source: str, paths: list[str]):
+        body = np.array([[bodies.index(j["body1"]), bodies.index(j["body2"])] for j in entries], dtype=int)
+        nj = len(entries)
+        B_s, B_A = np.zeros((nj, 2, 3)), np.zeros((nj, 2, 3, 3))
+        for k, (entry, path) in enumerate(zip(entries, paths)):
+            for side in (0, 1):
+                if body[k, side] < bodies.n_bodies and not bodies.is_rigid[body[k, side]]:
+                    raise SceneError(source, f"{path}.body{side + 1}", f"a rigid body or ground (a {kind} joint's axes "
+                                     "turn with the body's frame; ball joints attach to sections of flexible bodies)",
+                                     entry[f"body{side + 1}"])
+            point = np.asarray(entry["point"], float) if "point" in entry else pose0.W_r[body[k, 0]]
+            try:
+                W_A = _frame_axes(entry)
+            except ValueError as exc:
+                key, expected = exc.args
+                raise SceneError(source, f"{path}.{key}", expected, entry[key]) from None
+            for side in (0, 1):
+                R = pose0.R_WB[body[k, side]]
+                B_s[k, side] = R.T @ (point - pose0.W_r[body[k, side]])
+                B_A[k, side] = R.T @ W_A
+        return JOINTS[kind](tuple(j["name"] for j in entries), body, B_s, B_A)
+
+    return make
+
+
 #: Joint type (scene ``type``) -> builder of its joint set from the resolved scene entries.
-JOINT_BUILDERS = {"ball": _ball_joints}
+JOINT_BUILDERS = {"ball": _ball_joints,
+                  **{kind: _framed_joints(kind) for kind in ("revolute", "universal", "prismatic", "cylindrical", "fixed")}}
 
 
 def build_forces(scene: Scene, bodies: Bodies, pose0) -> tuple:

@@ -324,6 +324,8 @@ def _check_refs(item: dict, keys: tuple[str, ...], names: set[str], where: str, 
 
 
 def _check_points(joint: dict, where: str, source: str) -> None:
+    if joint["type"] != "ball":  # joints with frames: point optional (body 1's centre of mass)
+        return
     has_point, has_locals = "point" in joint, ("local1" in joint, "local2" in joint)
     if has_point and any(has_locals):
         raise SceneError(source, f"{where}.point", "either point, or local1 and local2, not both")

@@ -180,6 +180,27 @@ JOINT_TYPES = {
         **_SECTIONS,
     }, "ball joint (rotula): give `point`, or `local1` and `local2` (on a flexible body: `x1`/`x2`)"),
 }
+_FRAME_POINT = Field(vec3, OPTIONAL, "joint point, world, in the initial configuration [m] (default: body 1's "
+                     "centre of mass)")
+_AXIS = Field(nonzero_vec3, [0.0, 0.0, 1.0], "joint axis, world direction in the initial configuration")
+#: Joints with a frame on each side (``viz3d.joints.FramedJoint``): both sides' frames coincide in the
+#: initial configuration, where every relative coordinate is zero. Rigid bodies or ground only.
+JOINT_TYPES.update({
+    "revolute": Table({"point": _FRAME_POINT, "axis": _AXIS},
+                      "revolute joint (hinge): turns about `axis` through `point`; coordinate `angle` [rad]"),
+    "universal": Table({
+        "point": _FRAME_POINT,
+        "axis1": Field(nonzero_vec3, [1.0, 0.0, 0.0], "first axis, fixed in body 1, world direction in the "
+                       "initial configuration"),
+        "axis2": Field(nonzero_vec3, [0.0, 1.0, 0.0], "second axis, fixed in body 2 (made normal to axis1)"),
+    }, "universal (Cardan) joint: two relative rotations, `angle1` about axis1 and `angle2` about axis2 [rad]"),
+    "prismatic": Table({"point": _FRAME_POINT, "axis": _AXIS},
+                       "prismatic joint (slider) along `axis`; coordinate `distance` [m]"),
+    "cylindrical": Table({"point": _FRAME_POINT, "axis": _AXIS},
+                         "cylindrical joint: turns about and slides along `axis`; coordinates `angle` [rad], "
+                         "`distance` [m]"),
+    "fixed": Table({"point": _FRAME_POINT}, "fixed joint (weld): no relative motion"),
+})
 JOINT = Table({
     "name": Field(name, OPTIONAL, "default j<index>"),
     "type": Field(one_of(*JOINT_TYPES), "ball", f"one of {list(JOINT_TYPES)}"),
