@@ -18,7 +18,8 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, dot3, energy_piece, force_piece, inline, items, matvec3
+from viz3d.compiled import Items, compiled_piece, cross3, dot3, energy_piece, force_piece, inline, items, matvec3
+from viz3d.joints import DISTANCE_Z, coordinate, coordinate_of
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, apply_force, rigid_points, scatter
 from viz3d.timefunctions import TimeFunctions, value
@@ -26,7 +27,8 @@ from viz3d.timefunctions import TimeFunctions, value
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
 MIN_LENGTH = 1e-12
 
-__all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity", "SpringDamper", "scatter"]
+__all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity", "JointMotor", "JointStop",
+           "SpringDamper", "scatter"]
 
 
 class ForceElement(ABC):
@@ -347,7 +349,245 @@ def _torque(d, t, v, power):
         power[power.shape[0] - 1] += dot3(tau, v.wW[b])
 
 
+
+
+# ---------------------------------------------------------------------------- forces on joint coordinates
+
+
+@dataclass(frozen=True)
+class JointCoordinateForce(ForceElement):
+    """Base of elements that act on joints' relative coordinates (``viz3d.joints.FramedJoint``): a
+    generalized force ``f`` on coordinate ``q`` of body 1 relative to body 2 - a torque ``+f u`` on
+    body 1 and ``-f u`` on body 2 about the coordinate's axis ``u``, or for a distance a force ``+f u``
+    at body 1's joint point and ``-f u`` at body 2's (with the moment ``f u x e`` on body 1,
+    ``e = p1 - p2``), so that its power is exactly ``f q_dot`` (``viz3d.joints.coordinate``).
+    Subclasses give ``effort(t, q, q_dot) -> (f, f_potential)``: the force and the part of it that
+    ``potential_energy`` accounts for.
+
+    Attributes
+    ----------
+    names : tuple of str, length k
+    joints : tuple of FramedJoint, length k
+        The joint set of each item.
+    index : ndarray of int, shape (k,)
+        The joint within its set.
+    free : ndarray of int, shape (k,)
+        The coordinate within the joint's ``FREE``.
+    """
+
+    names: tuple[str, ...]
+    joints: tuple
+    index: IntArray
+    free: IntArray
+
+    def _code(self, k: int) -> int:
+        return self.joints[k].FREE[self.free[k]][1]
+
+    def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """Each item's coordinate and rate, shapes (k,) [rad or m, per s]."""
+        q, q_dot = np.zeros(len(self.names)), np.zeros(len(self.names))
+        for k, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
+            values, rates = js.coordinates(cfg)
+            q[k], q_dot[k] = values[j, c], rates[j, c]
+        return q, q_dot
+
+    def wrench(self, cfg):
+        q, q_dot = self.coordinates(cfg)
+        f, _ = self.effort(cfg.t, q, q_dot)
+        F, tau = np.zeros_like(cfg.pose.W_r), np.zeros_like(cfg.pose.W_r)
+        for k, (js, j) in enumerate(zip(self.joints, self.index)):
+            b1, b2 = js.body[j]
+            a = js.axes(cfg.pose.R_WB)[j]
+            rho = np.einsum("kij,kj->ki", cfg.pose.R_WB[js.body[j]], js.B_s[j])
+            e = cfg.pose.W_r[b1] + rho[0] - cfg.pose.W_r[b2] - rho[1]
+            _, u = coordinate(self._code(k), a[0], a[1], e)
+            if self._code(k) == DISTANCE_Z:
+                F[b1] += f[k] * u
+                F[b2] -= f[k] * u
+                tau[b1] += np.cross(rho[0], f[k] * u) + f[k] * np.cross(u, e)
+                tau[b2] -= np.cross(rho[1], f[k] * u)
+            else:
+                tau[b1] += f[k] * u
+                tau[b2] -= f[k] * u
+        return F, tau, None
+
+    def nonconservative_power(self, cfg):
+        """``(f - f_potential) q_dot`` summed [W]."""
+        q, q_dot = self.coordinates(cfg)
+        f, f_V = self.effort(cfg.t, q, q_dot)
+        return float(np.sum((f - f_V) * q_dot))
+
+    def effort(self, t: float, q: FloatArray, q_dot: FloatArray) -> tuple[FloatArray, FloatArray]:
+        raise NotImplementedError
+
+    def _pack(self, pack, cls, i_extra, f_extra) -> Items:
+        """``cls`` items: i = [point 1, point 2, coordinate code, *i_extra], f = [A1, A2 (18), *f_extra]."""
+        rows_i, rows_f = [], []
+        for k, (js, j) in enumerate(zip(self.joints, self.index)):
+            p = [pack.points(rigid_points(js.body[[j], s], js.B_s[[j], s]))[0] for s in (0, 1)]
+            rows_i.append([p[0], p[1], self._code(k), *i_extra[k]])
+            rows_f.append([*js.B_A[j].reshape(18), *f_extra[k]])
+        return items(cls, rows_i, rows_f, k=len(self.names))
+
+
+@inline
+def _coordinate_force(v, d, k, F, u, t1):
+    """Apply the generalized force ``F`` of item ``k`` of ``d`` along its axis ``u`` (``JointCoordinateForce``)."""
+    p1, p2 = d.i[k, 0], d.i[k, 1]
+    q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
+    if d.i[k, 2] == DISTANCE_Z:
+        for c in range(3):
+            t1[c] = F * u[c]
+        apply_force(v, p1, t1)
+        for c in range(3):
+            t1[c] = -t1[c]
+        apply_force(v, p2, t1)
+        for c in range(3):
+            t1[c] = v.px[p1, c] - v.px[p2, c]
+        cross3(u, t1, v.v3[20])
+        for c in range(3):
+            v.tau[q1, c] += F * v.v3[20, c]
+    else:
+        for c in range(3):
+            v.tau[q1, c] += F * u[c]
+            v.tau[q2, c] -= F * u[c]
+
+
+@dataclass(frozen=True)
+class JointStop(JointCoordinateForce):
+    """Stops (limits) on joint coordinates: a piecewise spring-damper, zero inside ``[lower, upper]``
+    and ``-k (q - q_lim) - c q_dot`` outside (seed 004, eq. 3.50), never pulling the joint back into
+    the stop (the force is clipped to push out of it only). ``V = k (q - q_lim)^2 / 2`` outside; the
+    damper's power and the clipping are the non-conservative part (the ledger's work in).
+
+    Attributes (beyond ``JointCoordinateForce``)
+    ----------
+    lower, upper : ndarray, shape (k,) [rad or m]
+    stiffness : ndarray, shape (k,) [N m/rad or N/m]
+    damping : ndarray, shape (k,) [N m s/rad or N s/m]
+    """
+
+    type_name = "joint_stop"
+    lower: FloatArray = field(default=None)
+    upper: FloatArray = field(default=None)
+    stiffness: FloatArray = field(default=None)
+    damping: FloatArray = field(default=None)
+
+    def _penetration(self, q: FloatArray) -> FloatArray:
+        """``q - upper`` above, ``q - lower`` below, zero inside."""
+        return np.where(q > self.upper, q - self.upper, np.where(q < self.lower, q - self.lower, 0.0))
+
+    def effort(self, t, q, q_dot):
+        delta = self._penetration(q)
+        spring = -self.stiffness * delta
+        f = spring - self.damping * q_dot * (delta != 0)
+        f = np.where(delta > 0, np.minimum(f, 0.0), np.where(delta < 0, np.maximum(f, 0.0), 0.0))
+        return f, spring
+
+    def potential_energy(self, cfg):
+        q, _ = self.coordinates(cfg)
+        return float(0.5 * np.sum(self.stiffness * self._penetration(q) ** 2))
+
+    def compiled(self, pack) -> Items:
+        n = len(self.names)
+        return self._pack(pack, JointStopItems, np.zeros((n, 0), int),
+                          np.column_stack([self.lower, self.upper, self.stiffness, self.damping]))
+
+
+class JointStopItems(Items):
+    """i: [point 1, point 2, coordinate code]; f: [A1, A2 (18), lower, upper, stiffness, damping]."""
+
+
+@inline
+def _stop_effort(f, q, q_dot):
+    """``(force, spring force)`` of ``JointStop.effort`` for one item (its row ``f``)."""
+    if q > f[19]:
+        delta = q - f[19]
+    elif q < f[18]:
+        delta = q - f[18]
+    else:
+        return 0.0, 0.0
+    spring = -f[20] * delta
+    force = spring - f[21] * q_dot
+    if delta > 0.0:
+        force = min(force, 0.0)
+    else:
+        force = max(force, 0.0)
+    return force, spring
+
+
+@compiled_piece(force_piece, JointStopItems)
+def _joint_stop(d, t, v, power):
+    u = v.v3[24]
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        q, q_dot = coordinate_of(v, d.f[k], d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
+        force, spring = _stop_effort(d.f[k], q, q_dot)
+        if force != 0.0 or spring != 0.0:
+            _coordinate_force(v, d, k, force, u, v.v3[25])
+            power[power.shape[0] - 1] += (force - spring) * q_dot
+
+
+@compiled_piece(energy_piece, JointStopItems)
+def _joint_stop_energy(d, v, V):
+    u = v.v3[24]
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        q, _ = coordinate_of(v, d.f[k], d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
+        _, spring = _stop_effort(d.f[k], q, 0.0)
+        if d.f[k, 20] > 0.0:
+            V[1] += 0.5 * spring * spring / d.f[k, 20]
+
+
+@dataclass(frozen=True)
+class JointMotor(JointCoordinateForce):
+    """Motors on joint coordinates: PD tracking of a profile ``q_ref(t)`` with a saturation,
+    ``f = clip(kp (q_ref(t) - q) - kd q_dot, -max_effort, max_effort)`` [N m or N]. The profile is a
+    time function (``viz3d.timefunctions``; first component). Non-conservative: its power is the
+    ledger's work in.
+
+    Attributes (beyond ``JointCoordinateForce``)
+    ----------
+    target : TimeFunctions
+        ``q_ref`` in the first component [rad or m].
+    kp, kd, max_effort : ndarray, shape (k,)
+    """
+
+    type_name = "joint_motor"
+    target: TimeFunctions = field(default=None)
+    kp: FloatArray = field(default=None)
+    kd: FloatArray = field(default=None)
+    max_effort: FloatArray = field(default=None)
+
+    def effort(self, t, q, q_dot):
+        f = np.clip(self.kp * (self.target(t)[:, 0] - q) - self.kd * q_dot, -self.max_effort, self.max_effort)
+        return f, np.zeros_like(f)
+
+    def compiled(self, pack) -> Items:
+        kind, table = self.target.table()
+        return self._pack(pack, JointMotorItems, kind[:, None],
+                          np.column_stack([self.kp, self.kd, self.max_effort, table]))
+
+
+class JointMotorItems(Items):
+    """i: [point 1, point 2, coordinate code, time-function kind]; f: [A1, A2 (18), kp, kd, max_effort,
+    ``TimeFunctions.table`` row (10)]."""
+
+
+@compiled_piece(force_piece, JointMotorItems)
+def _joint_motor(d, t, v, power):
+    u, ref = v.v3[24], v.v3[26]
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        row = d.f[k]
+        q, q_dot = coordinate_of(v, row, d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
+        value(d.i[k, 3], row[21:31], t, ref)
+        force = min(max(row[18] * (ref[0] - q) - row[19] * q_dot, -row[20]), row[20])
+        _coordinate_force(v, d, k, force, u, v.v3[25])
+        power[power.shape[0] - 1] += force * q_dot
+
+
 #: Force elements by scene type (contacts are not force elements: ``viz3d.contact.contacts``).
 FORCES: dict[str, type[ForceElement]] = {
-    cls.type_name: cls for cls in (SpringDamper, AppliedForce, AppliedTorque)
+    cls.type_name: cls for cls in (SpringDamper, AppliedForce, AppliedTorque, JointStop, JointMotor)
 }

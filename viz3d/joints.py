@@ -15,6 +15,7 @@ index ``nb``. See docs/notation.md and docs/extending.md ("Add a joint").
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -204,8 +205,8 @@ class FramedJoint(Joint):
     POINT: ClassVar[bool] = True
     PERPENDICULAR: ClassVar[tuple[tuple[int, int], ...]] = ()
     ON_PLANE: ClassVar[tuple[int, ...]] = ()
-    #: Names of the relative coordinates the joint leaves free (``relative``): angles [rad], distances [m].
-    coordinate_names: ClassVar[tuple[str, ...]] = ()
+    #: The relative coordinates the joint leaves free: (name, code of ``COORDINATES``).
+    FREE: ClassVar[tuple[tuple[str, int], ...]] = ()
 
     B_s: FloatArray = field(default=None)
     B_A: FloatArray = field(default=None)
@@ -284,6 +285,11 @@ class FramedJoint(Joint):
             g.append(-(_dot(cross(w1, wA), d) + 2.0 * _dot(wA, d_dot) + _dot(A, bias_[1] - bias_[0]))[:, None])
         return np.concatenate(C, axis=1), (np.concatenate(J, axis=1), np.concatenate(Je, axis=1)), np.concatenate(g, axis=1)
 
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of the relative coordinates the joint leaves free: angles [rad], distances [m]."""
+        return tuple(name for name, _ in self.FREE)
+
     def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """The relative coordinates ``coordinate_names`` and their rates at ``cfg``, shapes (nj, m)."""
         return self.relative(cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
@@ -292,24 +298,23 @@ class FramedJoint(Joint):
                  ) -> tuple[FloatArray, FloatArray]:
         """Relative coordinates and rates, shapes (..., nj, m), from every body's pose and twist
         (..., nb + 1, ...), ground last (leading axes: instants): the motion of body 1 relative to
-        body 2 (the reference; ground by default), zero in the initial configuration. Rates are exact
-        on the constraint manifold (``omega_1 - omega_2`` along the free axes)."""
+        body 2 (the reference; ground by default), zero in the initial configuration (``COORDINATES``).
+        Rates are exact on the constraint manifold."""
         a = self.axes(R_WB)
-        rho = R_WB[..., self.body, :, :] @ self.B_s[..., None]
-        p = W_r[..., self.body, :] + rho[..., 0]
-        p_dot = W_v[..., self.body, :] + cross(W_omega[..., self.body, :], rho[..., 0])
+        rho = (R_WB[..., self.body, :, :] @ self.B_s[..., None])[..., 0]
+        p = W_r[..., self.body, :] + rho
+        p_dot = W_v[..., self.body, :] + cross(W_omega[..., self.body, :], rho)
         w = W_omega[..., self.body, :]
-        values, rates = self._relative(a[..., 0, :, :], a[..., 1, :, :], p[..., 1, :] - p[..., 0, :],
-                                       p_dot[..., 1, :] - p_dot[..., 0, :], w[..., 0, :], w[..., 1, :] - w[..., 0, :])
+        e, e_dot = p[..., 0, :] - p[..., 1, :], p_dot[..., 0, :] - p_dot[..., 1, :]
+        values, rates = [], []
+        for _, code in self.FREE:
+            q, u = coordinate(code, a[..., 0, :, :], a[..., 1, :, :], e)
+            values.append(q)
+            rates.append(_dot(u, e_dot) + _dot(cross(w[..., 0, :], u), e) if code == DISTANCE_Z
+                         else _dot(w[..., 0, :] - w[..., 1, :], u))
         shape = a.shape[:-3] + (0,)
-        return (-np.stack(values, axis=-1) if values else np.zeros(shape),
-                -np.stack(rates, axis=-1) if rates else np.zeros(shape))
-
-    def _relative(self, a1, a2, d, d_dot, w1, w_rel) -> tuple[list, list]:
-        """Each coordinate of body 2 relative to body 1, and its rate (lists of (..., nj); ``relative``
-        negates them: on the manifold, body 1's motion relative to body 2), from the world axes of both
-        sides (..., nj, 3, 3), ``d = p2 - p1``, its rate, ``w1`` and ``w2 - w1`` (..., nj, 3)."""
-        return [], []
+        return (np.stack(values, axis=-1) if values else np.zeros(shape),
+                np.stack(rates, axis=-1) if rates else np.zeros(shape))
 
     def compiled(self, pack) -> Items:
         n = self.n_joints
@@ -327,13 +332,26 @@ def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.einsum("...i,...i->...", a, b)
 
 
-def _angle_about(x1, y1, x2):
-    """The angle of ``x2`` about ``z1`` from ``x1`` towards ``y1`` [rad]."""
-    return np.arctan2(_dot(x2, y1), _dot(x2, x1))
+#: Relative coordinates of body 1 to body 2 by code, from the world joint axes ``x_k, y_k, z_k``
+#: of both sides and ``e = p1 - p2``, with the world axis ``u`` they turn about or slide along:
+#: ANGLE_Z ``-atan2(x2 . y1, x2 . x1)`` about ``z1``; ANGLE_X1 ``-atan2(y2 . z1, y2 . y1)`` about
+#: ``x1``; ANGLE_Y2 ``-atan2(z2 . x1, x2 . x1)`` about ``y2``; DISTANCE_Z ``z1 . e`` along ``z1``.
+#: Rates: ``(w1 - w2) . u`` for angles, ``u . e_dot + (w1 x u) . e`` for the distance.
+COORDINATES = ANGLE_Z, ANGLE_X1, ANGLE_Y2, DISTANCE_Z = range(4)
 
 
-def _axis_of(a, i):
-    return a[..., :, i]
+def coordinate(code: int, a1: FloatArray, a2: FloatArray, e: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Value (...,) and world axis (..., 3) of coordinate ``code`` from both sides' axes (..., 3, 3)
+    (columns x, y, z) and ``e = p1 - p2`` (..., 3)."""
+    x1, y1, z1 = a1[..., :, 0], a1[..., :, 1], a1[..., :, 2]
+    x2, y2, z2 = a2[..., :, 0], a2[..., :, 1], a2[..., :, 2]
+    if code == ANGLE_Z:
+        return -np.arctan2(_dot(x2, y1), _dot(x2, x1)), z1
+    if code == ANGLE_X1:
+        return -np.arctan2(_dot(y2, z1), _dot(y2, y1)), x1
+    if code == ANGLE_Y2:
+        return -np.arctan2(_dot(z2, x1), _dot(x2, x1)), y2
+    return _dot(z1, e), z1
 
 
 @dataclass(frozen=True)
@@ -343,11 +361,7 @@ class RevoluteJoint(FramedJoint):
 
     type_name = "revolute"
     PERPENDICULAR = ((2, 0), (2, 1))
-    coordinate_names = ("angle",)
-
-    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
-        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
-        return [_angle_about(x1, y1, _axis_of(a2, 0))], [_dot(w_rel, z1)]
+    FREE = (("angle", ANGLE_Z),)
 
 
 @dataclass(frozen=True)
@@ -360,18 +374,7 @@ class UniversalJoint(FramedJoint):
 
     type_name = "universal"
     PERPENDICULAR = ((0, 1),)
-    coordinate_names = ("angle1", "angle2")
-
-    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
-        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
-        x2, y2, z2 = (_axis_of(a2, i) for i in range(3))
-        return ([np.arctan2(_dot(y2, z1), _dot(y2, y1)), np.arctan2(_dot(z2, x1), _dot(x2, x1))],
-                [_dot(w_rel, x1), _dot(w_rel, y2)])
-
-
-def _distance(z1, d, d_dot, w1):
-    """Slide along ``z1`` and its rate: ``z1 . d`` and ``z1 . d_dot + (w1 x z1) . d``."""
-    return _dot(z1, d), _dot(z1, d_dot) + _dot(cross(w1, z1), d)
+    FREE = (("angle1", ANGLE_X1), ("angle2", ANGLE_Y2))
 
 
 @dataclass(frozen=True)
@@ -384,11 +387,7 @@ class PrismaticJoint(FramedJoint):
     POINT = False
     PERPENDICULAR = ((2, 0), (2, 1), (0, 1))
     ON_PLANE = (0, 1)
-    coordinate_names = ("distance",)
-
-    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
-        s, s_dot = _distance(_axis_of(a1, 2), d, d_dot, w1)
-        return [s], [s_dot]
+    FREE = (("distance", DISTANCE_Z),)
 
 
 @dataclass(frozen=True)
@@ -400,12 +399,7 @@ class CylindricalJoint(FramedJoint):
     POINT = False
     PERPENDICULAR = ((2, 0), (2, 1))
     ON_PLANE = (0, 1)
-    coordinate_names = ("angle", "distance")
-
-    def _relative(self, a1, a2, d, d_dot, w1, w_rel):
-        x1, y1, z1 = (_axis_of(a1, i) for i in range(3))
-        s, s_dot = _distance(z1, d, d_dot, w1)
-        return [_angle_about(x1, y1, _axis_of(a2, 0)), s], [_dot(w_rel, z1), s_dot]
+    FREE = (("angle", ANGLE_Z), ("distance", DISTANCE_Z))
 
 
 @dataclass(frozen=True)
@@ -427,6 +421,46 @@ def _world_axis(v, f, side, b, i, out):
     k = 9 * side + i
     for r in range(3):
         out[r] = v.R[b, r, 0] * f[k] + v.R[b, r, 1] * f[k + 3] + v.R[b, r, 2] * f[k + 6]
+
+
+@inline
+def coordinate_of(v, f, code, q1, q2, p1, p2, u):
+    """Compiled ``coordinate``: ``(value, rate)`` of coordinate ``code`` of a framed joint whose
+    axes are packed in ``f`` (``FramedItems``), bodies ``q1``, ``q2``, points ``p1``, ``p2``; its world
+    axis into ``u`` (3,). Scratch: ``v.v3[16:20]``."""
+    A, B, e, w = v.v3[16], v.v3[17], v.v3[18], v.v3[19]
+    for c in range(3):
+        e[c] = v.px[p1, c] - v.px[p2, c]
+    if code == DISTANCE_Z:
+        _world_axis(v, f, 0, q1, 2, u)
+        cross3(v.wW[q1], u, w)
+        rate = dot3(w, e)
+        for c in range(3):
+            rate += u[c] * (v.pv[p1, c] - v.pv[p2, c])
+        return dot3(u, e), rate
+    if code == ANGLE_Z:  # -atan2(x2 . y1, x2 . x1) about z1
+        _world_axis(v, f, 1, q2, 0, B)
+        _world_axis(v, f, 0, q1, 1, A)
+        sine = dot3(B, A)
+        _world_axis(v, f, 0, q1, 0, A)
+        _world_axis(v, f, 0, q1, 2, u)
+    elif code == ANGLE_X1:  # -atan2(y2 . z1, y2 . y1) about x1
+        _world_axis(v, f, 1, q2, 1, B)
+        _world_axis(v, f, 0, q1, 2, A)
+        sine = dot3(B, A)
+        _world_axis(v, f, 0, q1, 1, A)
+        _world_axis(v, f, 0, q1, 0, u)
+    else:  # ANGLE_Y2: -atan2(z2 . x1, x2 . x1) about y2
+        _world_axis(v, f, 0, q1, 0, A)
+        _world_axis(v, f, 1, q2, 2, B)
+        sine = dot3(B, A)
+        _world_axis(v, f, 1, q2, 0, B)
+        _world_axis(v, f, 1, q2, 1, u)
+    cosine = dot3(B, A)
+    rate = 0.0
+    for c in range(3):
+        rate += (v.wW[q1, c] - v.wW[q2, c]) * u[c]
+    return -math.atan2(sine, cosine), rate
 
 
 @compiled_piece(row_piece, FramedItems)
@@ -496,7 +530,7 @@ def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatAr
             continue
         values, rates = js.relative(R_WB, W_r, W_v, W_omega)
         for j, name in enumerate(js.names):
-            for c, coordinate in enumerate(js.coordinate_names):
-                out[f"joint/{name}/{coordinate}"] = values[..., j, c]
-                out[f"joint/{name}/{coordinate}_rate"] = rates[..., j, c]
+            for c, free in enumerate(js.coordinate_names):
+                out[f"joint/{name}/{free}"] = values[..., j, c]
+                out[f"joint/{name}/{free}_rate"] = rates[..., j, c]
     return out

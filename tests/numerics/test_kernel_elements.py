@@ -21,13 +21,13 @@ from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.formulation import Baumgarte, Index1, Penalty
 from viz3d.joints import JOINTS
-from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, SpringDamper
+from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
 from contact.law_examples import EXAMPLES
-from systems import _sides, random_state, random_system
+from systems import _sides, configuration, random_state, random_system
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
 #: computation's round-off, eps times its condition number, measured as the NumPy result's change
@@ -77,11 +77,46 @@ def _loads(cls, rng, bodies):
                         sides[0])
 
 
-#: Force elements beyond the gravity and springs of ``random_system``: one builder per element type.
+def _joint_coordinates(base, per_set: int = 1):
+    """(joint sets, index, coordinate) covering every free coordinate of the base's framed joints."""
+    sets, index, free = [], [], []
+    for js in base.joints.joints:
+        for j in range(min(js.n_joints, per_set)):
+            for c in range(len(getattr(js, "FREE", ()))):
+                sets.append(js)
+                index.append(j)
+                free.append(c)
+    return tuple(sets), np.array(index), np.array(free)
+
+
+def _joint_stops(rng, base, state):
+    """Stops on every coordinate kind, around the coordinates' values at ``random_state``: each item
+    inside, beyond its upper or below its lower limit (the cases of the piecewise law)."""
+    sets, index, free = _joint_coordinates(base)
+    k = len(sets)
+    cfg = configuration(base, state)
+    q = np.array([js.coordinates(cfg)[0][j, c] for js, j, c in zip(sets, index, free)])
+    shift = np.array([(-1.0, 0.0, 1.0)[i % 3] for i in range(k)]) * 0.05
+    return JointStop(tuple(f"stop{i}" for i in range(k)), sets, index, free, q - 0.02 + shift, q + 0.02 + shift,
+                     rng.uniform(10, 100, k), rng.uniform(0.1, 2.0, k))
+
+
+def _joint_motors(rng, base, state):
+    sets, index, free = _joint_coordinates(base)
+    k = len(sets)
+    funcs = _time_functions(rng, k)
+    return JointMotor(tuple(f"motor{i}" for i in range(k)), sets, index, free, funcs, rng.uniform(5, 50, k),
+                      rng.uniform(0.1, 1.0, k), np.where(np.arange(k) % 3 == 2, rng.uniform(0.05, 0.2, k), np.inf))
+
+
+#: Force elements beyond the gravity and springs of ``random_system``: one builder per element type,
+#: from a random generator, the base system and the state the tests evaluate.
 ELEMENT_BUILDERS = {
-    "damped springs": _damped_springs,
-    "forces (every time function, world and body axes)": lambda rng, b: _loads(AppliedForce, rng, b),
-    "torques (every time function, world and body axes)": lambda rng, b: _loads(AppliedTorque, rng, b),
+    "damped springs": lambda rng, base, state: _damped_springs(rng, base.bodies),
+    "forces (every time function, world and body axes)": lambda rng, base, state: _loads(AppliedForce, rng, base.bodies),
+    "torques (every time function, world and body axes)": lambda rng, base, state: _loads(AppliedTorque, rng, base.bodies),
+    "stops on every kind of joint coordinate": _joint_stops,
+    "motors on every kind of joint coordinate (saturated or not)": _joint_motors,
 }
 
 
@@ -130,7 +165,7 @@ def every_element_system(seed: int = 3):
     rng = np.random.default_rng(seed)
     base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS))  # every joint type on rigid bodies
     state = random_state(base, seed=seed + 1)
-    forces = base.forces + tuple(build(rng, base.bodies) for build in ELEMENT_BUILDERS.values())
+    forces = base.forces + tuple(build(rng, base, state) for build in ELEMENT_BUILDERS.values())
     contacts, memory = _contacts(rng, base, state)
     rows = ContactRows(contacts[0], contacts[0].rigid_rows(), 0)
     joints = base.joints.joints + (rows,)

@@ -223,3 +223,172 @@ def test_parallel_universal_axes_are_refused(tmp_path):
                     + '[[joints]]\ntype = "universal"\nbody1 = "r"\naxis1 = [1.0, 0.0, 0.0]\naxis2 = [2.0, 0.0, 0.0]\n')
     with pytest.raises(SceneError, match=r"joints\[0\]\.axis2.*not parallel to axis1"):
         viz3d.build(viz3d.load_scene(path))
+
+
+# ---------------------------------------------------------------------------- stops and motors
+
+
+def _hanging_rod(L: float, m: float, q0: float = 0.0, omega=(0.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0)) -> str:
+    """A rod hinged at its top end on ``axis`` (horizontal: a pendulum; vertical: a rotor through
+    its end), turned ``q0`` about the axis from hanging straight down."""
+    a = np.asarray(axis, float)
+    u = Rotation.from_rotvec(q0 * a).apply([0.0, 0.0, -1.0])
+    return (_rod("rod", 0.5 * L * u, u, L, m, omega=omega)
+            + f'[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = {_vec(a)}\n')
+
+
+def test_stop_rebound_and_energy_loss_match_the_damped_oscillator(tmp_path):
+    """A horizontal rod spinning about a vertical hinge through its end (no gravity moment about it)
+    strikes a 30 deg stop: the stop is I d'' = -k d - c d' while it pushes (the force clipped at
+    zero, then the rod leaves), so the rebound speed and the energy lost are those of that 1-DOF
+    law, integrated by scipy's solve_ivp at rtol 1e-12 with an event where the force vanishes."""
+    from scipy.integrate import solve_ivp
+
+    L, m, r, w0, k, c = 0.5, 0.8, 0.02, 2.0, 400.0, 1.5
+    limit = np.radians(30)
+    I_O = m * (3 * r**2 + L**2) / 12 + m * (L / 2) ** 2  # about a transverse axis through the end
+    text = (_rod("rod", [0.5 * L, 0.0, 0.0], [1.0, 0.0, 0.0], L, m, omega=(0.0, 0.0, w0)).replace(
+                "omega =", f"velocity = [0.0, {0.5 * L * w0}, 0.0]\nomega =")
+            + '[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n'
+            + f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nlower = {-limit}\nupper = {limit}\n'
+            f"stiffness = {k}\ndamping = {c}\n")
+    traj = _run(tmp_path, text, t_end=0.5, dt=1e-4, output_dt=1e-4)
+    q, rate = _coordinate(traj, "hinge/angle")
+    assert rate[0] == pytest.approx(w0, rel=1e-12)
+
+    def law(t, y):
+        return [y[1], min(-k * y[0] - c * y[1], 0.0) / I_O]
+
+    def released(t, y):
+        return -k * y[0] - c * y[1] if t > 0 else -1.0
+
+    released.terminal, released.direction = True, 1
+    ref = solve_ivp(law, (0, 1.0), [0.0, w0], rtol=1e-12, atol=1e-14, events=released)
+    w1 = ref.y_events[0][0][1]
+    assert -w0 < w1 < 0
+    after = traj.t > limit / w0 + 2 * ref.t_events[0][0]  # well after the contact, before the other stop
+    assert np.ptp(rate[after]) < 1e-9 * w0  # free rotation again
+    # The damper's force jumps from 0 to -c w0 as the rod enters the stop, inside a step (stop entries
+    # are not located as events): RK4 is first order across the jump, an error of at most the step's
+    # impulse c w0 dt / I_O in the rate (the smooth parts add (omega dt)^4 ~ 3e-8 relative).
+    jump = c * w0 * traj.t[1] / I_O
+    assert abs(rate[after][0] - w1) < jump
+    E = traj.energy_kinetic + traj.energy_potential
+    assert abs(E[0] - E[after][0] - 0.5 * I_O * (w0**2 - w1**2)) < I_O * abs(w1) * jump
+    assert q.max() > limit  # it did enter the stop
+
+
+def test_stop_holds_a_pendulum_with_the_static_deflection(tmp_path):
+    """A pendulum released at -36 deg falls onto a stop that keeps it below -30 deg and settles
+    (critical damping) where the stop's spring balances the weight's moment:
+    -k (theta + 30 deg) = m g d sin(theta). Joint coordinates are zero at the start: q = theta + 36 deg."""
+    from scipy.optimize import brentq
+
+    L, m, r, k = 0.6, 1.2, 0.02, 60.0
+    theta0, stop = np.radians(-36), np.radians(-30)
+    I_O = m * (3 * r**2 + L**2) / 12 + m * (L / 2) ** 2
+    c = 2 * np.sqrt(k * I_O)
+    text = _hanging_rod(L, m, q0=theta0)
+    text += (f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nupper = {stop - theta0}\n'
+             f"stiffness = {k}\ndamping = {c}\n")
+    traj = _run(tmp_path, text, t_end=4.0)
+    q, rate = _coordinate(traj, "hinge/angle")
+    d = L / 2
+    # the weight's moment about +y is -m g d sin(theta) (theta about +y from hanging)
+    theta = brentq(lambda x: -k * (x - stop) - m * G * d * np.sin(x), stop, 0.0)
+    assert theta > stop
+    # critically damped: e^(-omega_n t) (1 + omega_n t) < 1e-10 by t = 4 s (omega_n = 11 rad/s)
+    assert q[-1] + theta0 == pytest.approx(theta, abs=1e-9)
+    assert abs(rate[-1]) < 1e-8
+
+
+def test_motor_holds_a_pendulum_against_gravity(tmp_path):
+    """A PD motor tracking 60 deg holds the pendulum where kp (60 deg - q) = m g d sin(q)."""
+    from scipy.optimize import brentq
+
+    L, m, kp = 0.6, 1.2, 40.0
+    d, target = L / 2, np.radians(60)
+    kd = 2 * np.sqrt(kp * m * L**2 / 3)
+    text = _hanging_rod(L, m) + (f'[[forces]]\ntype = "joint_motor"\nname = "motor"\njoint = "hinge"\n'
+                                 f"kp = {kp}\nkd = {kd}\nvalue = {target}\n")
+    traj = _run(tmp_path, text, t_end=6.0)
+    q, rate = _coordinate(traj, "hinge/angle")
+    expected = brentq(lambda x: kp * (target - x) - m * G * d * np.sin(x), 0.0, target)
+    assert q[-1] == pytest.approx(expected, abs=1e-9)
+    assert abs(rate[-1]) < 1e-8
+
+
+def test_saturated_motor_swings_like_a_constant_torque(tmp_path):
+    """Capped at half the weight's moment at 60 deg, the motor's effort stays at the cap while the
+    pendulum swings up from rest: it turns back where the cap's work equals the weight's,
+    tau q_max = m g d (1 - cos q_max)."""
+    from scipy.optimize import brentq
+
+    L, m, kp = 0.6, 1.2, 200.0
+    d, target = L / 2, np.radians(60)
+    cap = 0.5 * m * G * d * np.sin(target)
+    text = _hanging_rod(L, m) + (f'[[forces]]\ntype = "joint_motor"\nname = "motor"\njoint = "hinge"\n'
+                                 f"kp = {kp}\nvalue = {target}\nmax_effort = {cap}\n")
+    traj = _run(tmp_path, text, t_end=1.0)
+    q, rate = _coordinate(traj, "hinge/angle")
+    q_max = brentq(lambda x: cap * x - m * G * d * (1 - np.cos(x)), 0.1, np.pi / 2)
+    assert kp * (target - q_max) > cap  # the demand never drops below the cap on the way up
+    t_turn = _first_return(traj.t, rate, 0.05)
+    assert CubicSpline(traj.t, q)(t_turn) == pytest.approx(q_max, rel=RTOL)
+
+
+def test_stop_on_an_unknown_joint_or_coordinate_is_refused(tmp_path):
+    base = _hanging_rod(0.5, 1.0)
+    for extra, where in (('joint = "nope"\n', r"forces\[0\]\.joint"),
+                         ('joint = "hinge"\ncoordinate = "distance"\n', r"forces\[0\]\.coordinate.*'angle'")):
+        path = tmp_path / "bad.toml"
+        path.write_text("[sim]\nt_end = 0.01\ndt = 1e-3\n" + base + '[[forces]]\ntype = "joint_stop"\nstiffness = 10.0\n' + extra)
+        with pytest.raises(SceneError, match=where):
+            viz3d.build(viz3d.load_scene(path))
+
+
+def test_joint_forces_power_is_effort_times_rate_and_stops_store_their_spring_energy(tmp_path):
+    """On a chain holding every kind of joint coordinate, at a state that satisfies the joints (built
+    and projected from a scene): each stop's and motor's wrench has power f q_dot (what
+    ``nonconservative_power`` and the ledger book), and the stops' potential decreases at the rate
+    of their spring parts' power (central difference along the motion, as tests/unit/test_forces.py)."""
+    from viz3d.dynamics import body_state
+
+    text, top = "", np.zeros(3)
+    kinds = (("revolute", "angle"), ("universal", "angle2"), ("cylindrical", "distance"), ("prismatic", "distance"),
+             ("cylindrical", "angle"), ("universal", "angle1"))
+    u = np.array([0.3, 0.2, -1.0]) / np.linalg.norm([0.3, 0.2, -1.0])
+    for i, (kind, coordinate) in enumerate(kinds):
+        text += _rod(f"r{i}", top + 0.25 * u, u, 0.5, 1.0, omega=(0.3 * i, -0.5, 0.2 * i))
+        axis = np.cross(u, [1.0, 0.0, 0.0]) + 0.3 * u
+        axes = (f"axis1 = [1.0, 0.0, 0.0]\naxis2 = {_vec(axis)}\n" if kind == "universal" else f"axis = {_vec(axis)}\n")
+        text += (f'[[joints]]\nname = "j{i}"\ntype = "{kind}"\nbody1 = "r{i}"\n' + (f'body2 = "r{i - 1}"\n' if i else "")
+                 + f"point = {_vec(top)}\n" + axes)
+        text += (f'[[forces]]\ntype = "joint_stop"\nname = "s{i}"\njoint = "j{i}"\ncoordinate = "{coordinate}"\n'
+                 f"upper = -0.01\nstiffness = {50.0 + i}\ndamping = 0.3\n"
+                 f'[[forces]]\ntype = "joint_motor"\nname = "m{i}"\njoint = "j{i}"\ncoordinate = "{coordinate}"\n'
+                 f'kp = 7.0\nkd = 0.2\nkind = "sine"\namplitude = 0.4\nfrequency = 1.0\n')
+        top = top + 0.5 * u
+        u = Rotation.from_rotvec([0.0, 0.0, 0.9]).apply(u)
+    path = tmp_path / "all.toml"
+    path.write_text("[sim]\nt_end = 0.1\ndt = 1e-3\n" + text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the spins are projected onto the joints
+        system, state = viz3d.build(viz3d.load_scene(path))
+    state = state.replace(t=0.3)
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    for element in system.forces[1:]:
+        F, tau, _ = element.wrench(cfg)
+        power = float(np.sum(F * cfg.twist.W_v) + np.sum(tau * cfg.twist.W_omega))
+        q, q_dot = element.coordinates(cfg)
+        f, f_V = element.effort(state.t, q, q_dot)
+        assert np.all(f != 0.0)  # every stop pushes, every motor pulls
+        assert power == pytest.approx(float(f @ q_dot), rel=1e-12, abs=1e-14)
+        from systems import moved
+
+        h = 1e-6
+        V_rate = (element.potential_energy(moved(system, state, state.v, h))
+                  - element.potential_energy(moved(system, state, state.v, -h))) / (2 * h)
+        # truncation h^2 |V'''| ~ 1e-12, round-off eps |V| / h ~ 1e-11 (|V| ~ 0.1 J)
+        assert V_rate == pytest.approx(-float(f_V @ q_dot), abs=1e-8)
+        assert element.nonconservative_power(cfg) == pytest.approx(float((f - f_V) @ q_dot), rel=1e-12)

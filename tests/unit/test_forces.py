@@ -100,3 +100,34 @@ def test_time_functions():
                         (2.0, [1, 1 + 2 * np.sin(np.pi * 2.0 + 0.1), 3, 2, 3]),
                         (3.5, [1, 1 + 2 * np.sin(np.pi * 3.5 + 0.1), 3, 3, 1])]:
         np.testing.assert_allclose(tf(t)[:, 0], expected, err_msg=f"t = {t}")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_joint_coordinate_forces_have_power_effort_times_rate_off_the_manifold(seed):
+    """At random states (joints not satisfied) the stop's and motor's wrench still has power f q_dot
+    with ``q_dot`` their rate definition (``viz3d.joints.coordinate``): the distance's moment
+    ``f u x e`` on body 1 included."""
+    from viz3d.forces import JointMotor, JointStop
+
+    system = random_system(nb=5, seed=seed, kinds=("revolute", "universal", "prismatic", "cylindrical"))
+    cfg = configuration(system, random_state(system, seed))
+    sets, index, free = [], [], []
+    for js in system.joints.joints:
+        for c in range(len(js.FREE)):
+            sets.append(js)
+            index.append(0)
+            free.append(c)
+    k = len(sets)
+    idx, fr = np.array(index), np.array(free)
+    q = np.array([js.coordinates(cfg)[0][j, c] for js, j, c in zip(sets, idx, fr)])
+    stop = JointStop(tuple(f"s{i}" for i in range(k)), tuple(sets), idx, fr, q + 0.1, q + 0.2, np.full(k, 30.0), np.full(k, 0.5))
+    tf = TimeFunctions.from_entries([{"kind": "constant", "offset": [1.0, 0, 0], "amplitude": [0, 0, 0], "frequency": 0.0,
+                                      "phase": 0.0, "start": 0.0, "duration": 0.0}] * k)
+    motor = JointMotor(tuple(f"m{i}" for i in range(k)), tuple(sets), idx, fr, tf, np.full(k, 3.0), np.full(k, 0.2), np.full(k, np.inf))
+    codes = {js.FREE[c][1] for js, c in zip(sets, fr)}
+    assert codes == {0, 1, 2, 3}  # every coordinate kind
+    for element in (stop, motor):
+        q, q_dot = element.coordinates(cfg)
+        f, _ = element.effort(0.0, q, q_dot)
+        assert np.all(f != 0.0)
+        assert _power(cfg, element) == pytest.approx(float(f @ q_dot), rel=1e-12)

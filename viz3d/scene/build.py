@@ -20,7 +20,7 @@ from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
-from viz3d.forces import AppliedForce, AppliedTorque, Gravity, SpringDamper
+from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
@@ -78,7 +78,7 @@ def build(scene: Scene) -> tuple[System, State]:
     rows = joints + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
-    forces = (gravity,) + build_forces(scene, bodies, pose0)
+    forces = (gravity,) + build_forces(scene, bodies, pose0, joints)
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, build_gauges(scene, bodies))
     frames = system.frame_body
     theta, chart = rotation.from_matrix(R0[frames])
@@ -302,17 +302,61 @@ JOINT_BUILDERS = {"ball": _ball_joints,
                   **{kind: _framed_joints(kind) for kind in ("revolute", "universal", "prismatic", "cylindrical", "fixed")}}
 
 
-def build_forces(scene: Scene, bodies: Bodies, pose0) -> tuple:
+def build_forces(scene: Scene, bodies: Bodies, pose0, joints: tuple = ()) -> tuple:
+    """One force element per type present; ``joints``: the joint sets (for forces on joint coordinates)."""
     groups: dict[str, list[dict]] = {}
-    for f in scene.data["forces"]:
+    paths: dict[str, list[str]] = {}
+    for i, f in enumerate(scene.data["forces"]):
         groups.setdefault(f["type"], []).append(f)
+        paths.setdefault(f["type"], []).append(f"forces[{i}]")
     out = []
     if "spring_damper" in groups:
         out.append(_springs(groups["spring_damper"], bodies, pose0))
     for kind, cls in (("force", AppliedForce), ("torque", AppliedTorque)):
         if kind in groups:
             out.append(_loads(cls, groups[kind], bodies, pose0))
+    for kind in ("joint_stop", "joint_motor"):
+        if kind in groups:
+            out.append(_joint_forces(kind, groups[kind], paths[kind], joints, scene.source()))
     return tuple(out)
+
+
+def _joint_coordinates(entries: list[dict], paths: list[str], joints: tuple, source: str) -> tuple:
+    """``(joint sets, index in the set, coordinate index)`` of each entry's ``joint`` and ``coordinate``."""
+    where = {n: (js, j) for js in joints if js.is_joint for j, n in enumerate(js.names)}
+    sets, index, free = [], [], []
+    for entry, path in zip(entries, paths):
+        js, j = where.get(entry["joint"], (None, None))
+        names = getattr(js, "coordinate_names", ())
+        if not names:
+            known = sorted(n for n, (s, _) in where.items() if getattr(s, "coordinate_names", ()))
+            raise SceneError(source, f"{path}.joint", f"the name of a joint with a relative coordinate ({', '.join(known) or 'none in this scene'})",
+                             entry["joint"])
+        c = entry.get("coordinate", names[0])
+        if c not in names:
+            raise SceneError(source, f"{path}.coordinate", f"one of {list(names)} (joint {entry['joint']!r})", c)
+        sets.append(js)
+        index.append(j)
+        free.append(names.index(c))
+    return tuple(sets), np.array(index, int), np.array(free, int)
+
+
+def _joint_forces(kind: str, entries: list[dict], paths: list[str], joints: tuple, source: str):
+    sets, index, free = _joint_coordinates(entries, paths, joints, source)
+    names = tuple(f["name"] for f in entries)
+    if kind == "joint_stop":
+        lower = np.array([f.get("lower", -np.inf) for f in entries], float)
+        upper = np.array([f.get("upper", np.inf) for f in entries], float)
+        for f, path, lo, hi in zip(entries, paths, lower, upper):
+            if lo > hi:
+                raise SceneError(source, f"{path}.upper", f"at least lower = {lo:g}", hi)
+        return JointStop(names, sets, index, free, lower, upper, np.array([f["stiffness"] for f in entries], float),
+                         np.array([f["damping"] for f in entries], float))
+    target = TimeFunctions.from_entries([{**f, "offset": [f["value"], 0.0, 0.0], "amplitude": [f["amplitude"], 0.0, 0.0]}
+                                         for f in entries])
+    return JointMotor(names, sets, index, free, target, np.array([f["kp"] for f in entries], float),
+                      np.array([f["kd"] for f in entries], float),
+                      np.array([f.get("max_effort", np.inf) for f in entries], float))
 
 
 def _springs(entries: list[dict], bodies: Bodies, pose0) -> SpringDamper:
