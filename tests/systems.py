@@ -169,3 +169,31 @@ def along(system, state, acc, t):
     second order: positions ``retract(q, t v + t^2 / 2 acc)``, velocities ``v + t acc``."""
     q = retract(system, state.q, t * state.v + 0.5 * t * t * acc, state.chart)
     return body_state(system, q, state.v + t * acc, state.chart, state.t + t)
+
+
+def drive_set(system, seed: int = 0, pick: dict | None = None):
+    """A ``JointDrive`` on every angle about and distance along a joint axis of ``system``'s framed
+    joints (of each set the joint ``pick[type_name]``, default the last: a drive on a joint that closes a
+    loop of ``random_system`` can make its rows redundant), cycling through position and velocity
+    profiles of every allowed kind."""
+    from viz3d.joints import ANGLE_Z, DISTANCE_Z, JointDrive
+    from viz3d.timefunctions import PROFILE_KINDS, TIME_FUNCTIONS, TimeFunctions
+
+    rng = np.random.default_rng(seed)
+    sets, index, free = [], [], []
+    for js in system.joints.joints:
+        for c, (_, code) in enumerate(getattr(js, "FREE", ())):
+            if code in (ANGLE_Z, DISTANCE_Z):
+                sets.append(js)
+                index.append((pick or {}).get(js.type_name, js.n_joints - 1))
+                free.append(c)
+    modes = [("position", k) for k in PROFILE_KINDS["position"]] + [("velocity", k) for k in PROFILE_KINDS["velocity"]]
+    chosen = [modes[i % len(modes)] for i in range(len(sets))]
+    funcs = TimeFunctions.from_entries([{"kind": kind, "offset": [rng.normal(), 0, 0], "amplitude": [rng.normal(), 0, 0],
+                                         "frequency": rng.uniform(0.5, 2), "phase": rng.uniform(0, 6),
+                                         "start": rng.uniform(-0.1, 0.1), "duration": rng.uniform(0.2, 0.5)}
+                                        for _, kind in chosen])
+    kind, table = funcs.table()
+    body = np.array([js.body[j] for js, j in zip(sets, index)])
+    return JointDrive(tuple(f"d{i}" for i in range(len(sets))), body, tuple(sets), np.array(index), np.array(free), kind,
+                      np.array([m == "velocity" for m, _ in chosen], np.int64), table)

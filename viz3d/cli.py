@@ -483,8 +483,8 @@ def contact_lines(traj) -> list[str]:
 def _energy_line(traj, meta) -> str:
     if meta.get("conservative", True):
         return f"energy      drift max |E - E0| = {traj.energy_drift:.3e} J ({traj.energy_drift_rel:.3e} of max kinetic)"
-    return (f"energy      change max |E - E0| = {traj.energy_drift:.3e} J (not conserved: the scene has dampers "
-            f"or applied loads)")
+    return (f"energy      change max |E - E0| = {traj.energy_drift:.3e} J (not conserved: the scene has dampers, "
+            f"applied loads, motors, drives or dissipative contacts)")
 
 
 def cmd_check(args) -> int:

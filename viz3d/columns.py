@@ -24,7 +24,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.dynamics import flexible_kinetic
 from viz3d.frames import Frame, ledger_scalars
-from viz3d.joints import relative_coordinates
+from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
 from viz3d.system import State, System
 
@@ -184,6 +184,7 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
         for key in values[0] if values else ():
             scalars[key] = np.array([v[key] for v in values], float)
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))
+    scalars.update(drive_efforts(system.joints.joints, system.joints.row_slices(), s.lam))
     if system.contacts:
         V = V + _contact_columns(sim, stepper.data, states, s, T, s.V, strain, scalars)
     violation, reactions = _rows(system, s)

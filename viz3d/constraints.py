@@ -58,6 +58,9 @@ class ConstraintRows:
     inactive : ndarray of bool, shape (n_c,)
         Rows that do not act now (a kinematic contact that is not touching): zero rows, and a unit
         diagonal in the Schur complement so that their multipliers are zero.
+    C_t : ndarray, shape (n_c,), optional
+        ``C_dot = C_v v + C_t``: the rows' explicit time rate (drives; None when every row is
+        scleronomic).
     """
 
     C: FloatArray
@@ -65,6 +68,13 @@ class ConstraintRows:
     gamma: FloatArray
     Je: FloatArray
     inactive: np.ndarray | None = None
+    C_t: FloatArray | None = None
+
+    def velocity_residual(self, layout, frame: FloatArray, elastic: FloatArray) -> FloatArray:
+        """``C_dot = C_v v + C_t`` (n_c,) for per-body twists ``frame`` (nb + 1, 6) and the elastic
+        velocities ``elastic`` (n_e,)."""
+        C_d = apply_jacobian(layout, self.J, frame, self.Je, elastic)
+        return C_d if self.C_t is None else C_d + self.C_t
 
 
 @dataclass(frozen=True)
@@ -222,7 +232,7 @@ def constraint_rows(layout: ConstraintLayout, cfg: Configuration, memory: tuple 
     ``memory``, the contact phases of ``State.memory``), stacked (see ``ConstraintRows``)."""
     if not layout.joints:
         return ConstraintRows(np.zeros(0), np.zeros((0, 2, 6)), np.zeros(0), np.zeros((0, 2, layout.n_elastic)))
-    C, J, Je, gamma, off = [], [], [], [], []
+    C, J, Je, gamma, off, C_t = [], [], [], [], [], []
     for js in layout.joints:
         m = js.n_joints * js.n_eq
         res, (Jf, Jel), gam = js.rows(cfg)
@@ -231,13 +241,16 @@ def constraint_rows(layout: ConstraintLayout, cfg: Configuration, memory: tuple 
         Je.append(Jel.reshape(m, 2, layout.n_elastic))
         gamma.append(gam.reshape(-1))
         off.append(np.zeros(m, dtype=bool) if js.is_joint else np.repeat(~js.active(memory), js.n_eq))
-    rows = ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je))
+        C_t.append(js.time_rate(cfg).reshape(-1) if getattr(js, "rheonomic", False) else np.zeros(m))
+    rheonomic = any(getattr(js, "rheonomic", False) for js in layout.joints)
+    rows = ConstraintRows(np.concatenate(C), np.concatenate(J), np.concatenate(gamma), np.concatenate(Je),
+                          C_t=np.concatenate(C_t) if rheonomic else None)
     inactive = np.concatenate(off)
     if not inactive.any():
         return rows
     keep = ~inactive
     return ConstraintRows(rows.C * keep, rows.J * keep[:, None, None], rows.gamma * keep, rows.Je * keep[:, None, None],
-                          inactive)
+                          inactive, None if rows.C_t is None else rows.C_t * keep)
 
 
 def constraint_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[FloatArray, FloatArray]:

@@ -68,7 +68,7 @@ def _stabilized_gamma(system, rows, cfg: Configuration, damping: float, frequenc
     """``gamma - 2 damping C_d - frequency^2 C``, shape (n_c,): the right-hand side that makes the
     violation obey ``C_dd + 2 damping C_d + frequency^2 C = 0`` (Baumgarte; penalty springs)."""
     eta_dot = np.concatenate(cfg.eta_dot) if cfg.eta_dot else np.zeros(0)
-    C_d = apply_jacobian(system.joints, rows.J, _per_body_twist(cfg.twist), rows.Je, eta_dot)
+    C_d = rows.velocity_residual(system.joints, _per_body_twist(cfg.twist), eta_dot)
     return rows.gamma - 2.0 * damping * C_d - frequency**2 * rows.C
 
 
@@ -98,7 +98,7 @@ class Baumgarte(Index1):
 
 @dataclass(frozen=True)
 class Projection(Index1):
-    """Index-1 plus mass-orthogonal projection onto ``C = 0`` and ``C_v v = 0`` after each step.
+    """Index-1 plus mass-orthogonal projection onto ``C = 0`` and ``C_dot = C_v v + C_t = 0`` after each step.
 
     Attributes
     ----------
@@ -110,8 +110,8 @@ class Projection(Index1):
     tol: float = 1e-12
 
     def post_step(self, system, state):
-        q, _ = project_positions(system, state.q, state.chart, tol=self.tol, memory=state.memory)
-        return state.replace(q=q, v=project_velocities(system, q, state.v, state.chart, state.memory))
+        q, _ = project_positions(system, state.q, state.chart, tol=self.tol, memory=state.memory, t=state.t)
+        return state.replace(q=q, v=project_velocities(system, q, state.v, state.chart, state.memory, t=state.t))
 
 
 @dataclass(frozen=True)

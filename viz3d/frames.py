@@ -12,7 +12,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.dynamics import accelerations, body_state, centres_of_mass, energies
 from viz3d.forces import SpringDamper
-from viz3d.joints import relative_coordinates
+from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.system import State, System
 
 
@@ -257,6 +257,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     for out in system.outputs:
         scalars.update(out.values(cfg))
     coordinates = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+    coordinates.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
     scalars.update({k: float(x) for k, x in coordinates.items()})
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)

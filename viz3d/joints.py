@@ -27,6 +27,7 @@ from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, m
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, bias, rigid_points
 from viz3d.rotations import cross
+from viz3d.timefunctions import profile, profile_value
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ class Joint(ABC):
     n_eq: ClassVar[int]
     #: Row providers that are not joints (contact rows, ``viz3d.contact.contacts.ContactRows``) say False.
     is_joint: ClassVar[bool] = True
+    #: Rows with an explicit time dependence (``time_rate``; drives) say True.
+    rheonomic: ClassVar[bool] = False
 
     names: tuple[str, ...]
     body: IntArray
@@ -68,6 +71,11 @@ class Joint(ABC):
         """``(residual, jacobian, gamma)`` at ``cfg`` (what the constraint assembly asks of every row
         provider; a provider whose three share work overrides this to do it once)."""
         return self.residual(cfg), self.jacobian(cfg), self.gamma(cfg)
+
+    def time_rate(self, cfg: Configuration) -> FloatArray:
+        """``C_t``, shape (nj, n_eq): the part of ``C_dot = C_v v + C_t`` that is not through the
+        velocities (``rheonomic`` providers, ``JointDrive``); zero for the scleronomic ones."""
+        return np.zeros((self.n_joints, self.n_eq))
 
     def reaction_force(self, J: FloatArray, lam: FloatArray) -> FloatArray:
         """World force on body 1 of each joint, shape (..., nj, 3) [N], from the frame Jacobian blocks
@@ -515,8 +523,194 @@ def _framed(d, t, v):
             r += 1
 
 
-JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint, RevoluteJoint, UniversalJoint,
-                                                                 PrismaticJoint, CylindricalJoint, FixedJoint)}
+
+
+# ---------------------------------------------------------------------------- drives
+
+
+@dataclass(frozen=True)
+class JointDrive(Joint):
+    """Drives: rheonomic constraints that prescribe a joint coordinate ``q`` (``FramedJoint``, body 1
+    relative to body 2) as a profile ``r(t)`` (``viz3d.timefunctions.profile``: the position, or the
+    velocity integrated from zero), one row each, ``C`` equal to ``q - r`` to first order:
+
+    * an angle about ``z1`` (ANGLE_Z): ``C = -x2 . w`` with ``w = cos(r) y1 + sin(r) x1`` turning with
+      the profile, so ``C = sin(q - r)`` on the joint's manifold; ``C_v = [0, -R1^T n | 0, R2^T n]``,
+      ``n = w x x2``, ``C_t = r_dot (x2 . m)``, ``m = sin(r) y1 - cos(r) x1``... (see ``_angle_rows``);
+    * a distance along ``z1`` (DISTANCE_Z): ``C = z1 . (p1 - p2) - r``.
+
+    ``C_dot = C_v v + C_t``; the generalized force the drive exerts on its coordinate (the driving
+    torque or force) is ``-lam`` (``effort``).
+
+    Attributes
+    ----------
+    joints : tuple of FramedJoint, length k
+    index, free : ndarray of int, shape (k,)
+        The joint within its set and the coordinate within its ``FREE``.
+    kind : ndarray of int, shape (k,)
+        Time-function kind of the profile (``viz3d.timefunctions.TIME_FUNCTIONS``).
+    velocity : ndarray of int, shape (k,)
+        1: the profile is the velocity (``r`` its integral from 0); 0: the position.
+    table : ndarray, shape (k, 10)
+        ``TimeFunctions.table`` rows of the profiles (first component).
+    """
+
+    type_name = "drive"
+    n_eq = 1
+    rheonomic = True
+
+    joints: tuple = ()
+    index: IntArray = field(default=None)
+    free: IntArray = field(default=None)
+    kind: IntArray = field(default=None)
+    velocity: IntArray = field(default=None)
+    table: FloatArray = field(default=None)
+
+    def __post_init__(self):
+        for js, c, name in zip(self.joints, self.free, self.names):
+            if js.FREE[c][1] not in (ANGLE_Z, DISTANCE_Z):
+                raise ValueError(f"drive {name!r}: a revolute, prismatic or cylindrical coordinate (angle about or distance "
+                                 f"along the joint axis), not {js.type_name} {js.FREE[c][0]!r}")
+
+    def profiles(self, t: float) -> FloatArray:
+        """``(r, r_dot, r_ddot)`` of every drive at ``t``, shape (k, 3)."""
+        return np.array([profile_value(k, v, f, t) for k, v, f in zip(self.kind, self.velocity, self.table)]).reshape(-1, 3)
+
+    def points(self, cfg: Configuration) -> FloatArray:
+        """The driven joints' points on body 1, shape (k, 3) [m]."""
+        return np.array([js.points(cfg)[j] for js, j in zip(self.joints, self.index)]).reshape(-1, 3)
+
+    def residual(self, cfg):
+        return self._rows(cfg)[0]
+
+    def jacobian(self, cfg):
+        return self._rows(cfg)[1]
+
+    def gamma(self, cfg):
+        return self._rows(cfg)[2]
+
+    def rows(self, cfg):
+        return self._rows(cfg)[:3]
+
+    def time_rate(self, cfg):
+        return self._rows(cfg)[3]
+
+    def _rows(self, cfg):
+        k, ne = len(self.names), self.joints[0].sides[0].n_elastic if self.joints else 0
+        C, J, Je, g, C_t = np.zeros((k, 1)), np.zeros((k, 1, 2, 6)), np.zeros((k, 1, 2, ne)), np.zeros((k, 1)), np.zeros((k, 1))
+        w_all = cfg.twist.W_omega
+        for i, ((r, r_d, r_dd), js, j, c) in enumerate(zip(self.profiles(cfg.t), self.joints, self.index, self.free)):
+            a = js.axes(cfg.pose.R_WB)[j]
+            R1, R2 = cfg.pose.R_WB[js.body[j, 0]], cfg.pose.R_WB[js.body[j, 1]]
+            w1, w2 = w_all[js.body[j, 0]], w_all[js.body[j, 1]]
+            if js.FREE[c][1] == ANGLE_Z:
+                x1, y1, x2 = a[0, :, 0], a[0, :, 1], a[1, :, 0]
+                w = np.cos(r) * y1 + np.sin(r) * x1
+                m = np.sin(r) * y1 - np.cos(r) * x1
+                n = np.cross(w, x2)
+                C[i] = -x2 @ w
+                J[i, 0, 0, 3:], J[i, 0, 1, 3:] = -R1.T @ n, R2.T @ n
+                C_t[i] = r_d * (x2 @ m)
+                x2_d, w_d, m_d = np.cross(w2, x2), np.cross(w1, w) - r_d * m, np.cross(w1, m) + r_d * w
+                g[i] = (w1 - w2) @ (np.cross(w_d, x2) + np.cross(w, x2_d)) - r_dd * (x2 @ m) - r_d * (x2_d @ m + x2 @ m_d)
+            else:
+                z1 = a[0, :, 2]
+                sides = [BodyPoints(js.sides[s].body[[j]], js.sides[s].B_s[[j]], (), js.sides[s].n_elastic) for s in (0, 1)]
+                p = [sd.positions(cfg)[0] for sd in sides]
+                v = [sd.velocities(cfg)[0] for sd in sides]
+                b = [sd.bias(cfg)[0] for sd in sides]
+                (J1, Je1), (J2, Je2) = (sd.jacobian(cfg) for sd in sides)
+                e, e_d = p[0] - p[1], v[0] - v[1]
+                C[i] = z1 @ e - r
+                J[i, 0, 0] = z1 @ J1[0]
+                J[i, 0, 0, 3:] += R1.T @ np.cross(z1, e)
+                J[i, 0, 1] = -(z1 @ J2[0])
+                Je[i, 0, 0], Je[i, 0, 1] = z1 @ Je1[0], -(z1 @ Je2[0])
+                C_t[i] = -r_d
+                wz = np.cross(w1, z1)
+                g[i] = r_dd - (np.cross(w1, wz) @ e + 2.0 * wz @ e_d + z1 @ (b[0] - b[1]))
+        return C, (J, Je), g, C_t
+
+    def effort(self, lam: FloatArray) -> FloatArray:
+        """The generalized force each drive exerts on its coordinate, ``-lam`` [N m or N], shape (..., k)."""
+        return -lam
+
+    def compiled(self, pack) -> Items:
+        k = len(self.names)
+        rows_i, rows_f = [], []
+        for i, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
+            pts = [pack.points(rigid_points(js.body[[j], s], js.B_s[[j], s]))[0] for s in (0, 1)]
+            rows_i.append([pack.row_start(self) + i, pts[0], pts[1], js.FREE[c][1], self.kind[i], self.velocity[i]])
+            rows_f.append([*js.B_A[j].reshape(18), *self.table[i]])
+        return items(DriveItems, rows_i, rows_f, k=k)
+
+
+class DriveItems(Items):
+    """Drives: i = [row, point 1, point 2, coordinate code, profile kind, velocity profile];
+    f = [A1, A2 (18), ``TimeFunctions.table`` row (10)]."""
+
+
+@compiled_piece(row_piece, DriveItems)
+def _drive(d, t, v):
+    x1, y1, x2, w, m, n = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21]
+    t1, t2, b1, b2 = v.v3[22], v.v3[23], v.v3[24], v.v3[25]
+    for k in range(d.i.shape[0]):
+        row, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
+        q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
+        f = d.f[k]
+        r, r_d, r_dd = profile(d.i[k, 4], d.i[k, 5], f[18:28], t)
+        if d.i[k, 3] == ANGLE_Z:
+            _world_axis(v, f, 0, q1, 0, x1)
+            _world_axis(v, f, 0, q1, 1, y1)
+            _world_axis(v, f, 1, q2, 0, x2)
+            cr, sr = math.cos(r), math.sin(r)
+            for c in range(3):
+                w[c] = cr * y1[c] + sr * x1[c]
+                m[c] = sr * y1[c] - cr * x1[c]
+            cross3(w, x2, n)
+            v.C[row] = -dot3(x2, w)
+            tmatvec3(v.R[q1], n, t1)
+            tmatvec3(v.R[q2], n, t2)
+            for c in range(3):
+                v.J[row, 0, 3 + c] -= t1[c]
+                v.J[row, 1, 3 + c] += t2[c]
+            x2m = dot3(x2, m)
+            v.Ct[row] = r_d * x2m
+            # gamma = (w1 - w2) . (w_dot x x2 + w x x2_dot) - r_dd (x2 . m) - r_d (x2_dot . m + x2 . m_dot)
+            cross3(v.wW[q2], x2, b2)                                # x2_dot
+            cross3(v.wW[q1], w, t1)
+            for c in range(3):
+                t1[c] -= r_d * m[c]                                 # w_dot
+            cross3(t1, x2, t2)
+            cross3(w, b2, b1)
+            acc = 0.0
+            for c in range(3):
+                acc += (v.wW[q1, c] - v.wW[q2, c]) * (t2[c] + b1[c])
+            cross3(v.wW[q1], m, t1)
+            for c in range(3):
+                t1[c] += r_d * w[c]                                 # m_dot
+            v.gam[row] = acc - r_dd * x2m - r_d * (dot3(b2, m) + dot3(x2, t1))
+        else:
+            _world_axis(v, f, 0, q1, 2, x1)                         # z1
+            for c in range(3):
+                n[c] = v.px[p1, c] - v.px[p2, c]                    # e
+                m[c] = v.pv[p1, c] - v.pv[p2, c]                    # e_dot
+            add_row(v, row, 0, p1, x1, 1.0)
+            add_row(v, row, 1, p2, x1, -1.0)
+            cross3(x1, n, t1)
+            tmatvec3(v.R[q1], t1, t2)
+            for c in range(3):
+                v.J[row, 0, 3 + c] += t2[c]
+            v.C[row] = dot3(x1, n) - r
+            v.Ct[row] = -r_d
+            bias(v, p1, b1)
+            bias(v, p2, b2)
+            cross3(v.wW[q1], x1, t1)
+            cross3(v.wW[q1], t1, t2)
+            acc = dot3(t2, n) + 2.0 * dot3(t1, m)
+            for c in range(3):
+                acc += x1[c] * (b1[c] - b2[c])
+            v.gam[row] = r_dd - acc
 
 
 def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray
@@ -533,4 +727,23 @@ def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatAr
             for c, free in enumerate(js.coordinate_names):
                 out[f"joint/{name}/{free}"] = values[..., j, c]
                 out[f"joint/{name}/{free}_rate"] = rates[..., j, c]
+    return out
+
+
+JOINTS: dict[str, type[Joint]] = {cls.type_name: cls for cls in (BallJoint, RevoluteJoint, UniversalJoint,
+                                                                 PrismaticJoint, CylindricalJoint, FixedJoint)}
+#: Rheonomic row providers (a drive prescribes a joint's coordinate; scene ``[[drives]]``).
+DRIVES: dict[str, type[Joint]] = {JointDrive.type_name: JointDrive}
+
+
+def drive_efforts(joints, row_slices, lam: FloatArray) -> dict[str, FloatArray]:
+    """``drive/<name>/effort``: the torque or force each drive exerts on its coordinate [N m or N],
+    of the leading shape of ``lam`` (..., n_c) (leading axes: instants), from the row providers
+    ``joints`` and their ``row_slices``."""
+    out: dict[str, FloatArray] = {}
+    for js, sl in zip(joints, row_slices):
+        if isinstance(js, JointDrive):
+            effort = js.effort(lam[..., sl])
+            for k, name in enumerate(js.names):
+                out[f"drive/{name}/effort"] = effort[..., k]
     return out

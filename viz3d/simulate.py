@@ -96,7 +96,8 @@ class Simulation:
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
                  blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True):
-        check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
+        check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol,
+                          drives=any(getattr(js, "rheonomic", False) for js in system.joints.joints))
         self.system, self.state = system, state
         self.integrator, self.formulation, self.dt = integrator, formulation, dt
         self.blowup_speed, self.controller = blowup_speed, controller
@@ -524,8 +525,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
-    conservative = all(e.conservative for e in sim.system.forces) and all(c.conservative for c in sim.system.contacts)
-    energy = EnergyWatch(sim.system, cfg["blowup_energy"], conservative)
+    energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
 
     def check(cols, states):
         check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
@@ -646,7 +646,7 @@ def scene_json(scene: Scene, sim: Simulation) -> str:
     meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": cfg["dt"],
             "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
             "overrides": list(scene.overrides),
-            "conservative": all(e.conservative for e in sim.system.forces), "kernel": sim.kernel_note}
+            "conservative": sim.system.conservative, "kernel": sim.kernel_note}
     return json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)
 
 

@@ -3,8 +3,9 @@
 Positions: Newton iterations ``dx = -M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C`` in velocity space
 (``dx`` per floating frame: ``[dW_r, B_dphi]``; per flexible body also ``d_eta``), applied as
 ``W_r += dW_r``, a small body-frame rotation ``B_dphi`` and ``eta += d_eta``. Velocities:
-``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C_v v`` (one linear step; the joints are scleronomic,
-``C_t = 0``). Both are the minimum-kinetic-metric corrections. Only the rows that act are projected on (the
+``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 (C_v v + C_t)`` (one linear step; ``C_t`` is the drives' explicit
+time rate, zero for scleronomic joints). Positions and velocities are projected at the time ``t``
+the drives are evaluated at. Both are the minimum-kinetic-metric corrections. Only the rows that act are projected on (the
 joints, and kinematic contacts while touching: ``memory``, the state's contact phases).
 """
 
@@ -13,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_rows, schur_solve
+from viz3d.constraints import apply_jacobian_transpose, constraint_rows, schur_solve
 from viz3d.dynamics import body_state, flat_velocity, split_velocity, system_mass
 
 #: Newton iterations allowed for a position projection.
@@ -34,8 +35,8 @@ def _min_norm_correction(system, cfg, rows, r) -> FloatArray:
 
 
 def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-12,
-                      max_iter: int = MAX_ITER, memory: tuple = ()) -> tuple[FloatArray, int]:
-    """Project ``q`` (n_q,) onto ``C(q) = 0``; return the new ``q`` and the iterations used.
+                      max_iter: int = MAX_ITER, memory: tuple = (), t: float = 0.0) -> tuple[FloatArray, int]:
+    """Project ``q`` (n_q,) onto ``C(q, t) = 0``; return the new ``q`` and the iterations used.
 
     Raises
     ------
@@ -47,7 +48,7 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
     q = q.copy()
     v0 = np.zeros(system.n_v)
     for it in range(max_iter + 1):
-        cfg = body_state(system, q, v0, chart)
+        cfg = body_state(system, q, v0, chart, t)
         rows = constraint_rows(system.joints, cfg, memory)
         C = rows.C
         if np.max(np.abs(C)) <= tol:
@@ -60,12 +61,12 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
     raise ProjectionError(f"position projection left max |C| = {np.max(np.abs(C)):.3e} m after {max_iter} iterations")
 
 
-def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray, memory: tuple = ()) -> FloatArray:
-    """Project ``v`` (n_v,) onto ``C_v v = 0``."""
+def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray, memory: tuple = (),
+                       t: float = 0.0) -> FloatArray:
+    """Project ``v`` (n_v,) onto ``C_v v + C_t = 0`` at time ``t``."""
     if system.n_c == 0:
         return v
-    cfg = body_state(system, q, v, chart)
+    cfg = body_state(system, q, v, chart, t)
     rows = constraint_rows(system.joints, cfg, memory)
     frame, elastic = split_velocity(system, v)
-    dv = _min_norm_correction(system, cfg, rows, apply_jacobian(system.joints, rows.J, frame, rows.Je, elastic))
-    return v - dv
+    return v - _min_norm_correction(system, cfg, rows, rows.velocity_residual(system.joints, frame, elastic))

@@ -119,6 +119,13 @@ class System:
         return tuple(n for js in self.joint_sets for n in js.names)
 
     @property
+    def conservative(self) -> bool:
+        """True when the total energy is a constant of the motion: every force element and contact
+        conservative and no drive (a rheonomic constraint works on the bodies)."""
+        return (all(e.conservative for e in self.forces) and all(c.conservative for c in self.contacts)
+                and not any(getattr(js, "rheonomic", False) for js in self.joints.joints))
+
+    @property
     def n_aux(self) -> int:
         """Work integrals carried in the state (``State.w``; ``viz3d.events``): with located contacts,
         one per contact, one for the damping of flexible bodies and one for the work of

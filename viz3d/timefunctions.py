@@ -109,3 +109,42 @@ def value(kind, f, t, out):
         shape = 0.0
     for c in range(3):
         out[c] = f[c] + f[3 + c] * shape
+
+
+#: Profiles a drive may follow (``profile``): a prescribed position must have a bounded second
+#: derivative (sine or constant); a prescribed velocity a bounded first derivative (ramp too).
+PROFILE_KINDS = {"position": ("constant", "sine"), "velocity": ("constant", "sine", "ramp")}
+
+
+@jit
+def profile(kind, velocity, f, t):
+    """``(r, r_dot, r_ddot)`` of a scalar profile at ``t`` [s] from the first component of a packed
+    time function ``f`` (``TimeFunctions.table``: offset ``f[0]``, amplitude ``f[3]``): with
+    ``velocity`` 0 the function is ``r``; with 1 it is ``r_dot`` and ``r`` its integral from
+    ``t = 0`` (``r(0) = 0``). Kinds of ``PROFILE_KINDS`` only (others give zeros). Compiled code
+    calls it; Python calls ``profile_value`` (the same function, uncompiled)."""
+    a0, a1 = f[0], f[3]
+    s = ds = dds = S = 0.0
+    if kind == 1:  # sine
+        w = 2.0 * math.pi * f[6]
+        s, ds, dds = math.sin(w * t + f[7]), w * math.cos(w * t + f[7]), -w * w * math.sin(w * t + f[7])
+        S = (math.cos(f[7]) - math.cos(w * t + f[7])) / w if w > 0.0 else t * math.sin(f[7])
+    elif kind == 3 and f[9] > 0.0:  # ramp from f[8] over f[9]: S = I(t - start) - I(-start)
+        T = f[9]
+        for tau, sign in ((t - f[8], 1.0), (-f[8], -1.0)):
+            if tau >= T:
+                S += sign * (0.5 * T + (tau - T))
+            elif tau > 0.0:
+                S += sign * 0.5 * tau * tau / T
+        tau = t - f[8]
+        if tau >= T:
+            s = 1.0
+        elif tau >= 0.0:
+            s, ds = tau / T, 1.0 / T
+    if velocity == 1:
+        return a0 * t + a1 * S, a0 + a1 * s, a1 * ds
+    return a0 + a1 * s, a1 * ds, a1 * dds
+
+
+#: ``profile`` for Python callers (numba's inner functions have no Python entry).
+profile_value = getattr(profile, "py_func", profile)

@@ -27,7 +27,7 @@ from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
 from contact.law_examples import EXAMPLES
-from systems import _sides, configuration, random_state, random_system
+from systems import _sides, configuration, drive_set, random_state, random_system
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
 #: computation's round-off, eps times its condition number, measured as the NumPy result's change
@@ -168,7 +168,7 @@ def every_element_system(seed: int = 3):
     forces = base.forces + tuple(build(rng, base, state) for build in ELEMENT_BUILDERS.values())
     contacts, memory = _contacts(rng, base, state)
     rows = ContactRows(contacts[0], contacts[0].rigid_rows(), 0)
-    joints = base.joints.joints + (rows,)
+    joints = base.joints.joints + (drive_set(base, seed, pick={"prismatic": 0}), rows)  # (0, 2) closes a loop
     system = System(base.bodies, build_layout(joints, base.bodies), forces, base.rotation, contacts)
     n_aux = system.n_aux
     state = state.replace(w=rng.normal(size=n_aux), memory=memory)

@@ -392,3 +392,20 @@ def test_joint_forces_power_is_effort_times_rate_and_stops_store_their_spring_en
         # truncation h^2 |V'''| ~ 1e-12, round-off eps |V| / h ~ 1e-11 (|V| ~ 0.1 J)
         assert V_rate == pytest.approx(-float(f_V @ q_dot), abs=1e-8)
         assert element.nonconservative_power(cfg) == pytest.approx(float((f - f_V) @ q_dot), rel=1e-12)
+
+
+def test_drives_refuse_what_they_cannot_follow(tmp_path):
+    """A position profile must have a bounded acceleration (no ramp), a universal joint's angles are
+    not drivable, and ali3p does not take drives: each is an error naming the file and the key."""
+    base = _hanging_rod(0.5, 1.0)
+    for drive, where in (('joint = "hinge"\nmode = "position"\nkind = "ramp"\n', r"drives\[0\]\.kind.*'sine'"),
+                         ('joint = "nope"\n', r"drives\[0\]\.joint")):
+        path = tmp_path / "bad.toml"
+        path.write_text("[sim]\nt_end = 0.01\ndt = 1e-3\n" + base + "[[drives]]\n" + drive)
+        with pytest.raises(SceneError, match=where):
+            viz3d.build(viz3d.load_scene(path))
+    path = tmp_path / "ali.toml"
+    path.write_text('[sim]\nt_end = 0.01\ndt = 1e-3\nformulation = "ali3p"\nintegrator = "trapezoidal"\n' + base
+                    + '[[drives]]\njoint = "hinge"\nvalue = 1.0\n')
+    with pytest.raises(SceneError, match=r"ali\.toml: sim\.formulation.*drives"):
+        viz3d.simulate(viz3d.load_scene(path))

@@ -7,7 +7,7 @@ from viz3d.constraints import apply_jacobian, constraint_residual, constraint_ro
 from viz3d.dynamics import split_velocity
 from viz3d.joints import JOINTS
 
-from systems import along, configuration, moved, random_state, random_system
+from systems import along, configuration, drive_set, moved, random_state, random_system
 
 #: Central differences of step h err by h^2 |f'''| / 6 (truncation) + eps |f| / h (round-off). Jacobian:
 #: h = 1e-6 m or rad on O(1) residuals: ~1e-12 + 2e-10; JAC_TOL [m] is 50x the round-off.
@@ -82,3 +82,36 @@ def test_reaction_force_is_minus_lambda_for_ball_joints():
     lam = np.random.default_rng(0).normal(size=(js.n_joints, 3))
     J, _ = js.jacobian(configuration(system, random_state(system, 4)))
     np.testing.assert_allclose(js.reaction_force(J, lam), -lam)
+
+
+def _driven_system(seed):
+    from viz3d.constraints import build_layout
+    from viz3d.system import System
+
+    base = random_system(nb=6, seed=seed, kinds=("revolute", "prismatic", "cylindrical"))
+    drives = drive_set(base, seed)
+    assert len(drives.names) == 4 and set(drives.velocity) == {0, 1}
+    return System(base.bodies, build_layout(base.joints.joints + (drives,), base.bodies), base.forces, base.rotation)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_drive_rows_match_finite_differences_in_time_and_state(seed):
+    """``C_dot = C_v v + C_t`` and ``d/dt (C_v v + C_t) = C_v a - gamma`` along a motion through time
+    (the profiles move with it): central differences as the tests above. The drives are the last rows."""
+    system = _driven_system(seed)
+    state = random_state(system, seed).replace(t=0.05 + 0.1 * seed)
+    acc = np.random.default_rng(30 + seed).normal(size=system.n_v)
+    rows = constraint_rows(system.joints, configuration(system, state))
+    k = len(system.joints.joints[-1].names)
+    assert rows.C_t is not None and np.all(rows.C_t[:-k] == 0) and np.any(rows.C_t[-k:] != 0)
+    C = lambda t: constraint_rows(system.joints, along(system, state.replace(v=state.v), 0 * acc, t)).C  # noqa: E731
+    fd = (C(EPS) - C(-EPS)) / (2 * EPS)
+    np.testing.assert_allclose(_C_v(system, rows, state.v) + rows.C_t, fd, atol=JAC_TOL * (1 + np.abs(fd).max()))
+
+    def C_dot(t):
+        r = constraint_rows(system.joints, along(system, state, acc, t))
+        return _C_v(system, r, state.v + t * acc) + r.C_t
+
+    fd2 = (C_dot(GAMMA_EPS) - C_dot(-GAMMA_EPS)) / (2 * GAMMA_EPS)
+    expected = _C_v(system, rows, acc) - rows.gamma
+    np.testing.assert_allclose(fd2, expected, atol=GAMMA_TOL * np.abs(expected).max())

@@ -164,6 +164,7 @@ def constrain(m, v, w, t, rows):
     for r in range(n_c):
         v.C[r] = 0.0
         v.gam[r] = 0.0
+        v.Ct[r] = 0.0
         v.inactive[r] = 0
         for s in range(2):
             for i in range(6):
@@ -192,7 +193,8 @@ def constrain(m, v, w, t, rows):
 
 @inline
 def _schur_rhs(m, v, w):
-    """``W = M^-1 C^T`` per (row, side) and ``C a - gamma + 2 damping C_d + frequency^2 C`` into ``w.lam``."""
+    """``W = M^-1 C^T`` per (row, side) and ``C a - gamma + 2 damping C_d + frequency^2 C`` into ``w.lam``
+    (``C_d = C_v v + C_t``)."""
     for r in range(m.row_body.shape[0]):
         for s in range(2):
             b = m.row_body[r, s]
@@ -207,7 +209,7 @@ def _schur_rhs(m, v, w):
                 solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, m.body_flex[b], v.J[r, s], v.Je, j0, w.W6[r, s], w.We, j0)
         Ca = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.a, w.ae)
         if m.form[0] != 0.0:  # velocity feedback (baumgarte, penalty); index1 has none
-            C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot)
+            C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot) + v.Ct[r]
             w.lam[r] = Ca - (v.gam[r] - 2.0 * m.form[0] * C_d - m.form[1] ** 2 * v.C[r])
         else:
             w.lam[r] = Ca - (v.gam[r] - m.form[1] ** 2 * v.C[r])

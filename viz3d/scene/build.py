@@ -25,7 +25,7 @@ from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
-from viz3d.joints import JOINTS, BallJoint
+from viz3d.joints import ANGLE_Z, DISTANCE_Z, JOINTS, BallJoint, JointDrive
 from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.rotations import matrix_from_euler
 from viz3d.outputs import StrainGauges
@@ -37,7 +37,7 @@ from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError, project_positions, project_velocities
 from viz3d.system import State, System
-from viz3d.timefunctions import TimeFunctions
+from viz3d.timefunctions import PROFILE_KINDS, TimeFunctions
 
 #: Initial-condition corrections larger than this are reported [m, m/s].
 REPORT_CORRECTION = 1e-9
@@ -74,8 +74,9 @@ def build(scene: Scene) -> tuple[System, State]:
     W_r0, R0 = initial_pose(scene, bodies)
     pose0 = pose_from(W_r0, R0)
     joints = build_joints(scene, bodies, pose0)
+    drives = build_drives(scene, joints)
     contacts = build_contacts(scene, bodies, pose0)
-    rows = joints + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
+    rows = joints + drives + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
     forces = (gravity,) + build_forces(scene, bodies, pose0, joints)
@@ -341,6 +342,29 @@ def _joint_coordinates(entries: list[dict], paths: list[str], joints: tuple, sou
     return tuple(sets), np.array(index, int), np.array(free, int)
 
 
+def build_drives(scene: Scene, joints: tuple) -> tuple:
+    """The scene's drives as one ``JointDrive`` set (none without ``[[drives]]``)."""
+    entries = scene.data["drives"]
+    if not entries:
+        return ()
+    source = scene.source()
+    paths = [f"drives[{i}]" for i in range(len(entries))]
+    sets, index, free = _joint_coordinates(entries, paths, joints, source)
+    for entry, path, js, c in zip(entries, paths, sets, free):
+        if js.FREE[c][1] not in (ANGLE_Z, DISTANCE_Z):
+            raise SceneError(source, f"{path}.coordinate", "a revolute, prismatic or cylindrical coordinate (a universal "
+                             "joint's angles cannot be driven yet)", js.FREE[c][0])
+        if entry["kind"] not in PROFILE_KINDS[entry["mode"]]:
+            raise SceneError(source, f"{path}.kind", f"one of {list(PROFILE_KINDS[entry['mode']])} for a {entry['mode']} "
+                             "profile (its derivative must stay bounded)", entry["kind"])
+    funcs = TimeFunctions.from_entries([{**f, "offset": [f["value"], 0.0, 0.0], "amplitude": [f["amplitude"], 0.0, 0.0]}
+                                        for f in entries])
+    kind, table = funcs.table()
+    body = np.array([js.body[j] for js, j in zip(sets, index)], int).reshape(-1, 2)
+    return (JointDrive(tuple(f["name"] for f in entries), body, sets, index, free, kind,
+                       np.array([f["mode"] == "velocity" for f in entries], np.int64), table),)
+
+
 def _joint_forces(kind: str, entries: list[dict], paths: list[str], joints: tuple, source: str):
     sets, index, free = _joint_coordinates(entries, paths, joints, source)
     names = tuple(f["name"] for f in entries)
@@ -437,12 +461,13 @@ def build_gauges(scene: Scene, bodies: Bodies) -> tuple:
 
 
 def consistent_state(system: System, state: State, source: str, tol: float) -> State:
-    """Project ``state`` onto ``C = 0`` and ``C_v v = 0``; warn with the size of the corrections."""
+    """Project ``state`` onto ``C = 0`` and ``C_v v + C_t = 0`` (drives included, at ``state.t``); warn with the
+    size of the corrections."""
     if system.n_c == 0:
         return state
     try:
-        q, _ = project_positions(system, state.q, state.chart, tol=tol, memory=state.memory)
-        v = project_velocities(system, q, state.v, state.chart, state.memory)
+        q, _ = project_positions(system, state.q, state.chart, tol=tol, memory=state.memory, t=state.t)
+        v = project_velocities(system, q, state.v, state.chart, state.memory, t=state.t)
     except SingularConstraintError:
         names = redundant_joints(system, *constraint_jacobian(system.joints, _configuration(system, state)))
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"

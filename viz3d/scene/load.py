@@ -280,6 +280,12 @@ def _cross_check(data: dict, source: str) -> None:
         _check_refs(j, ("body1", "body2"), names, f"joints[{i}]", source)
         _check_points(j, f"joints[{i}]", source)
     _unique(data["joints"], "joints", source)
+    joint_names = {j["name"] for j in data["joints"]}
+    for i, d in enumerate(data["drives"]):
+        d.setdefault("name", f"drive{i}")
+        if d["name"] in joint_names:
+            raise SceneError(source, f"drives[{i}].name", "a name no joint has (drives are listed with the joints)", d["name"])
+    _unique(data["drives"], "drives", source)
     for i, f in enumerate(data["forces"]):
         f.setdefault("name", f"{f['type']}{i}")
         where = f"forces[{i}]"

@@ -37,7 +37,7 @@ from viz3d.scene.schema import (
     unit_interval,
     vec3,
 )
-from viz3d.timefunctions import TIME_FUNCTIONS
+from viz3d.timefunctions import PROFILE_KINDS, TIME_FUNCTIONS
 
 ZERO3 = [0.0, 0.0, 0.0]
 
@@ -333,11 +333,28 @@ CHECKS = Table({
     "no_warnings": Field(boolean, False, "fail if the run emits warnings"),
 }, "what the headless test of this scene asserts")
 
+DRIVE = Table({
+    "name": Field(name, OPTIONAL, "default drive<index>"),
+    "joint": Field(string, doc="name of a revolute, prismatic or cylindrical joint"),
+    "coordinate": Field(string, OPTIONAL, "its coordinate (angle, distance; default: the first)"),
+    "mode": Field(one_of(*PROFILE_KINDS), "velocity", "what the profile prescribes: the coordinate's velocity "
+                  "(integrated from 0 at t = 0) or its position"),
+    "kind": Field(one_of(*TIME_FUNCTIONS), "constant", "profile = value + amplitude * f(t); position: constant or "
+                  "sine; velocity: constant, sine or ramp"),
+    "value": Field(number, 0.0, "constant part [rad, m or per s]"),
+    "amplitude": Field(number, 0.0, "amplitude [rad, m or per s]"),
+    "frequency": Field(nonnegative, 0.0, "[Hz] (sine)"),
+    "phase": Field(number, 0.0, "[rad] (sine)"),
+    "start": Field(number, 0.0, "[s] (ramp)"),
+    "duration": Field(nonnegative, 0.0, "[s] (ramp)"),
+}, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
+
 SCENE_FILE = Table({
     "scene": Field(SCENE, dict, "about the scene"),
     "sim": Field(SIM, dict, "integration settings"),
     "bodies": Field(ArrayOf(BODY), list, "rigid and flexible bodies"),
     "joints": Field(ArrayOf(JOINT), list, "joints"),
+    "drives": Field(ArrayOf(DRIVE), list, "drives (prescribed joint coordinates)"),
     "forces": Field(ArrayOf(FORCE), list, "force elements"),
     "contacts": Field(ArrayOf(CONTACT), list, "contacts"),
     "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
