@@ -464,7 +464,10 @@ def contact_lines(traj) -> list[str]:
             v_txt += (" (+-: velocity jumps of instantaneous impulses on the modal body, shorter than it can resolve"
                       + ("; the sign of the final motion is not resolved)" if abs(v_end) < dv else ")"))
     e_txt = f"{float(x['restitution']):.4f}" + (f" +- {de:.2g}" if np.isfinite(de) and de > 0 else "")
-    if len(speeds):
+    if len(speeds) and not speeds[0, 0] > 0.0:  # a body resting on its contacts from the start: no impact
+        v_txt = f"started in contact at rest, {v_end:.4g} m/s apart at the end" if v.size else "started in contact at rest"
+        e_txt = "none (the first contact started at rest: not an impact)"
+    elif len(speeds):
         e_txt += (f" of the bodies' rigid motion (impact 1 of {len(speeds)}: approaching at {speeds[0, 0]:.4g} m/s "
                   f"before its first contact, {-speeds[0, 1]:.4g} m/s apart after its last)")
     else:

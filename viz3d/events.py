@@ -359,8 +359,11 @@ class ContactStepping:
     # ------------------------------------------------------------------ handlers
 
     def start(self, state: State) -> State:
-        """Contacts touching and approaching (or overlapping) at the start begin at once."""
-        self.E0 = self.ledger(state).total
+        """Contacts touching and approaching (or overlapping) at the start begin at once. The ledger's
+        initial total ``E0`` is the energy before them plus what contacts overlapping at the start
+        store (``_book_stored_energy``: the work integrals they start with)."""
+        E0, w0 = self.ledger(state).total, state.w.copy()
+        self.E0 = None  # the start's onsets balance by definition
         for k, c in enumerate(self.system.contacts):
             if not c.located:
                 continue
@@ -368,6 +371,7 @@ class ContactStepping:
             for i in range(c.k):
                 if gp.alpha[i] > 0.0 or (gp.alpha[i] == 0.0 and gp.alpha_dot[i] > 0.0):
                     state = self.handle(f"onset:{k}:{i}", state)
+        self.E0 = E0 + (float(np.sum(state.w - w0)) if w0.size else 0.0)
         return state
 
     def handle(self, name: str, state: State) -> State:
@@ -415,11 +419,24 @@ class ContactStepping:
         pressing = max(self.pressing_force(state, k, i), 0.0)
         t_c = contact_time_scale(law, self.effective_mass(state, k, i), max(approach, 0.0), before, pressing)
         touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
+        touching = self._book_stored_energy(touching, k, i)
         led = self.ledger(touching)
         balance = self.balance(led)
         onset = Onset(phase.touches, state.t, approach, before, led.total, led.signed_potential,
                       balance, led.dissipated, t_c, led.work_in, balance_now=balance)
-        return self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory, onset=onset))
+        return self.with_phase(touching, k, i, dataclasses.replace(phase, touching=True, memory=memory, onset=onset))
+
+    def _book_stored_energy(self, state: State, k: int, i: int) -> State:
+        """Add the energy contact ``i`` of set ``k`` stores at its onset to its work integral: zero for a
+        touch that starts at ``alpha = 0``; for a contact that starts overlapping (a body resting at its
+        static indentation at t = 0) the work done on it before the run, so the ledger closes."""
+        c = self.system.contacts[k]
+        U = float(c.elastic_energy(body_state(self.system, state.q, state.v, state.chart, state.t), state.memory[k])[i])
+        if U == 0.0 or not state.w.size:
+            return state
+        w = state.w.copy()
+        w[sum(cs.k for cs in self.system.contacts[:k]) + i] += U
+        return state.replace(w=w)
 
     def _max_indentation(self, state: State, k: int, i: int) -> State:
         c, phase = self.system.contacts[k], state.memory[k][i]

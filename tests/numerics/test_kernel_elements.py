@@ -17,6 +17,7 @@ from viz3d import compiled
 from viz3d import kernel as K
 from viz3d.constraints import build_layout
 from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
+from viz3d.contact.friction import RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.formulation import Baumgarte, Index1, Penalty
@@ -140,8 +141,12 @@ def _contacts(rng, system, state):
     pairs = _pairs(rng, bodies, k)
     B_s, sides = _sides(rng, bodies, pairs)
     normal, radius = _touching(system, state, sides, rng.uniform(0.5, 2.0, k) * ALPHA)
+    rigid = [all(b == bodies.n_bodies or bodies.is_rigid[b] for b in pair) and m == "law" for pair, m in zip(pairs, models)]
+    kinds = [RegularizedCoulomb(0.4, 1e-3), Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3)]
+    friction = tuple(kinds[sum(rigid[:i]) % 2] if rigid[i] else None for i in range(k))
+    assert {type(f) for f in friction if f is not None} == {RegularizedCoulomb, Stribeck}, "a friction law of each kind"
     located = ContactSet(tuple(f"c{i}" for i in range(k)), pairs, sides, normal, radius, models,
-                         tuple(laws) + (None, None), damping=rng.uniform(0, 50, k))
+                         tuple(laws) + (None, None), damping=rng.uniform(0, 50, k), friction=friction)
     phases = []
     for i, (model, law) in enumerate(zip(models, located.laws)):
         touching = i not in (len(laws) - 1, k - 1)

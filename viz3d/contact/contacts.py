@@ -30,6 +30,7 @@ Sign of the multiplier of a rigid contact row: ``lambda >= 0`` is compressive (t
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +50,7 @@ from viz3d.compiled import (
     row_piece,
     tmatvec3,
 )
+from viz3d.contact.friction import FRICTION_PARAMS, friction_force
 from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, NormalLaw
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, apply_force, bias
@@ -189,6 +191,9 @@ class ContactSet:
         ``HYPOTHESES``.
     damping : ndarray, shape (k,)
         Linear dashpot added to a law's force [N s/m] (never pulls).
+    friction : tuple of FrictionLaw or None, length k
+        Tangential law of each ``"law"`` contact (``viz3d.contact.friction``), acting at the contact
+        point against the slip; rigid bodies and ground only.
     located : bool
         Events (onset, separation, maximum indentation) located in time and the law active only
         while touching; False: a law acts whenever ``alpha > 0`` (memoryless laws only).
@@ -205,9 +210,16 @@ class ContactSet:
     hypotheses: tuple[str, ...] = field(default=None)
     damping: FloatArray = field(default=None)
     located: bool = True
+    friction: tuple = None
 
     def __post_init__(self):
         k = len(self.names)
+        if self.friction is None:
+            object.__setattr__(self, "friction", (None,) * k)
+        for i, law in enumerate(self.friction):
+            if law is not None and (self.models[i] != "law" or any(g.which.size for s in self.sides for g in s.flex
+                                                                   if i in g.which)):
+                raise ValueError(f"contact {self.names[i]!r}: friction needs a force law between rigid bodies (or ground)")
         if self.restitution is None:
             object.__setattr__(self, "restitution", np.ones(k))
         if self.hypotheses is None:
@@ -227,9 +239,9 @@ class ContactSet:
 
     @property
     def conservative(self) -> bool:
-        """Forces that derive from a potential: stepped-through elastic laws without dashpots."""
+        """Forces that derive from a potential: stepped-through elastic laws without dashpots or friction."""
         return (not self.located and all(law is not None and not law.dissipative for law in self.laws)
-                and not np.any(self.damping > 0))
+                and not np.any(self.damping > 0) and all(f is None for f in self.friction))
 
     def initial_phases(self) -> tuple[ContactPhase, ...]:
         return tuple(ContactPhase() for _ in self.names)
@@ -307,24 +319,57 @@ class ContactSet:
             F[i] = max(elastic + self.damping[i] * gp.alpha_dot[i], 0.0) if gp.alpha[i] > 0.0 else 0.0
         return F
 
+    def slip(self, cfg: Configuration, gp: Gap) -> FloatArray:
+        """Tangential slip velocity of A on B at the contact points, world [m/s], shape (k, 3): the
+        velocity of A's material at ``point`` minus B's, without its normal part."""
+        A, B = self.sides
+        rho_a, rho_b = A.levers(cfg), B.levers(cfg)
+        to_point = -self.radius[:, None] * gp.n
+        v = (A.velocities(cfg, rho_a) + cross(cfg.twist.W_omega[self.body[:, 0]], to_point)
+             - B.velocities(cfg, rho_b) - cross(cfg.twist.W_omega[self.body[:, 1]], gp.d + to_point))
+        return v - np.einsum("ki,ki->k", v, gp.n)[:, None] * gp.n
+
+    def friction_forces(self, cfg: Configuration, gp: Gap, F: FloatArray) -> FloatArray:
+        """Friction force on A at each contact point [N], shape (k, 3), from the normal forces ``F``
+        (``magnitudes``): ``-F_t(s, F) v_t / s`` (``viz3d.contact.friction``), zero without a law."""
+        f = np.zeros((self.k, 3))
+        which = [i for i, law in enumerate(self.friction) if law is not None and F[i] > 0.0]
+        if not which:
+            return f
+        v_t = self.slip(cfg, gp)
+        for i in which:
+            s = float(np.linalg.norm(v_t[i]))
+            if s > 0.0:
+                f[i] = -self.friction[i].force(s, F[i]) * v_t[i] / s
+        return f
+
     def wrench(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Generalized forces of the law contacts: ``F`` along ``+n`` on A at its sphere centre, along
-        ``-n`` on B at its material point plus the couple ``F (n x d)`` (the force acts at A's point),
-        shapes (nb + 1, 3), (nb + 1, 3), (n_e,)."""
+        ``-n`` on B at its material point plus the couple ``F (n x d)`` (the force acts at A's point);
+        friction ``f_t`` on A at the contact point (at A's centre plus the couple ``-r n x f_t``) and
+        ``-f_t`` on B (at its point plus ``-(d - r n) x f_t``); shapes (nb + 1, 3), (nb + 1, 3), (n_e,)."""
         gp = self.gap(cfg)
         F = self.magnitudes(gp, phases)
-        f = F[:, None] * gp.n
+        f_t = self.friction_forces(cfg, gp, F)
+        f = F[:, None] * gp.n + f_t
         Fa, ta, Qa = self.sides[0].wrench(cfg, f)
         Fb, tb, Qb = self.sides[1].wrench(cfg, -f)
         n_rows = cfg.pose.W_r.shape[0]
         couple = np.zeros((n_rows, 3))
-        np.add.at(couple, self.body[:, 1], F[:, None] * cross(gp.n, gp.d))
+        np.add.at(couple, self.body[:, 1], F[:, None] * cross(gp.n, gp.d) - cross(gp.d, f_t))
+        np.add.at(couple, self.body[:, 0], -self.radius[:, None] * cross(gp.n, f_t))
+        np.add.at(couple, self.body[:, 1], self.radius[:, None] * cross(gp.n, f_t))
         return Fa + Fb, ta + tb + couple, Qa + Qb
 
     def power(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> FloatArray:
-        """Power the bodies do on each contact's law, ``F alpha_dot`` [W], shape (k,)."""
+        """Power the bodies do on each contact [W], shape (k,): on its law, ``F alpha_dot``, and on its
+        friction, ``-f_t . v_t >= 0`` (dissipated)."""
         gp = self.gap(cfg)
-        return self.magnitudes(gp, phases) * gp.alpha_dot
+        F = self.magnitudes(gp, phases)
+        P = F * gp.alpha_dot
+        if any(law is not None for law in self.friction):
+            P = P - np.einsum("ki,ki->k", self.friction_forces(cfg, gp, F), self.slip(cfg, gp))
+        return P
 
     def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...], gp: Gap | None = None) -> FloatArray:
         """Recoverable energy stored in each acting law contact [J], shape (k,); ``gp``: ``gap(cfg)``
@@ -338,16 +383,18 @@ class ContactSet:
         return U
 
     def contacts(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray]:
-        """Contact points (m, 3) of the contacts that carry a law force and that force on A (m, 3), for display."""
+        """Contact points (m, 3) of the contacts that carry a law force and that force on A, friction
+        included (m, 3), for display."""
         gp = self.gap(cfg)
         F = self.magnitudes(gp, phases)
         on = F > 0.0
-        return gp.point[on], F[on, None] * gp.n[on]
+        f = F[:, None] * gp.n + self.friction_forces(cfg, gp, F)
+        return gp.point[on], f[on]
 
     def compiled(self, pack) -> list[Items]:
         """The geometry of every contact (``ContactGeometry``) and the law contacts per law class
         (``law_contacts``): i = [point a, point b, body B, global contact index, located], f = [B's
-        normal (3), radius, dashpot, the law's ``params()``]."""
+        normal (3), radius, dashpot, friction (``FRICTION_PARAMS``), the law's ``params()``]."""
         a, b, k0 = pack.points(self.sides[0]), pack.points(self.sides[1]), pack.contact_start(self)
         geometry = items(ContactGeometry, np.column_stack([a, b, self.body[:, 1], k0 + np.arange(self.k)]),
                          np.column_stack([self.normal, self.radius]), k=self.k)
@@ -357,7 +404,8 @@ class ContactSet:
                 continue
             cls = pack.law_items(law)
             row_i = [a[j], b[j], self.body[j, 1], k0 + j, int(self.located)]
-            row_f = [*self.normal[j], self.radius[j], self.damping[j], *law.params()]
+            friction = self.friction[j].params() if self.friction[j] is not None else [0.0] * FRICTION_PARAMS
+            row_f = [*self.normal[j], self.radius[j], self.damping[j], *friction, *law.params()]
             groups.setdefault(cls, []).append((row_i, row_f))
         return [geometry] + [items(cls, [r[0] for r in rows], [r[1] for r in rows], k=len(rows))
                              for cls, rows in groups.items()]
@@ -443,8 +491,9 @@ def memory_rows(phases: tuple[ContactPhase, ...]) -> FloatArray:
 # Memory rows ``w.mem`` (``memory_rows``) and the power slots of the ledger are indexed by the
 # global contact index (contacts of all sets in order).
 
-#: Column of the law parameters in ``LawContacts.f``.
-LAW_COLUMN = 5
+#: Columns of the friction and the law parameters in ``LawContacts.f``.
+FRICTION_COLUMN = 5
+LAW_COLUMN = FRICTION_COLUMN + FRICTION_PARAMS
 
 
 class ContactGeometry(Items):
@@ -502,6 +551,47 @@ def _law_contacts(d, t, v, power):
         for c in range(3):
             v.tau[bB, c] += F * f[c]
         power[kg] += F * alpha_dot
+        if d.f[k, FRICTION_COLUMN] != 0.0 and F > 0.0:
+            power[kg] += _friction(d, k, v, pa, pb, bB, F, n, dv)
+
+
+@jit
+def _friction(d, k, v, pa, pb, bB, F, n, dv):
+    """Apply contact ``k``'s friction (normal force ``F``, world normal ``n``, ``dv = a - b``) at its
+    contact point ``a - r n``: ``f_t`` on A, ``-f_t`` on B (``ContactSet.wrench``); returns the power
+    the bodies do on it, ``-f_t . v_t >= 0``."""
+    r = d.f[k, 3]
+    bA = v.pt_i[pa, 0]
+    vt, t1, t2 = v.v3[11], v.v3[12], v.v3[13]
+    for c in range(3):
+        t1[c] = -r * n[c]                      # contact point from a
+        t2[c] = dv[c] - r * n[c]               # contact point from b
+    cross3(v.wW[bA], t1, vt)
+    for c in range(3):
+        vt[c] += v.pv[pa, c] - v.pv[pb, c]
+    cross3(v.wW[bB], t2, t1)
+    for c in range(3):
+        vt[c] -= t1[c]
+    vn = dot3(vt, n)
+    for c in range(3):
+        vt[c] -= vn * n[c]
+    s = math.sqrt(dot3(vt, vt))
+    if s == 0.0:
+        return 0.0
+    mag = friction_force(d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS], s, F)
+    for c in range(3):
+        vt[c] = -mag * vt[c] / s               # f_t on A
+    apply_force(v, pa, vt)
+    cross3(n, vt, t1)
+    for c in range(3):
+        v.tau[bA, c] -= r * t1[c]              # -r n x f_t
+        v.tau[bB, c] += r * t1[c]
+    cross3(dv, vt, t1)
+    for c in range(3):
+        v.tau[bB, c] -= t1[c]                  # -(d) x f_t (with the r n part above)
+        vt[c] = -vt[c]
+    apply_force(v, pb, vt)
+    return mag * s
 
 
 _LAW_CONTACTS: dict[type, type[Items]] = {}

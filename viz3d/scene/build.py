@@ -20,6 +20,7 @@ from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
+from viz3d.contact.friction import RegularizedCoulomb, Stribeck
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
@@ -434,10 +435,34 @@ def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies
         laws.append(law)
     # the linear law carries its own dashpot; any other law gets it added (never pulling)
     dashpot = np.array([0.0 if (law is not None and law.name == "linear") else c["damping"] for c, law in zip(entries, laws)])
+    friction = tuple(_friction_law(src, c, i, model, body[k], bodies) for k, (c, i, model) in enumerate(zip(entries, index, models)))
     return ContactSet(tuple(c["name"] for c in entries), body, (pa, pb), normal,
                       np.array([c["radius"] for c in entries], float), tuple(models), tuple(laws),
                       np.array([c.get("restitution", 1.0) for c in entries], float),
-                      tuple(c["hypothesis"] for c in entries), dashpot, entries[0]["events"])
+                      tuple(c["hypothesis"] for c in entries), dashpot, entries[0]["events"], friction)
+
+
+def _friction_law(src: str, entry: dict, i: int, model: str, body: np.ndarray, bodies: Bodies):
+    """The contact's friction law (``viz3d.contact.friction``), or None for ``friction = "none"``."""
+    kind = entry["friction"]
+    if kind == "none":
+        return None
+    where = f"contacts[{i}]"
+    if model != "law":
+        raise SceneError(src, f"{where}.friction", f"'none' with law = {entry['law']!r} (friction needs a force law: its "
+                         "normal force)", kind)
+    for side in (0, 1):
+        if body[side] < bodies.n_bodies and not bodies.is_rigid[body[side]]:
+            raise SceneError(src, f"{where}.friction", "'none' on a flexible body (friction acts between rigid bodies "
+                             "and ground)", kind)
+    if "mu" not in entry:
+        raise SceneError(src, f"{where}.mu", "a friction coefficient with friction = " + repr(kind))
+    if kind == "coulomb":
+        return RegularizedCoulomb(entry["mu"], entry["slip_speed"])
+    mu_s = entry.get("mu_static", entry["mu"])
+    if mu_s < entry["mu"]:
+        raise SceneError(src, f"{where}.mu_static", f"at least mu = {entry['mu']:g}", mu_s)
+    return Stribeck(entry["mu"], mu_s, entry["stribeck_speed"], entry["viscous"], entry["slip_speed"])
 
 
 def build_gauges(scene: Scene, bodies: Bodies) -> tuple:

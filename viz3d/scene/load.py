@@ -229,14 +229,26 @@ def _list_index(node: list, part: str) -> int | None:
 
 
 def expand_generators(raw: dict, source: str) -> dict:
-    """Append the bodies and joints of generator tables (``[chain]``) to the raw scene."""
-    if "chain" not in raw:
+    """Expand generator tables into the raw scene: ``[chain]`` appends its bodies and joints;
+    ``[incline]`` tilts ``sim.gravity`` about y by ``angle_deg`` and gives its ``mu`` to the contacts
+    with friction that have none."""
+    if "chain" not in raw and "incline" not in raw:
         return raw
-    chain = validate(raw["chain"], spec.CHAIN, source, "chain")
     raw = copy.deepcopy(raw)
-    bodies, joints = chain_elements(chain)
-    raw["bodies"] = list(raw.get("bodies", [])) + bodies
-    raw["joints"] = list(raw.get("joints", [])) + joints
+    if "chain" in raw:
+        bodies, joints = chain_elements(validate(raw["chain"], spec.CHAIN, source, "chain"))
+        raw["bodies"] = list(raw.get("bodies", [])) + bodies
+        raw["joints"] = list(raw.get("joints", [])) + joints
+    if "incline" in raw:
+        incline = validate(raw["incline"], spec.INCLINE, source, "incline")
+        sim = raw.setdefault("sim", {}) if isinstance(raw.get("sim", {}), dict) else {}
+        g = np.asarray(validate(sim, spec.SIM, source, "sim")["gravity"], float)
+        angle = np.radians(incline["angle_deg"])
+        c, s = np.cos(angle), np.sin(angle)
+        sim["gravity"] = [float(c * g[0] - s * g[2]), float(g[1]), float(s * g[0] + c * g[2])]
+        for contact in raw.get("contacts", []):
+            if isinstance(contact, dict) and contact.get("friction", "none") != "none" and "mu" in incline:
+                contact.setdefault("mu", incline["mu"])
     return raw
 
 

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from viz3d.contact.contacts import HYPOTHESES
+from viz3d.contact.friction import FRICTION_LAWS
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.coordinates import ROTATIONS
 from viz3d.flexible.bar import SUPPORTS
@@ -291,6 +292,13 @@ CONTACT = Table({
     "yield_stress": Field(positive, OPTIONAL, "sigma_Y of the softer body [Pa] (elastoplastic laws)"),
     "material1": Field(MATERIAL, OPTIONAL, "body 1's E, nu for Hertz-type laws (default: a flexible body's, else steel)"),
     "material2": Field(MATERIAL, OPTIONAL, "body 2's E, nu (default: a flexible body's, else steel; rigid ground: rigid)"),
+    "friction": Field(one_of("none", *FRICTION_LAWS), "none", f"tangential law: none or one of {list(FRICTION_LAWS)} "
+                      "(force laws between rigid bodies or ground)"),
+    "mu": Field(nonnegative, OPTIONAL, "friction coefficient (stribeck: the dynamic one)"),
+    "mu_static": Field(nonnegative, OPTIONAL, "stribeck: static coefficient (default mu)"),
+    "slip_speed": Field(positive, 1e-4, "regularisation: F_t = mu F_n tanh(s / slip_speed) [m/s]"),
+    "stribeck_speed": Field(positive, 1e-2, "stribeck: decay speed from mu_static to mu [m/s]"),
+    "viscous": Field(nonnegative, 0.0, "stribeck: viscous friction coefficient [N s/m]"),
     "events": Field(boolean, True, "locate onset, maximum indentation and separation in time (false: the law acts "
                     "whenever the bodies overlap, stepped through; memoryless laws only)"),
 }, "a contact between a sphere (or point) on body 1 and a surface of body 2 or ground")
@@ -319,6 +327,12 @@ CHAIN = Table({
     "color": Field(color, [200, 120, 40], "display colour"),
     "prefix": Field(name, "link", "body names are <prefix><index>"),
 }, "generator: an N-link spatial chain of capsules on ball joints, hanging from the anchor")
+
+INCLINE = Table({
+    "angle_deg": Field(number, doc="tilt of gravity about the world y axis [deg]: a level floor becomes an incline "
+                       "descending along +x"),
+    "mu": Field(nonnegative, OPTIONAL, "friction coefficient of every contact with friction that gives none"),
+}, "generator: an incline, as gravity tilted about y (sim.gravity's magnitude kept), and one mu for its contacts")
 
 CHECKS = Table({
     "t_end": Field(positive, OPTIONAL, "duration of the headless test run [s] (default: sim.t_end)"),
@@ -360,6 +374,7 @@ SCENE_FILE = Table({
     "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
     "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),
+    "incline": Field(INCLINE, OPTIONAL, "incline generator (gravity tilt and friction coefficient)"),
     "checks": Field(CHECKS, dict, "headless test checks"),
     "limits": Field(LIMITS, dict, "size limits checked before building"),
 })
