@@ -526,8 +526,9 @@ def cmd_list(args) -> int:
     from viz3d.forces import FORCES
     from viz3d.formulation import FORMULATIONS
     from viz3d.integrators import INTEGRATORS
+    from viz3d.contact.friction import FRICTION_LAWS
     from viz3d.contact.laws import NORMAL_LAWS
-    from viz3d.joints import JOINTS
+    from viz3d.joints import DRIVES, JOINTS
     from viz3d.scene import format_reference
     from viz3d.timefunctions import TIME_FUNCTIONS
 
@@ -543,8 +544,8 @@ def cmd_list(args) -> int:
         for path in sorted(folder.glob("*.toml")):
             print(f"  {path.stem:<28} {_description(path)}")
     for title, names in (("integrators", INTEGRATORS), ("formulations", FORMULATIONS), ("rotations", ROTATIONS),
-                         ("joints", JOINTS), ("forces", FORCES), ("contact laws", NORMAL_LAWS),
-                         ("time functions", TIME_FUNCTIONS)):
+                         ("joints", JOINTS), ("drives", DRIVES), ("forces", FORCES), ("contact laws", NORMAL_LAWS),
+                         ("friction laws", FRICTION_LAWS), ("time functions", TIME_FUNCTIONS)):
         print(f"{title}: {', '.join(names)}")
     return 0
 

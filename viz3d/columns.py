@@ -242,8 +242,13 @@ def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, sca
         st = states[i]
         g = s.gap[i]
         gaps = tuple(Gap(g[x, 0], g[x, 1], g[x, 2:5], g[x, 5:8], g[x, 8:11]) for x in data.contact_slices)
+        cfg = None
+        if any(f is not None and f.stateful for c in system.contacts for f in c.friction):  # bristles: the pose
+            cfg = Configuration(st.t, Pose(s.r[i], s.R[i]), Twist(s.vW[i], s.wB[i], s.wW[i]),
+                                tuple(s.eta[i, x] for x in data.elastic_slices),
+                                tuple(s.eta_dot[i, x] for x in data.elastic_slices))
         for k, (c, x, gp) in enumerate(zip(system.contacts, data.contact_slices, gaps)):
-            U[i, x] = c.elastic_energy(None, st.memory[k] if st.memory else c.initial_phases(), gp)
+            U[i, x] = c.elastic_energy(cfg, st.memory[k] if st.memory else c.initial_phases(), gp)
         F[i] = np.concatenate(contact_forces(system, st, s.lam[i], gaps))
     names = [nm for c in system.contacts for nm in c.names]
     for j, nm in enumerate(names):

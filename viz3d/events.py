@@ -418,6 +418,12 @@ class ContactStepping:
         memory = law.onset(max(approach, 0.0), before)
         pressing = max(self.pressing_force(state, k, i), 0.0)
         t_c = contact_time_scale(law, self.effective_mass(state, k, i), max(approach, 0.0), before, pressing)
+        anchor = None
+        if c.friction[i] is not None and c.friction[i].stateful:  # bristles planted where the contact starts
+            cfg = body_state(self.system, state.q, state.v, state.chart, state.t)
+            gp = c.gap(cfg)
+            anchor = c.anchor_at(cfg, gp, i, np.zeros(3))
+        phase = dataclasses.replace(phase, anchor=anchor)
         touching = self.with_phase(state, k, i, dataclasses.replace(phase, touching=True, memory=memory))
         touching = self._book_stored_energy(touching, k, i)
         led = self.ledger(touching)
@@ -452,7 +458,7 @@ class ContactStepping:
         if c.models[i] == "law":
             phase = dataclasses.replace(phase, memory=c.laws[i].update(phase.memory, max(float(gp.alpha[i]), 0.0),
                                                                         float(gp.alpha_dot[i])))
-        state = self.with_phase(state, k, i, dataclasses.replace(phase, touching=False))
+        state = self.with_phase(state, k, i, dataclasses.replace(phase, touching=False, anchor=None))
         self.log.append((state.t, f"{c.names[i]}: contact end (separation speed {separation:.4g} m/s)"))
         state = self._close(state, k, i)
         if c.models[i] == "law":
@@ -491,6 +497,7 @@ class ContactStepping:
                      if phase.touching and c.models[i] == "law" and phase.onset is not None]
         if not under_way:
             return state
+        state = self._replant(state, under_way)
         led = self.ledger(state)
         balance = self.balance(led)
         low = None if error is None else self.balance(self.ledger(self.state_at(state.t, state.y - error, state)))
@@ -503,6 +510,27 @@ class ContactStepping:
                 o, n_steps=o.n_steps + 1, velocity_error=o.velocity_error + dv, energy_error=o.energy_error + dE,
                 balance_now=balance)))
             self._energy_check(state, k, i, led, balance)
+        return state
+
+    def _replant(self, state: State, under_way: list) -> State:
+        """Move the stick anchors whose bristles carry more than ``mu_s F_n`` after the step
+        (``viz3d.contact.friction.Bristle.anchor_update``, seed 004 eq. 3.49)."""
+        stateful = [(k, i) for k, i in under_way if (law := self.system.contacts[k].friction[i]) is not None and law.stateful]
+        if not stateful:
+            return state
+        cfg = body_state(self.system, state.q, state.v, state.chart, state.t)
+        for k in {k for k, _ in stateful}:
+            c, phases = self.system.contacts[k], state.memory[k]
+            gp = c.gap(cfg)
+            F, s = c.magnitudes(gp, phases), c.deflection(cfg, gp, phases)
+            for kk, i in stateful:
+                if kk != k:
+                    continue
+                deflection = s[i]
+                kept = c.friction[i].anchor_update(deflection, F[i])
+                if kept is not deflection:
+                    state = self.with_phase(state, k, i, dataclasses.replace(state.memory[k][i],
+                                                                             anchor=c.anchor_at(cfg, gp, i, kept)))
         return state
 
     def _gap_values(self, t: float, y: FloatArray, chart: FloatArray) -> FloatArray:

@@ -10,6 +10,8 @@ several times (every branch of every time function) and for every formulation th
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,7 @@ from viz3d import compiled
 from viz3d import kernel as K
 from viz3d.constraints import build_layout
 from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
-from viz3d.contact.friction import RegularizedCoulomb, Stribeck
+from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.formulation import Baumgarte, Index1, Penalty
@@ -142,9 +144,9 @@ def _contacts(rng, system, state):
     B_s, sides = _sides(rng, bodies, pairs)
     normal, radius = _touching(system, state, sides, rng.uniform(0.5, 2.0, k) * ALPHA)
     rigid = [all(b == bodies.n_bodies or bodies.is_rigid[b] for b in pair) and m == "law" for pair, m in zip(pairs, models)]
-    kinds = [RegularizedCoulomb(0.4, 1e-3), Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3)]
-    friction = tuple(kinds[sum(rigid[:i]) % 2] if rigid[i] else None for i in range(k))
-    assert {type(f) for f in friction if f is not None} == {RegularizedCoulomb, Stribeck}, "a friction law of each kind"
+    kinds = [RegularizedCoulomb(0.4, 1e-3), Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3), Bristle(0.3, 0.5, 3.0, 2e4, 30.0, 0.4)]  # (v_stick ~ the random slips)
+    friction = tuple(kinds[sum(rigid[:i]) % len(kinds)] if rigid[i] else None for i in range(k))
+    assert {type(f) for f in friction if f is not None} == {type(f) for f in kinds}, "a friction law of each kind"
     located = ContactSet(tuple(f"c{i}" for i in range(k)), pairs, sides, normal, radius, models,
                          tuple(laws) + (None, None), damping=rng.uniform(0, 50, k), friction=friction)
     phases = []
@@ -154,6 +156,15 @@ def _contacts(rng, system, state):
         if law is not None:
             memory = law.update(law.onset(rng.uniform(0.2, 2.0)), ALPHA * rng.uniform(0.5, 3.0), 0.1)
         phases.append(ContactPhase(touching=touching, memory=memory))
+    cfg = configuration(system, state)  # bristles: anchors 0.1 mm and 10 cm away (below and above the cap)
+    gp = located.gap(cfg)
+    planted = 0
+    for i, f in enumerate(located.friction):
+        if f is not None and f.stateful:
+            s = rng.normal(size=3) * (1e-4 if planted % 2 == 0 else 0.1)
+            planted += 1
+            s -= (s @ gp.n[i]) * gp.n[i]
+            phases[i] = dataclasses.replace(phases[i], anchor=located.anchor_at(cfg, gp, i, s))
     k2 = 3
     pairs2 = _pairs(rng, bodies, k2)
     B2, sides2 = _sides(rng, bodies, pairs2)

@@ -117,3 +117,56 @@ def test_ball_rolls_or_slides_down_an_incline(tmp_path, mu):
     else:
         assert a == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=1e-6)
         assert spin == pytest.approx(5 * mu * G * np.cos(theta) / (2 * r), rel=1e-6)
+
+
+# ---------------------------------------------------------------------------- bristle stick-slip (seed 004)
+
+K_STICK = 1e4  # bristles per corner [N/m]: tangential frequency sqrt(4 K_STICK / m) = 200 rad/s
+C_STICK = 100.0  # critical damping of that mode, shared by the four corners [N s/m]
+
+
+def _bristle_box(theta: float, mu: float, mu_s: float, v0: float = 0.0) -> str:
+    return _box(theta, mu, v0).replace(
+        'friction = "coulomb"', f'friction = "bristle"\nmu_static = {mu_s}\nstick_speed = {SLIP}\n'
+        f"stick_stiffness = {K_STICK}\nstick_damping = {C_STICK}")
+
+
+def test_bristles_hold_a_box_without_creep(tmp_path):
+    """tan(theta) < mu_s: the bristle springs hold the box with their static deflection
+    m g sin(theta) / (4 k_stick) per corner; it does not creep (drift from 1 s to 10 s below 1e-9 m,
+    against 7 mm for the regularised Coulomb law of the test above). The centre of mass moves a little
+    more: the friction's moment about it (lever h = 0.05 m) pitches the box on its corner springs by
+    phi = m g sin(theta) h / (4 K a^2) (a = 0.1 m), adding h phi (statics to first order in phi ~ 4e-5)."""
+    theta, m, h, a = np.radians(20), 1.0, 0.05, 0.1
+    traj = _run(tmp_path, _bristle_box(theta, 0.5, 0.6), theta, 10.0)
+    x = traj.position[:, 0, 0]
+    deflection = m * G * np.sin(theta) / (4 * K_STICK)
+    phi = m * G * np.sin(theta) * h / (4 * K * a * a)
+    # second-order terms (the corners' a (1 - cos phi) ~ a phi^2 / 2) are 2e-6 of the deflection
+    assert x[-1] == pytest.approx(deflection + h * phi, rel=1e-5)
+    late = traj.t > 1.0
+    assert np.ptp(x[late]) < 1e-9
+
+
+def test_bristles_let_a_box_slide_with_the_dynamic_coefficient(tmp_path):
+    """tan(theta) > mu_s: the bristles break away (their anchor follows, eq. 3.49) and the box
+    slides at g (sin - mu cos): beta = exp(-(v / v_stick)^2) is below 1e-40 once v > 10 v_stick."""
+    theta, mu = np.radians(35), 0.4
+    traj = _run(tmp_path, _bristle_box(theta, mu, 0.6), theta, 1.0)
+    late = traj.t > 0.1
+    a = np.polyfit(traj.t[late], traj.velocity[late, 0, 0], 1)[0]
+    assert a == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=1e-6)
+
+
+def test_bristles_stop_a_launched_box_and_hold_it(tmp_path):
+    """Level floor, v0 = 1 m/s, mu = 0.3: it stops after v0^2 / (2 mu g) in v0 / (mu g), give or take
+    the stick-slip transition (speeds below v_stick: ~ v_stick^2 / (mu g)) and the bristles' deflection
+    (at most mu_s m g / (4 k_stick) = 0.15 mm); then it stays put."""
+    mu, mu_s, v0 = 0.3, 0.6, 1.0
+    traj = _run(tmp_path, _bristle_box(0.0, mu, mu_s, v0), 0.0, 1.0)
+    x = traj.position[:, 0, 0]
+    assert abs(x[-1] - v0**2 / (2 * mu * G)) < mu_s * G / (4 * K_STICK) + 1e-5
+    # the bristles, deflected while sliding, spring back and unload (over ~0.3 s: the stick-slip
+    # transition at speeds ~ v_stick and the box's pitch settle with them)
+    stopped = traj.t > 2 * v0 / (mu * G)
+    assert np.ptp(x[stopped]) < 1e-9 and np.abs(traj.velocity[stopped, 0, 0]).max() < 1e-8

@@ -50,7 +50,7 @@ from viz3d.compiled import (
     row_piece,
     tmatvec3,
 )
-from viz3d.contact.friction import FRICTION_PARAMS, friction_force
+from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
 from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, NormalLaw
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, apply_force, bias
@@ -134,6 +134,9 @@ class ContactPhase:
         Touches so far.
     onset : Onset or None
         The current (or last) touch's start.
+    anchor : tuple of 3 float, or None
+        Stick anchor of a stateful friction law (``viz3d.contact.friction.Bristle``): the point of B
+        where the bristles are planted, in B's axes from its frame origin (ground: world) [m].
     """
 
     touching: bool = False
@@ -141,6 +144,7 @@ class ContactPhase:
     impulse_loss: float = 0.0
     touches: int = 0
     onset: Onset | None = None
+    anchor: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -329,18 +333,33 @@ class ContactSet:
              - B.velocities(cfg, rho_b) - cross(cfg.twist.W_omega[self.body[:, 1]], gp.d + to_point))
         return v - np.einsum("ki,ki->k", v, gp.n)[:, None] * gp.n
 
-    def friction_forces(self, cfg: Configuration, gp: Gap, F: FloatArray) -> FloatArray:
+    def deflection(self, cfg: Configuration, gp: Gap, phases: tuple[ContactPhase, ...]) -> FloatArray:
+        """Bristle deflection of the contacts with a stick anchor, world [m], shape (k, 3): the contact
+        point minus the anchor (fixed in B), without its normal part; zero elsewhere."""
+        s = np.zeros((self.k, 3))
+        for i, phase in enumerate(phases):
+            if phase.anchor is not None:
+                b = self.body[i, 1]
+                d = gp.point[i] - cfg.pose.W_r[b] - cfg.pose.R_WB[b] @ np.asarray(phase.anchor)
+                s[i] = d - (gp.n[i] @ d) * gp.n[i]
+        return s
+
+    def anchor_at(self, cfg: Configuration, gp: Gap, i: int, s: FloatArray) -> tuple:
+        """The anchor (B's axes, ``ContactPhase.anchor``) that gives contact ``i`` the deflection ``s`` (3,)."""
+        b = self.body[i, 1]
+        return tuple(float(x) for x in cfg.pose.R_WB[b].T @ (gp.point[i] - s - cfg.pose.W_r[b]))
+
+    def friction_forces(self, cfg: Configuration, gp: Gap, F: FloatArray, phases: tuple[ContactPhase, ...]) -> FloatArray:
         """Friction force on A at each contact point [N], shape (k, 3), from the normal forces ``F``
-        (``magnitudes``): ``-F_t(s, F) v_t / s`` (``viz3d.contact.friction``), zero without a law."""
+        (``magnitudes``), the slip and the bristles' deflection (``viz3d.contact.friction``); zero
+        without a law."""
         f = np.zeros((self.k, 3))
         which = [i for i, law in enumerate(self.friction) if law is not None and F[i] > 0.0]
         if not which:
             return f
-        v_t = self.slip(cfg, gp)
+        v_t, s = self.slip(cfg, gp), self.deflection(cfg, gp, phases)
         for i in which:
-            s = float(np.linalg.norm(v_t[i]))
-            if s > 0.0:
-                f[i] = -self.friction[i].force(s, F[i]) * v_t[i] / s
+            f[i] = self.friction[i].vector(v_t[i], s[i], F[i])
         return f
 
     def wrench(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -350,7 +369,7 @@ class ContactSet:
         ``-f_t`` on B (at its point plus ``-(d - r n) x f_t``); shapes (nb + 1, 3), (nb + 1, 3), (n_e,)."""
         gp = self.gap(cfg)
         F = self.magnitudes(gp, phases)
-        f_t = self.friction_forces(cfg, gp, F)
+        f_t = self.friction_forces(cfg, gp, F, phases)
         f = F[:, None] * gp.n + f_t
         Fa, ta, Qa = self.sides[0].wrench(cfg, f)
         Fb, tb, Qb = self.sides[1].wrench(cfg, -f)
@@ -368,7 +387,7 @@ class ContactSet:
         F = self.magnitudes(gp, phases)
         P = F * gp.alpha_dot
         if any(law is not None for law in self.friction):
-            P = P - np.einsum("ki,ki->k", self.friction_forces(cfg, gp, F), self.slip(cfg, gp))
+            P = P - np.einsum("ki,ki->k", self.friction_forces(cfg, gp, F, phases), self.slip(cfg, gp))
         return P
 
     def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...], gp: Gap | None = None) -> FloatArray:
@@ -380,6 +399,11 @@ class ContactSet:
         for i in np.flatnonzero(on & (gp.alpha > 0.0)):
             memory = phases[i].memory if self.located else None
             U[i] = float(self.laws[i].elastic_energy(gp.alpha[i], memory))
+        if any(f is not None and f.stateful for f in self.friction):
+            s = self.deflection(cfg, gp, phases)
+            for i in np.flatnonzero(on & (gp.alpha > 0.0)):
+                if self.friction[i] is not None and self.friction[i].stateful:
+                    U[i] += self.friction[i].energy(s[i])
         return U
 
     def contacts(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray]:
@@ -388,7 +412,7 @@ class ContactSet:
         gp = self.gap(cfg)
         F = self.magnitudes(gp, phases)
         on = F > 0.0
-        f = F[:, None] * gp.n + self.friction_forces(cfg, gp, F)
+        f = F[:, None] * gp.n + self.friction_forces(cfg, gp, F, phases)
         return gp.point[on], f[on]
 
     def compiled(self, pack) -> list[Items]:
@@ -476,14 +500,21 @@ class ContactRows:
         return items(RigidContactItems, i, np.column_stack([c.normal[w], c.radius[w]]), k=len(w))
 
 
+#: Columns of ``memory_rows``.
+MEMORY_COLUMNS = 7
+
+
 def memory_rows(phases: tuple[ContactPhase, ...]) -> FloatArray:
-    """The contacts' memory as the compiled pieces read it, shape (k, 3): ``[touching, approach speed
-    [m/s], largest indentation [m]]``."""
-    out = np.zeros((len(phases), 3))
+    """The contacts' memory as the compiled pieces read it, shape (k, ``MEMORY_COLUMNS``): ``[touching,
+    approach speed [m/s], largest indentation [m], has an anchor, the stick anchor in B's axes (3) [m]]``."""
+    out = np.zeros((len(phases), MEMORY_COLUMNS))
     for j, p in enumerate(phases):
         out[j, 0] = float(p.touching)
         if p.memory is not None:
             out[j, 1], out[j, 2] = p.memory.approach_speed, p.memory.alpha_max
+        if p.anchor is not None:
+            out[j, 3] = 1.0
+            out[j, 4:7] = p.anchor
     return out
 
 
@@ -552,17 +583,17 @@ def _law_contacts(d, t, v, power):
             v.tau[bB, c] += F * f[c]
         power[kg] += F * alpha_dot
         if d.f[k, FRICTION_COLUMN] != 0.0 and F > 0.0:
-            power[kg] += _friction(d, k, v, pa, pb, bB, F, n, dv)
+            power[kg] += _friction(d, k, v, pa, pb, bB, kg, F, n, dv)
 
 
 @jit
-def _friction(d, k, v, pa, pb, bB, F, n, dv):
+def _friction(d, k, v, pa, pb, bB, kg, F, n, dv):
     """Apply contact ``k``'s friction (normal force ``F``, world normal ``n``, ``dv = a - b``) at its
     contact point ``a - r n``: ``f_t`` on A, ``-f_t`` on B (``ContactSet.wrench``); returns the power
-    the bodies do on it, ``-f_t . v_t >= 0``."""
+    the bodies do on it, ``-f_t . v_t``."""
     r = d.f[k, 3]
     bA = v.pt_i[pa, 0]
-    vt, t1, t2 = v.v3[11], v.v3[12], v.v3[13]
+    vt, t1, t2, sb, ft = v.v3[11], v.v3[12], v.v3[13], v.v3[15], v.v3[26]
     for c in range(3):
         t1[c] = -r * n[c]                      # contact point from a
         t2[c] = dv[c] - r * n[c]               # contact point from b
@@ -575,12 +606,18 @@ def _friction(d, k, v, pa, pb, bB, F, n, dv):
     vn = dot3(vt, n)
     for c in range(3):
         vt[c] -= vn * n[c]
-    s = math.sqrt(dot3(vt, vt))
-    if s == 0.0:
-        return 0.0
-    mag = friction_force(d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS], s, F)
+        sb[c] = 0.0
+    if v.mem[kg, 3] == 1.0:  # bristles: contact point - anchor (B's frame origin r_B = x_b - rho_b)
+        matvec3(v.R[bB], v.mem[kg, 4:7], t1)
+        for c in range(3):
+            sb[c] = v.px[pa, c] - r * n[c] - (v.px[pb, c] - v.prho[pb, c]) - t1[c]
+        sn = dot3(sb, n)
+        for c in range(3):
+            sb[c] -= sn * n[c]
+    friction_vector(d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS], vt, sb, F, ft)
+    P = -dot3(ft, vt)
     for c in range(3):
-        vt[c] = -mag * vt[c] / s               # f_t on A
+        vt[c] = ft[c]                          # f_t on A
     apply_force(v, pa, vt)
     cross3(n, vt, t1)
     for c in range(3):
@@ -591,7 +628,7 @@ def _friction(d, k, v, pa, pb, bB, F, n, dv):
         v.tau[bB, c] -= t1[c]                  # -(d) x f_t (with the r n part above)
         vt[c] = -vt[c]
     apply_force(v, pb, vt)
-    return mag * s
+    return P
 
 
 _LAW_CONTACTS: dict[type, type[Items]] = {}

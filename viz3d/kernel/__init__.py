@@ -45,12 +45,13 @@ def kernel_for(system, formulation) -> KernelData | None:
 
 
 def memory_table(data: KernelData, memory: tuple) -> np.ndarray:
-    """The contacts' memory rows (``viz3d.contact.contacts.memory_rows``) of all sets, (n_contacts, 3)."""
-    from viz3d.contact.contacts import memory_rows
+    """The contacts' memory rows (``viz3d.contact.contacts.memory_rows``) of all sets, (n_contacts, 7)."""
+    from viz3d.contact.contacts import MEMORY_COLUMNS, memory_rows
 
     if not memory:
-        return np.zeros((data.n_contacts, 3))
-    return np.concatenate([memory_rows(phases) for phases in memory]) if data.n_contacts else np.zeros((0, 3))
+        return np.zeros((data.n_contacts, MEMORY_COLUMNS))
+    return (np.concatenate([memory_rows(phases) for phases in memory]) if data.n_contacts
+            else np.zeros((0, MEMORY_COLUMNS)))
 
 
 def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple = ()) -> np.ndarray:

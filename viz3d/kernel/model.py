@@ -100,7 +100,7 @@ class View(NamedTuple):
     Ct: np.ndarray            # (n_c,) explicit time rate of C (drives; C_dot = C_v v + C_t)
     inactive: np.ndarray      # (n_c,) int: rows that do not act now
     v3: np.ndarray            # (N_V3, 3) scratch
-    mem: np.ndarray           # (n_contacts, 3) contacts' memory (viz3d.contact.contacts.memory_rows)
+    mem: np.ndarray           # (n_contacts, 7) contacts' memory (viz3d.contact.contacts.memory_rows)
 
 
 class Work(NamedTuple):
@@ -352,7 +352,7 @@ def workspace(data: KernelData) -> tuple[View, Work]:
     view = View(data.pt_i, data.pt_N, np.zeros((nb + 1, 3, 3)), z3(nb + 1), z3(n_p), z3(n_p), z3(n_p), z3(n_p),
                 z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je, np.zeros((n_c, 2, 6)), np.zeros(n_je),
                 np.zeros(n_c), np.zeros(n_c), np.zeros(n_c), np.zeros(n_c, np.int64), np.zeros((N_V3, 3)),
-                np.zeros((n_contacts, 3)))
+                np.zeros((n_contacts, 7)))
     work = Work(z3(nb + 1), z3(nb + 1), z3(nb + 1), np.zeros(n_e), np.zeros(n_e), np.zeros((nb + 1, 6)),
                 np.zeros((nb + 1, 6)), np.zeros(n_e), np.zeros((nb + 1, 6)), np.zeros(fx_work), np.zeros((nx, 6, 6)),
                 np.zeros((n_c, 2, 6)), np.zeros(n_je), np.zeros(n_c), np.zeros(n_c), np.zeros((kd + 1) * n_c),

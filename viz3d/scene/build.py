@@ -20,7 +20,7 @@ from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
-from viz3d.contact.friction import RegularizedCoulomb, Stribeck
+from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
@@ -462,7 +462,15 @@ def _friction_law(src: str, entry: dict, i: int, model: str, body: np.ndarray, b
     mu_s = entry.get("mu_static", entry["mu"])
     if mu_s < entry["mu"]:
         raise SceneError(src, f"{where}.mu_static", f"at least mu = {entry['mu']:g}", mu_s)
-    return Stribeck(entry["mu"], mu_s, entry["stribeck_speed"], entry["viscous"], entry["slip_speed"])
+    if kind == "stribeck":
+        return Stribeck(entry["mu"], mu_s, entry["stribeck_speed"], entry["viscous"], entry["slip_speed"])
+    if "stick_stiffness" not in entry:
+        raise SceneError(src, f"{where}.stick_stiffness", "the bristles' stiffness k_stick [N/m] with friction = 'bristle'")
+    if not entry["events"]:
+        raise SceneError(src, f"{where}.events", "true with friction = 'bristle' (its stick anchor is planted at onset)",
+                         entry["events"])
+    return Bristle(entry["mu"], mu_s, entry["stick_speed"], entry["stick_stiffness"], entry["stick_damping"],
+                   entry["viscous"], entry["stick_alpha"])
 
 
 def build_gauges(scene: Scene, bodies: Bodies) -> tuple:

@@ -295,10 +295,14 @@ CONTACT = Table({
     "friction": Field(one_of("none", *FRICTION_LAWS), "none", f"tangential law: none or one of {list(FRICTION_LAWS)} "
                       "(force laws between rigid bodies or ground)"),
     "mu": Field(nonnegative, OPTIONAL, "friction coefficient (stribeck: the dynamic one)"),
-    "mu_static": Field(nonnegative, OPTIONAL, "stribeck: static coefficient (default mu)"),
+    "mu_static": Field(nonnegative, OPTIONAL, "stribeck, bristle: static coefficient (default mu)"),
     "slip_speed": Field(positive, 1e-4, "regularisation: F_t = mu F_n tanh(s / slip_speed) [m/s]"),
     "stribeck_speed": Field(positive, 1e-2, "stribeck: decay speed from mu_static to mu [m/s]"),
-    "viscous": Field(nonnegative, 0.0, "stribeck: viscous friction coefficient [N s/m]"),
+    "viscous": Field(nonnegative, 0.0, "stribeck, bristle: viscous friction coefficient [N s/m]"),
+    "stick_speed": Field(positive, 1e-3, "bristle: v_stick, slip speed of the stick-slip transition [m/s]"),
+    "stick_stiffness": Field(positive, OPTIONAL, "bristle: k_stick [N/m] (required with friction = 'bristle')"),
+    "stick_damping": Field(nonnegative, 0.0, "bristle: c_stick [N s/m]"),
+    "stick_alpha": Field(positive, 1.0, "bristle: alpha_stick, the deflection kept when the anchor moves (eq. 3.49)"),
     "events": Field(boolean, True, "locate onset, maximum indentation and separation in time (false: the law acts "
                     "whenever the bodies overlap, stepped through; memoryless laws only)"),
 }, "a contact between a sphere (or point) on body 1 and a surface of body 2 or ground")
