@@ -595,13 +595,16 @@ class ContactStepping:
         return None if diagnosis is None else f"{c.names[i]}: {diagnosis}"
 
     def _rigid_pair(self, k: int, i: int) -> bool:
-        """Both bodies of the contact rigid or ground, and no joint on either: the relative motion
-        along the normal is one degree of freedom."""
+        """Both bodies of the contact rigid or ground, no joint on either, no friction at the contact
+        and no other contact on either body: the relative motion along the normal is one degree of
+        freedom (friction and other contacts turn the bodies and feed the normal motion)."""
         s = self.system
         pair = s.contacts[k].body[i]
+        moving = pair[pair < s.n_bodies]
         rigid = all(b == s.n_bodies or s.bodies.is_rigid[b] for b in pair)
-        jointed = any(np.isin(js.body, pair[pair < s.n_bodies]).any() for js in s.joint_sets)
-        return rigid and not jointed
+        jointed = any(np.isin(js.body, moving).any() for js in s.joint_sets)
+        others = sum(int(np.isin(c.body, moving).any(axis=1).sum()) for c in s.contacts) > 1
+        return rigid and not jointed and not others and s.contacts[k].friction[i] is None
 
     def _load_acceleration(self, state: State, k: int, i: int) -> float:
         """Relative normal acceleration the loads give the contact's bodies, free of the contact [m/s^2]."""
