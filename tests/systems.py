@@ -109,7 +109,7 @@ def _joints_of_kinds(rng, bodies, pairs, kinds, nb):
     pairs with a flexible body ball joints."""
     n_all = bodies.n_bodies
     kind_of = []
-    for k, (a, b) in enumerate(pairs):
+    for a, b in pairs:
         rigid = all(x < nb or x == n_all for x in (a, b))
         kind_of.append(kinds[len(kind_of) % len(kinds)] if rigid else "ball")
     sets = []
@@ -177,7 +177,7 @@ def drive_set(system, seed: int = 0, pick: dict | None = None):
     loop of ``random_system`` can make its rows redundant), cycling through position and velocity
     profiles of every allowed kind."""
     from viz3d.joints import ANGLE_Z, DISTANCE_Z, JointDrive
-    from viz3d.timefunctions import PROFILE_KINDS, TIME_FUNCTIONS, TimeFunctions
+    from viz3d.timefunctions import PROFILE_KINDS, TimeFunctions
 
     rng = np.random.default_rng(seed)
     sets, index, free = [], [], []

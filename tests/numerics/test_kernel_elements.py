@@ -14,6 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from contact.law_examples import EXAMPLES
 
 from viz3d import compiled
 from viz3d import kernel as K
@@ -22,14 +23,13 @@ from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
 from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
+from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import Baumgarte, Index1, Penalty
 from viz3d.joints import JOINTS
-from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
-from contact.law_examples import EXAMPLES
 from systems import _sides, configuration, drive_set, random_state, random_system
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
@@ -144,13 +144,14 @@ def _contacts(rng, system, state):
     B_s, sides = _sides(rng, bodies, pairs)
     normal, radius = _touching(system, state, sides, rng.uniform(0.5, 2.0, k) * ALPHA)
     rigid = [all(b == bodies.n_bodies or bodies.is_rigid[b] for b in pair) and m == "law" for pair, m in zip(pairs, models)]
-    kinds = [RegularizedCoulomb(0.4, 1e-3), Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3), Bristle(0.3, 0.5, 3.0, 2e4, 30.0, 0.4)]  # (v_stick ~ the random slips)
+    # one of each friction law (the bristles' v_stick of the order of the random slips: both regimes weigh)
+    kinds = [RegularizedCoulomb(0.4, 1e-3), Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3), Bristle(0.3, 0.5, 3.0, 2e4, 30.0, 0.4)]
     friction = tuple(kinds[sum(rigid[:i]) % len(kinds)] if rigid[i] else None for i in range(k))
     assert {type(f) for f in friction if f is not None} == {type(f) for f in kinds}, "a friction law of each kind"
     located = ContactSet(tuple(f"c{i}" for i in range(k)), pairs, sides, normal, radius, models,
                          tuple(laws) + (None, None), damping=rng.uniform(0, 50, k), friction=friction)
     phases = []
-    for i, (model, law) in enumerate(zip(models, located.laws)):
+    for i, law in enumerate(located.laws):
         touching = i not in (len(laws) - 1, k - 1)
         memory = None
         if law is not None:

@@ -123,7 +123,8 @@ def test_joint_coordinate_forces_have_power_effort_times_rate_off_the_manifold(s
     stop = JointStop(tuple(f"s{i}" for i in range(k)), tuple(sets), idx, fr, q + 0.1, q + 0.2, np.full(k, 30.0), np.full(k, 0.5))
     tf = TimeFunctions.from_entries([{"kind": "constant", "offset": [1.0, 0, 0], "amplitude": [0, 0, 0], "frequency": 0.0,
                                       "phase": 0.0, "start": 0.0, "duration": 0.0}] * k)
-    motor = JointMotor(tuple(f"m{i}" for i in range(k)), tuple(sets), idx, fr, tf, np.full(k, 3.0), np.full(k, 0.2), np.full(k, np.inf))
+    motor = JointMotor(tuple(f"m{i}" for i in range(k)), tuple(sets), idx, fr, tf, np.full(k, 3.0), np.full(k, 0.2),
+                       np.full(k, np.inf))
     codes = {js.FREE[c][1] for js, c in zip(sets, fr)}
     assert codes == {0, 1, 2, 3}  # every coordinate kind
     for element in (stop, motor):

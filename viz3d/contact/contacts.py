@@ -30,7 +30,6 @@ Sign of the multiplier of a rigid contact row: ``lambda >= 0`` is compressive (t
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -17,10 +17,10 @@ from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_jacobian, constraint_rows
 from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
+from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
-from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
@@ -28,9 +28,9 @@ from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
 from viz3d.joints import ANGLE_Z, DISTANCE_Z, JOINTS, BallJoint, JointDrive
 from viz3d.kinematics import Configuration, pose_from, twist_from
-from viz3d.rotations import matrix_from_euler
 from viz3d.outputs import StrainGauges
 from viz3d.points import body_points
+from viz3d.rotations import matrix_from_euler
 from viz3d.scene.bars import flexible_body
 from viz3d.scene.contacts import contact_law
 from viz3d.scene.contacts import materials as contact_materials
@@ -332,8 +332,8 @@ def _joint_coordinates(entries: list[dict], paths: list[str], joints: tuple, sou
         names = getattr(js, "coordinate_names", ())
         if not names:
             known = sorted(n for n, (s, _) in where.items() if getattr(s, "coordinate_names", ()))
-            raise SceneError(source, f"{path}.joint", f"the name of a joint with a relative coordinate ({', '.join(known) or 'none in this scene'})",
-                             entry["joint"])
+            raise SceneError(source, f"{path}.joint", "the name of a joint with a relative coordinate "
+                             f"({', '.join(known) or 'none in this scene'})", entry["joint"])
         c = entry.get("coordinate", names[0])
         if c not in names:
             raise SceneError(source, f"{path}.coordinate", f"one of {list(names)} (joint {entry['joint']!r})", c)
@@ -372,7 +372,7 @@ def _joint_forces(kind: str, entries: list[dict], paths: list[str], joints: tupl
     if kind == "joint_stop":
         lower = np.array([f.get("lower", -np.inf) for f in entries], float)
         upper = np.array([f.get("upper", np.inf) for f in entries], float)
-        for f, path, lo, hi in zip(entries, paths, lower, upper):
+        for path, lo, hi in zip(paths, lower, upper):
             if lo > hi:
                 raise SceneError(source, f"{path}.upper", f"at least lower = {lo:g}", hi)
         return JointStop(names, sets, index, free, lower, upper, np.array([f["stiffness"] for f in entries], float),
@@ -435,7 +435,8 @@ def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies
         laws.append(law)
     # the linear law carries its own dashpot; any other law gets it added (never pulling)
     dashpot = np.array([0.0 if (law is not None and law.name == "linear") else c["damping"] for c, law in zip(entries, laws)])
-    friction = tuple(_friction_law(src, c, i, model, body[k], bodies) for k, (c, i, model) in enumerate(zip(entries, index, models)))
+    friction = tuple(_friction_law(src, c, i, model, body[k], bodies)
+                     for k, (c, i, model) in enumerate(zip(entries, index, models)))
     return ContactSet(tuple(c["name"] for c in entries), body, (pa, pb), normal,
                       np.array([c["radius"] for c in entries], float), tuple(models), tuple(laws),
                       np.array([c.get("restitution", 1.0) for c in entries], float),
