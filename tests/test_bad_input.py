@@ -230,6 +230,10 @@ def test_sigterm_stops_a_run_like_ctrl_c_and_keeps_its_files(tmp_path):
     out, rec = tmp_path / "chain.npz", tmp_path / "chain.rrd"
     cmd = [sys.executable, "-m", "viz3d", "run", str(SCENES / "chain.toml"), "--set", "chain.n=20", "--t-end", "1000",
            "--out", str(out), "--record", str(rec), "--no-progress"]
+    # a short run first, so the kernel is compiled and cached: otherwise a cold numba cache (a fresh
+    # clone, edited compiled sources) can take the 3 s below and the signal lands before any step
+    warm = cmd[:cmd.index("--t-end")] + ["--t-end", "0.01", "--out", str(tmp_path / "warm.npz"), "--no-progress"]
+    subprocess.run(warm, cwd=ROOT, capture_output=True, timeout=600, check=True)
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = proc.stdout.readline()  # the run's first line: it is running
     assert first.startswith("running"), first

@@ -118,3 +118,30 @@ def display_mesh(shape: dict, base_dir: Path, center: FloatArray):
     mesh = load_mesh(base_dir / shape["file"], shape["scale"])
     mesh.apply_translation(-np.asarray(center))
     return mesh
+
+
+def contact_spheres(shape: dict, rim_points: int = 16) -> list[tuple[FloatArray, float]]:
+    """The spheres (centre in body axes [m], radius [m]; radius 0: a point) whose contacts with a
+    plane are those of the primitive ``shape`` (a scene ``shape`` table): a sphere is itself, a capsule
+    its two end spheres, a box its eight corners (exact against a plane: its supporting points), a
+    cylinder ``rim_points`` points on each end rim (an approximation that tends to the rim).
+
+    Raises
+    ------
+    ValueError
+        For shapes without such spheres (meshes).
+    """
+    kind = shape["type"]
+    if kind == "sphere":
+        return [(np.zeros(3), float(shape["radius"]))]
+    if kind == "capsule":
+        h = 0.5 * shape["height"]
+        return [(np.array([0.0, 0.0, s * h]), float(shape["radius"])) for s in (1.0, -1.0)]
+    if kind == "box":
+        half = 0.5 * np.asarray(shape["extents"], float)
+        return [(half * np.array([sx, sy, sz]), 0.0) for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)]
+    if kind == "cylinder":
+        r, h = shape["radius"], 0.5 * shape["height"]
+        angles = 2 * np.pi * np.arange(rim_points) / rim_points
+        return [(np.array([r * np.cos(a), r * np.sin(a), z]), 0.0) for z in (h, -h) for a in angles]
+    raise ValueError(f"a sphere, capsule, box or cylinder shape, not {kind!r}")

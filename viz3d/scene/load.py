@@ -16,6 +16,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from viz3d.geometry import contact_spheres
 from viz3d.rotations import euler_from_matrix, frame_with_z
 from viz3d.scene import shorthand, spec
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
@@ -232,7 +233,8 @@ def expand_generators(raw: dict, source: str) -> dict:
     """Expand generator tables into the raw scene: ``[chain]`` appends its bodies and joints;
     ``[incline]`` tilts ``sim.gravity`` about y by ``angle_deg`` and gives its ``mu`` to the contacts
     with friction that have none."""
-    if "chain" not in raw and "incline" not in raw:
+    shaped = any(isinstance(c, dict) and c.get("geometry") == "body_shape" for c in raw.get("contacts", []) or [])
+    if "chain" not in raw and "incline" not in raw and not shaped:
         return raw
     raw = copy.deepcopy(raw)
     if "chain" in raw:
@@ -249,7 +251,33 @@ def expand_generators(raw: dict, source: str) -> dict:
         for contact in raw.get("contacts", []):
             if isinstance(contact, dict) and contact.get("friction", "none") != "none" and "mu" in incline:
                 contact.setdefault("mu", incline["mu"])
+    if shaped:
+        raw["contacts"] = [c for i, entry in enumerate(raw["contacts"]) for c in _shape_contacts(raw, entry, i, source)]
     return raw
+
+
+def _shape_contacts(raw: dict, entry, i: int, source: str) -> list:
+    """A contact with ``geometry = "body_shape"`` as one contact per sphere of body 1's shape
+    (``viz3d.geometry.contact_spheres``), named ``<name>_<k>``; other entries unchanged."""
+    if not isinstance(entry, dict) or entry.get("geometry") != "body_shape":
+        return [entry]
+    where = f"contacts[{i}]"
+    for key in ("point1", "local1", "x1", "radius"):
+        if key in entry:
+            raise SceneError(source, f"{where}.{key}", "no point or radius with geometry = 'body_shape' (body 1's shape "
+                             "gives them)")
+    body = next((b for b in raw.get("bodies", []) if isinstance(b, dict) and b.get("name") == entry.get("body1")), None)
+    shape = body.get("shape") if body else None
+    if not isinstance(shape, dict):
+        raise SceneError(source, f"{where}.geometry", f"'sphere' (body {entry.get('body1')!r} has no shape)", "body_shape")
+    try:
+        spheres = contact_spheres(validate(shape, spec.SHAPE, source, "shape"),
+                                  validate(entry, spec.CONTACT, source, where)["rim_points"])
+    except ValueError as exc:
+        raise SceneError(source, f"{where}.geometry", f"'sphere' for this body's shape ({exc})", "body_shape") from None
+    name = entry.get("name", f"contact{i}")
+    return [{**entry, "name": f"{name}_{k}", "geometry": "sphere", "local1": c.tolist(), "radius": r}
+            for k, (c, r) in enumerate(spheres)]
 
 
 def chain_elements(chain: dict) -> tuple[list[dict], list[dict]]:

@@ -275,6 +275,10 @@ CONTACT = Table({
     "name": Field(name, OPTIONAL, "default contact<index>"),
     "body1": Field(string, doc="the body carrying the sphere (or point, or flat face)"),
     "body2": Field(string, "ground", "the body carrying the surface, or ground"),
+    "geometry": Field(one_of("sphere", "body_shape"), "sphere", "sphere: the sphere (or point) below; body_shape: the "
+                      "spheres of body 1's own shape against body 2's surface (box: 8 corners, capsule: 2 end spheres, "
+                      "sphere, cylinder: rim_points on each rim), one contact each, named <name>_<k>"),
+    "rim_points": Field(positive_int, 16, "body_shape of a cylinder: points on each end rim"),
     "radius": Field(nonnegative, 0.0, "sphere radius on body 1 [m] (0: a point or a flat face)"),
     "point1": Field(vec3, OPTIONAL, "sphere centre, world, initial configuration [m] (default: body 1's centre of mass)"),
     "local1": Field(vec3, OPTIONAL, "sphere centre, body 1 axes from its centre of mass [m]"),
