@@ -172,21 +172,20 @@ def along(system, state, acc, t):
 
 
 def drive_set(system, seed: int = 0, pick: dict | None = None):
-    """A ``JointDrive`` on every angle about and distance along a joint axis of ``system``'s framed
+    """A ``JointDrive`` on every relative coordinate (angles about and distances along joint axes) of ``system``'s framed
     joints (of each set the joint ``pick[type_name]``, default the last: a drive on a joint that closes a
     loop of ``random_system`` can make its rows redundant), cycling through position and velocity
     profiles of every allowed kind."""
-    from viz3d.joints import ANGLE_Z, DISTANCE_Z, JointDrive
+    from viz3d.joints import JointDrive
     from viz3d.timefunctions import PROFILE_KINDS, TimeFunctions
 
     rng = np.random.default_rng(seed)
     sets, index, free = [], [], []
     for js in system.joints.joints:
-        for c, (_, code) in enumerate(getattr(js, "FREE", ())):
-            if code in (ANGLE_Z, DISTANCE_Z):
-                sets.append(js)
-                index.append((pick or {}).get(js.type_name, js.n_joints - 1))
-                free.append(c)
+        for c in range(len(getattr(js, "FREE", ()))):
+            sets.append(js)
+            index.append((pick or {}).get(js.type_name, js.n_joints - 1))
+            free.append(c)
     modes = [("position", k) for k in PROFILE_KINDS["position"]] + [("velocity", k) for k in PROFILE_KINDS["velocity"]]
     chosen = [modes[i % len(modes)] for i in range(len(sets))]
     funcs = TimeFunctions.from_entries([{"kind": kind, "offset": [rng.normal(), 0, 0], "amplitude": [rng.normal(), 0, 0],

@@ -346,6 +346,9 @@ def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
 #: ``x1``; ANGLE_Y2 ``-atan2(z2 . x1, x2 . x1)`` about ``y2``; DISTANCE_Z ``z1 . e`` along ``z1``.
 #: Rates: ``(w1 - w2) . u`` for angles, ``u . e_dot + (w1 x u) . e`` for the distance.
 COORDINATES = ANGLE_Z, ANGLE_X1, ANGLE_Y2, DISTANCE_Z = range(4)
+#: Each angle as ``q = -atan2(u . e2, u . e1)``: (side a, axis e1, axis e2 of side a, side b, axis u
+#: of side b) (axes 0, 1, 2 = x, y, z of each side's joint frame), for the drives (``JointDrive``).
+ANGLE_DRIVES = {ANGLE_Z: (0, 0, 1, 1, 0), ANGLE_X1: (0, 1, 2, 1, 1), ANGLE_Y2: (1, 0, 2, 0, 0)}
 
 
 def coordinate(code: int, a1: FloatArray, a2: FloatArray, e: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -534,9 +537,11 @@ class JointDrive(Joint):
     relative to body 2) as a profile ``r(t)`` (``viz3d.timefunctions.profile``: the position, or the
     velocity integrated from zero), one row each, ``C`` equal to ``q - r`` to first order:
 
-    * an angle about ``z1`` (ANGLE_Z): ``C = -x2 . w`` with ``w = cos(r) y1 + sin(r) x1`` turning with
-      the profile, so ``C = sin(q - r)`` on the joint's manifold; ``C_v = [0, -R1^T n | 0, R2^T n]``,
-      ``n = w x x2``, ``C_t = r_dot (x2 . m)``, ``m = sin(r) y1 - cos(r) x1``... (see ``_angle_rows``);
+    * an angle (ANGLE_Z, ANGLE_X1, ANGLE_Y2; ``ANGLE_DRIVES``): the coordinate is
+      ``q = -atan2(u . e2, u . e1)`` for two axes ``e1, e2`` of one side (``a``) and an axis ``u`` of
+      the other (``b``); ``C = -u . w`` with ``w = cos(r) e2 + sin(r) e1`` turning with the profile, so
+      ``C = sin(q - r)`` on the joint's manifold; ``C_v`` is ``R_a^T N`` on side a and ``-R_b^T N``
+      on side b (``N = u x w``), ``C_t = r_dot (u . m)`` with ``m = sin(r) e2 - cos(r) e1``;
     * a distance along ``z1`` (DISTANCE_Z): ``C = z1 . (p1 - p2) - r``.
 
     ``C_dot = C_v v + C_t``; the generalized force the drive exerts on its coordinate (the driving
@@ -566,11 +571,6 @@ class JointDrive(Joint):
     velocity: IntArray = field(default=None)
     table: FloatArray = field(default=None)
 
-    def __post_init__(self):
-        for js, c, name in zip(self.joints, self.free, self.names):
-            if js.FREE[c][1] not in (ANGLE_Z, DISTANCE_Z):
-                raise ValueError(f"drive {name!r}: a revolute, prismatic or cylindrical coordinate (angle about or distance "
-                                 f"along the joint axis), not {js.type_name} {js.FREE[c][0]!r}")
 
     def profiles(self, t: float) -> FloatArray:
         """``(r, r_dot, r_ddot)`` of every drive at ``t``, shape (k, 3)."""
@@ -603,16 +603,21 @@ class JointDrive(Joint):
             a = js.axes(cfg.pose.R_WB)[j]
             R1, R2 = cfg.pose.R_WB[js.body[j, 0]], cfg.pose.R_WB[js.body[j, 1]]
             w1, w2 = w_all[js.body[j, 0]], w_all[js.body[j, 1]]
-            if js.FREE[c][1] == ANGLE_Z:
-                x1, y1, x2 = a[0, :, 0], a[0, :, 1], a[1, :, 0]
-                w = np.cos(r) * y1 + np.sin(r) * x1
-                m = np.sin(r) * y1 - np.cos(r) * x1
-                n = np.cross(w, x2)
-                C[i] = -x2 @ w
-                J[i, 0, 0, 3:], J[i, 0, 1, 3:] = -R1.T @ n, R2.T @ n
-                C_t[i] = r_d * (x2 @ m)
-                x2_d, w_d, m_d = np.cross(w2, x2), np.cross(w1, w) - r_d * m, np.cross(w1, m) + r_d * w
-                g[i] = (w1 - w2) @ (np.cross(w_d, x2) + np.cross(w, x2_d)) - r_dd * (x2 @ m) - r_d * (x2_d @ m + x2 @ m_d)
+            code = js.FREE[c][1]
+            if code != DISTANCE_Z:
+                sa, i1, i2, sb, iu = ANGLE_DRIVES[code]
+                Ra, Rb = (R1, R2) if sa == 0 else (R2, R1)
+                wa, wb = (w1, w2) if sa == 0 else (w2, w1)
+                e1, e2, u = a[sa, :, i1], a[sa, :, i2], a[sb, :, iu]
+                w = np.cos(r) * e2 + np.sin(r) * e1
+                m = np.sin(r) * e2 - np.cos(r) * e1
+                N = np.cross(u, w)
+                C[i] = -u @ w
+                J[i, 0, sa, 3:], J[i, 0, sb, 3:] = Ra.T @ N, -(Rb.T @ N)
+                C_t[i] = r_d * (u @ m)
+                u_d, w_d, m_d = np.cross(wb, u), np.cross(wa, w) - r_d * m, np.cross(wa, m) + r_d * w
+                N_d = np.cross(u_d, w) + np.cross(u, w_d)
+                g[i] = -((wa - wb) @ N_d + r_dd * (u @ m) + r_d * (u_d @ m + u @ m_d))
             else:
                 z1 = a[0, :, 2]
                 sides = [BodyPoints(js.sides[s].body[[j]], js.sides[s].B_s[[j]], (), js.sides[s].n_elastic) for s in (0, 1)]
@@ -640,14 +645,16 @@ class JointDrive(Joint):
         rows_i, rows_f = [], []
         for i, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
             pts = [pack.points(rigid_points(js.body[[j], s], js.B_s[[j], s]))[0] for s in (0, 1)]
-            rows_i.append([pack.row_start(self) + i, pts[0], pts[1], js.FREE[c][1], self.kind[i], self.velocity[i]])
+            code = js.FREE[c][1]
+            angle = ANGLE_DRIVES.get(code, (0, 0, 0, 0, 0))
+            rows_i.append([pack.row_start(self) + i, pts[0], pts[1], code, self.kind[i], self.velocity[i], *angle])
             rows_f.append([*js.B_A[j].reshape(18), *self.table[i]])
         return items(DriveItems, rows_i, rows_f, k=k)
 
 
 class DriveItems(Items):
-    """Drives: i = [row, point 1, point 2, coordinate code, profile kind, velocity profile];
-    f = [A1, A2 (18), ``TimeFunctions.table`` row (10)]."""
+    """Drives: i = [row, point 1, point 2, coordinate code, profile kind, velocity profile, the angle's
+    ``ANGLE_DRIVES`` row (5)]; f = [A1, A2 (18), ``TimeFunctions.table`` row (10)]."""
 
 
 @compiled_piece(row_piece, DriveItems)
@@ -659,37 +666,39 @@ def _drive(d, t, v):
         q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
         f = d.f[k]
         r, r_d, r_dd = profile(d.i[k, 4], d.i[k, 5], f[18:28], t)
-        if d.i[k, 3] == ANGLE_Z:
-            _world_axis(v, f, 0, q1, 0, x1)
-            _world_axis(v, f, 0, q1, 1, y1)
-            _world_axis(v, f, 1, q2, 0, x2)
+        if d.i[k, 3] != DISTANCE_Z:  # e1 -> x1, e2 -> y1, u -> x2 (ANGLE_DRIVES: sides a, b)
+            sa, sb = d.i[k, 6], d.i[k, 9]
+            qa, qb = (q1, q2) if sa == 0 else (q2, q1)
+            _world_axis(v, f, sa, qa, d.i[k, 7], x1)
+            _world_axis(v, f, sa, qa, d.i[k, 8], y1)
+            _world_axis(v, f, sb, qb, d.i[k, 10], x2)
             cr, sr = math.cos(r), math.sin(r)
             for c in range(3):
                 w[c] = cr * y1[c] + sr * x1[c]
                 m[c] = sr * y1[c] - cr * x1[c]
-            cross3(w, x2, n)
+            cross3(x2, w, n)                                        # N = u x w
             v.C[row] = -dot3(x2, w)
-            tmatvec3(v.R[q1], n, t1)
-            tmatvec3(v.R[q2], n, t2)
+            tmatvec3(v.R[qa], n, t1)
+            tmatvec3(v.R[qb], n, t2)
             for c in range(3):
-                v.J[row, 0, 3 + c] -= t1[c]
-                v.J[row, 1, 3 + c] += t2[c]
-            x2m = dot3(x2, m)
-            v.Ct[row] = r_d * x2m
-            # gamma = (w1 - w2) . (w_dot x x2 + w x x2_dot) - r_dd (x2 . m) - r_d (x2_dot . m + x2 . m_dot)
-            cross3(v.wW[q2], x2, b2)                                # x2_dot
-            cross3(v.wW[q1], w, t1)
+                v.J[row, sa, 3 + c] += t1[c]
+                v.J[row, sb, 3 + c] -= t2[c]
+            um = dot3(x2, m)
+            v.Ct[row] = r_d * um
+            # gamma = -((w_a - w_b) . N_dot + r_dd (u . m) + r_d (u_dot . m + u . m_dot))
+            cross3(v.wW[qb], x2, b2)                                # u_dot
+            cross3(v.wW[qa], w, t1)
             for c in range(3):
                 t1[c] -= r_d * m[c]                                 # w_dot
-            cross3(t1, x2, t2)
-            cross3(w, b2, b1)
+            cross3(b2, w, t2)
+            cross3(x2, t1, b1)
             acc = 0.0
             for c in range(3):
-                acc += (v.wW[q1, c] - v.wW[q2, c]) * (t2[c] + b1[c])
-            cross3(v.wW[q1], m, t1)
+                acc += (v.wW[qa, c] - v.wW[qb, c]) * (t2[c] + b1[c])
+            cross3(v.wW[qa], m, t1)
             for c in range(3):
                 t1[c] += r_d * w[c]                                 # m_dot
-            v.gam[row] = acc - r_dd * x2m - r_d * (dot3(b2, m) + dot3(x2, t1))
+            v.gam[row] = -(acc + r_dd * um + r_d * (dot3(b2, m) + dot3(x2, t1)))
         else:
             _world_axis(v, f, 0, q1, 2, x1)                         # z1
             for c in range(3):

@@ -410,3 +410,23 @@ def test_drives_refuse_what_they_cannot_follow(tmp_path):
                     + '[[drives]]\njoint = "hinge"\nvalue = 1.0\n')
     with pytest.raises(SceneError, match=r"ali\.toml: sim\.formulation.*drives"):
         viz3d.simulate(viz3d.load_scene(path))
+
+
+def test_a_universal_joint_driven_in_both_angles_follows_its_profiles(tmp_path):
+    """A rod on a universal joint to ground with angle1 prescribed as a position (sine) and angle2 as a
+    velocity (constant): both coordinates follow their profiles to the integration's error, and the
+    drives report the torques they take."""
+    text = _rod("rod", [0.0, 0.0, -0.25], [0.0, 0.0, 1.0], 0.5, 1.0)
+    text += ('[[joints]]\nname = "u"\ntype = "universal"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\n'
+             'axis1 = [1.0, 0.0, 0.0]\naxis2 = [0.0, 1.0, 0.0]\n'
+             '[[drives]]\nname = "d1"\njoint = "u"\ncoordinate = "angle1"\nmode = "position"\nkind = "sine"\n'
+             'amplitude = 0.3\nfrequency = 1.0\n'
+             '[[drives]]\nname = "d2"\njoint = "u"\ncoordinate = "angle2"\nvalue = 0.8\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the rod starts at rest: the drives' velocities are projected in
+        traj = _run(tmp_path, text, t_end=1.0)
+    a1, _ = _coordinate(traj, "u/angle1")
+    a2, _ = _coordinate(traj, "u/angle2")
+    np.testing.assert_allclose(a1, 0.3 * np.sin(2 * np.pi * traj.t), atol=1e-8)
+    np.testing.assert_allclose(a2, 0.8 * traj.t, atol=1e-8)
+    assert list(traj.extras["drive_names"]) == ["d1", "d2"] and np.all(np.ptp(traj.extras["drive_effort"], axis=0) > 0.1)

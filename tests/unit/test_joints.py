@@ -88,9 +88,10 @@ def _driven_system(seed):
     from viz3d.constraints import build_layout
     from viz3d.system import System
 
-    base = random_system(nb=6, seed=seed, kinds=("revolute", "prismatic", "cylindrical"))
+    base = random_system(nb=8, seed=seed, kinds=("revolute", "prismatic", "cylindrical", "universal"))
     drives = drive_set(base, seed)
-    assert len(drives.names) == 4 and set(drives.velocity) == {0, 1}
+    codes = {js.FREE[c][1] for js, c in zip(drives.joints, drives.free)}
+    assert codes == {0, 1, 2, 3} and set(drives.velocity) == {0, 1}  # every coordinate kind, both profile modes
     return System(base.bodies, build_layout(base.joints.joints + (drives,), base.bodies), base.forces, base.rotation)
 
 

@@ -26,7 +26,7 @@ from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
-from viz3d.joints import ANGLE_Z, DISTANCE_Z, JOINTS, BallJoint, JointDrive
+from viz3d.joints import JOINTS, BallJoint, JointDrive
 from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.outputs import StrainGauges
 from viz3d.points import body_points
@@ -351,10 +351,7 @@ def build_drives(scene: Scene, joints: tuple) -> tuple:
     source = scene.source()
     paths = [f"drives[{i}]" for i in range(len(entries))]
     sets, index, free = _joint_coordinates(entries, paths, joints, source)
-    for entry, path, js, c in zip(entries, paths, sets, free):
-        if js.FREE[c][1] not in (ANGLE_Z, DISTANCE_Z):
-            raise SceneError(source, f"{path}.coordinate", "a revolute, prismatic or cylindrical coordinate (a universal "
-                             "joint's angles cannot be driven yet)", js.FREE[c][0])
+    for entry, path in zip(entries, paths):
         if entry["kind"] not in PROFILE_KINDS[entry["mode"]]:
             raise SceneError(source, f"{path}.kind", f"one of {list(PROFILE_KINDS[entry['mode']])} for a {entry['mode']} "
                              "profile (its derivative must stay bounded)", entry["kind"])

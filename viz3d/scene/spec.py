@@ -358,8 +358,8 @@ CHECKS = Table({
 
 DRIVE = Table({
     "name": Field(name, OPTIONAL, "default drive<index>"),
-    "joint": Field(string, doc="name of a revolute, prismatic or cylindrical joint"),
-    "coordinate": Field(string, OPTIONAL, "its coordinate (angle, distance; default: the first)"),
+    "joint": Field(string, doc="name of a revolute, universal, prismatic or cylindrical joint"),
+    "coordinate": Field(string, OPTIONAL, "its coordinate (angle, angle1, angle2, distance; default: the first)"),
     "mode": Field(one_of(*PROFILE_KINDS), "velocity", "what the profile prescribes: the coordinate's velocity "
                   "(integrated from 0 at t = 0) or its position"),
     "kind": Field(one_of(*TIME_FUNCTIONS), "constant", "profile = value + amplitude * f(t); position: constant or "
