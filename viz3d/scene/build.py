@@ -153,6 +153,9 @@ def body_mass_properties(scene: Scene, i: int) -> MassProperties:
     if "inertia" in b:
         return MassProperties(b["mass"], np.asarray(b["inertia"], float), np.zeros(3))
     unit = shape_unit_properties(scene, b["shape"], f"{where}.shape")
+    if not unit.volume > 0.0:  # sizes so small that the volume underflows (fuzzing found 1e-135 m radii)
+        raise SceneError(scene.source(), f"{where}.shape", "a shape whose volume is a positive number (its sizes "
+                         f"give {unit.volume:g} m^3)", b["shape"])
     density = b["density"] if "density" in b else b["mass"] / unit.volume
     return MassProperties(density * unit.volume, density * unit.inertia, unit.center)
 
@@ -513,7 +516,8 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
         C0 = constraint_rows(system.joints, _configuration(system, state), state.memory).C
         warnings.warn(InitialConditionsWarning(
             f"{source}: initial conditions projected onto the joints: positions moved by up to {dq:.3g} m "
-            f"(initial max |C| = {np.max(np.abs(C0)):.3g} m), velocities changed by up to {dv:.3g} m/s or rad/s"),
+            f"(initial max |C| = {np.max(np.abs(C0)):.3g}: m, or the sine of an angle for axis rows and angle drives), "
+            f"velocities changed by up to {dv:.3g} m/s or rad/s"),
             stacklevel=2)
     return state.replace(q=q, v=v)
 
