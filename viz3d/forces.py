@@ -21,7 +21,7 @@ from viz3d._typing import FloatArray, IntArray
 from viz3d.compiled import Items, compiled_piece, cross3, dot3, energy_piece, force_piece, inline, items, matvec3
 from viz3d.joints import DISTANCE_Z, coordinate, coordinate_of
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, apply_force, rigid_points, scatter
+from viz3d.points import BodyPoints, apply_force, apply_pair, rigid_points, scatter
 from viz3d.timefunctions import TimeFunctions, value
 
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
@@ -228,10 +228,7 @@ def _spring(d, t, v, power):
         K, D, l0 = d.f[k, 0], d.f[k, 1], d.f[k, 2]
         for c in range(3):
             f[c] = K * (f[c] - l0 * f[c] * inv) + D * length_d * f[c] * inv
-        apply_force(v, p1, f)
-        for c in range(3):
-            f[c] = -f[c]
-        apply_force(v, p2, f)
+        apply_pair(v, p1, p2, f)
         power[power.shape[0] - 1] -= D * length_d * length_d
 
 
@@ -386,8 +383,9 @@ class JointCoordinateForce(ForceElement):
     def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """Each item's coordinate and rate, shapes (k,) [rad or m, per s]."""
         q, q_dot = np.zeros(len(self.names)), np.zeros(len(self.names))
+        per_set = {id(js): js.coordinates(cfg) for js in self.joints}  # once per joint set
         for k, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
-            values, rates = js.coordinates(cfg)
+            values, rates = per_set[id(js)]
             q[k], q_dot[k] = values[j, c], rates[j, c]
         return q, q_dot
 
@@ -395,9 +393,10 @@ class JointCoordinateForce(ForceElement):
         q, q_dot = self.coordinates(cfg)
         f, _ = self.effort(cfg.t, q, q_dot)
         F, tau = np.zeros_like(cfg.pose.W_r), np.zeros_like(cfg.pose.W_r)
+        axes = {id(js): js.axes(cfg.pose.R_WB) for js in self.joints}  # once per joint set
         for k, (js, j) in enumerate(zip(self.joints, self.index)):
             b1, b2 = js.body[j]
-            a = js.axes(cfg.pose.R_WB)[j]
+            a = axes[id(js)][j]
             rho = np.einsum("kij,kj->ki", cfg.pose.R_WB[js.body[j]], js.B_s[j])
             e = cfg.pose.W_r[b1] + rho[0] - cfg.pose.W_r[b2] - rho[1]
             _, u = coordinate(self._code(k), a[0], a[1], e)
@@ -438,10 +437,7 @@ def _coordinate_force(v, d, k, F, u, t1):
     if d.i[k, 2] == DISTANCE_Z:
         for c in range(3):
             t1[c] = F * u[c]
-        apply_force(v, p1, t1)
-        for c in range(3):
-            t1[c] = -t1[c]
-        apply_force(v, p2, t1)
+        apply_pair(v, p1, p2, t1)
         for c in range(3):
             t1[c] = v.px[p1, c] - v.px[p2, c]
         cross3(u, t1, v.v3[20])

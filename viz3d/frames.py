@@ -256,9 +256,9 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     scalars: dict[str, float] = {}
     for out in system.outputs:
         scalars.update(out.values(cfg))
-    coordinates = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
-    coordinates.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
-    scalars.update({k: float(x) for k, x in coordinates.items()})
+    joint_values = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+    joint_values.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
+    scalars.update({k: float(x) for k, x in joint_values.items()})
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)
         scalars.update(ledger_scalars(led, reference_energy))

@@ -87,6 +87,23 @@ class Joint(ABC):
         return -np.einsum("...jei,...je->...ji", J[..., 0, :3], lam)
 
 
+class RowsJoint(Joint):
+    """A joint set whose residual, Jacobian and gamma share their work: it implements ``rows`` only."""
+
+    @abstractmethod
+    def rows(self, cfg):
+        """``(residual, (J, Je), gamma)`` (``Joint.rows``)."""
+
+    def residual(self, cfg):
+        return self.rows(cfg)[0]
+
+    def jacobian(self, cfg):
+        return self.rows(cfg)[1]
+
+    def gamma(self, cfg):
+        return self.rows(cfg)[2]
+
+
 @dataclass(frozen=True)
 class BallJoint(Joint):
     """Ball joint (rotula): point ``p1`` of body 1 coincides with point ``p2`` of body 2.
@@ -182,7 +199,7 @@ def point_jacobian(sides: tuple[BodyPoints, BodyPoints], cfg: Configuration) -> 
 
 
 @dataclass(frozen=True)
-class FramedJoint(Joint):
+class FramedJoint(RowsJoint):
     """A joint with a frame on each side: a point ``p_k`` and orthonormal axes ``a_k = R_k A_k``
     (columns x, y, z) fixed in body k; the scene makes both frames coincide in its initial
     configuration, so every relative coordinate starts at zero. The equations come from three
@@ -241,15 +258,6 @@ class FramedJoint(Joint):
         """World joint axes of both sides (columns), shape (..., nj, 2, 3, 3), from every body's
         rotation ``R_WB`` (..., nb + 1, 3, 3) (leading axes: instants)."""
         return R_WB[..., self.body, :, :] @ self.B_A
-
-    def residual(self, cfg):
-        return self.rows(cfg)[0]
-
-    def jacobian(self, cfg):
-        return self.rows(cfg)[1]
-
-    def gamma(self, cfg):
-        return self.rows(cfg)[2]
 
     def rows(self, cfg):
         nj, ne = self.n_joints, self.sides[0].n_elastic
@@ -532,7 +540,7 @@ def _framed(d, t, v):
 
 
 @dataclass(frozen=True)
-class JointDrive(Joint):
+class JointDrive(RowsJoint):
     """Drives: rheonomic constraints that prescribe a joint coordinate ``q`` (``FramedJoint``, body 1
     relative to body 2) as a profile ``r(t)`` (``viz3d.timefunctions.profile``: the position, or the
     velocity integrated from zero), one row each, ``C`` equal to ``q - r`` to first order:
@@ -579,15 +587,6 @@ class JointDrive(Joint):
     def points(self, cfg: Configuration) -> FloatArray:
         """The driven joints' points on body 1, shape (k, 3) [m]."""
         return np.array([js.points(cfg)[j] for js, j in zip(self.joints, self.index)]).reshape(-1, 3)
-
-    def residual(self, cfg):
-        return self._rows(cfg)[0]
-
-    def jacobian(self, cfg):
-        return self._rows(cfg)[1]
-
-    def gamma(self, cfg):
-        return self._rows(cfg)[2]
 
     def rows(self, cfg):
         return self._rows(cfg)[:3]

@@ -223,6 +223,18 @@ def kinematics(m, v, w):
 
 
 @inline
+def apply_pair(v, p1, p2, f):
+    """Add ``f`` (3,) [N] at point ``p1`` and ``-f`` at point ``p2`` (an action and its reaction);
+    ``f`` is unchanged on return."""
+    apply_force(v, p1, f)
+    for c in range(3):
+        f[c] = -f[c]
+    apply_force(v, p2, f)
+    for c in range(3):
+        f[c] = -f[c]
+
+
+@inline
 def apply_force(v, p, f):
     """Add the world force ``f`` (3,) [N] at point ``p`` to the generalized forces: ``f`` and ``rho x f``
     on its body's frame (world), ``N^T R^T f`` on its elastic coordinates."""

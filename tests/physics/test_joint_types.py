@@ -337,14 +337,18 @@ def test_saturated_motor_swings_like_a_constant_torque(tmp_path):
     assert CubicSpline(traj.t, q)(t_turn) == pytest.approx(q_max, rel=RTOL)
 
 
+def _refused(tmp_path, text: str, where: str, sim: str = "") -> None:
+    """Building (and running) the scene ``text`` is a SceneError matching ``where``."""
+    path = tmp_path / "bad.toml"
+    path.write_text(f"[sim]\nt_end = 0.01\ndt = 1e-3\n{sim}" + text)
+    with pytest.raises(SceneError, match=where):
+        viz3d.simulate(viz3d.load_scene(path))
+
+
 def test_stop_on_an_unknown_joint_or_coordinate_is_refused(tmp_path):
-    base = _hanging_rod(0.5, 1.0)
-    for extra, where in (('joint = "nope"\n', r"forces\[0\]\.joint"),
-                         ('joint = "hinge"\ncoordinate = "distance"\n', r"forces\[0\]\.coordinate.*'angle'")):
-        path = tmp_path / "bad.toml"
-        path.write_text("[sim]\nt_end = 0.01\ndt = 1e-3\n" + base + '[[forces]]\ntype = "joint_stop"\nstiffness = 10.0\n' + extra)
-        with pytest.raises(SceneError, match=where):
-            viz3d.build(viz3d.load_scene(path))
+    base = _hanging_rod(0.5, 1.0) + '[[forces]]\ntype = "joint_stop"\nstiffness = 10.0\n'
+    _refused(tmp_path, base + 'joint = "nope"\n', r"forces\[0\]\.joint")
+    _refused(tmp_path, base + 'joint = "hinge"\ncoordinate = "distance"\n', r"forces\[0\]\.coordinate.*'angle'")
 
 
 def test_joint_forces_power_is_effort_times_rate_and_stops_store_their_spring_energy(tmp_path):
@@ -396,20 +400,13 @@ def test_joint_forces_power_is_effort_times_rate_and_stops_store_their_spring_en
 
 @pytest.mark.filterwarnings("ignore::viz3d.scene.build.InitialConditionsWarning")  # the drive starts the rod
 def test_drives_refuse_what_they_cannot_follow(tmp_path):
-    """A position profile must have a bounded acceleration (no ramp), a universal joint's angles are
-    not drivable, and ali3p does not take drives: each is an error naming the file and the key."""
-    base = _hanging_rod(0.5, 1.0)
-    for drive, where in (('joint = "hinge"\nmode = "position"\nkind = "ramp"\n', r"drives\[0\]\.kind.*'sine'"),
-                         ('joint = "nope"\n', r"drives\[0\]\.joint")):
-        path = tmp_path / "bad.toml"
-        path.write_text("[sim]\nt_end = 0.01\ndt = 1e-3\n" + base + "[[drives]]\n" + drive)
-        with pytest.raises(SceneError, match=where):
-            viz3d.build(viz3d.load_scene(path))
-    path = tmp_path / "ali.toml"
-    path.write_text('[sim]\nt_end = 0.01\ndt = 1e-3\nformulation = "ali3p"\nintegrator = "trapezoidal"\n' + base
-                    + '[[drives]]\njoint = "hinge"\nvalue = 1.0\n')
-    with pytest.raises(SceneError, match=r"ali\.toml: sim\.formulation.*drives"):
-        viz3d.simulate(viz3d.load_scene(path))
+    """A position profile must have a bounded acceleration (no ramp), the joint must exist, and ali3p
+    does not take drives: each is an error naming the file and the key."""
+    base = _hanging_rod(0.5, 1.0) + "[[drives]]\n"
+    _refused(tmp_path, base + 'joint = "hinge"\nmode = "position"\nkind = "ramp"\n', r"drives\[0\]\.kind.*'sine'")
+    _refused(tmp_path, base + 'joint = "nope"\n', r"drives\[0\]\.joint")
+    _refused(tmp_path, base + 'joint = "hinge"\nvalue = 1.0\n', r"bad\.toml: sim\.formulation.*drives",
+             sim='formulation = "ali3p"\nintegrator = "trapezoidal"\n')
 
 
 def test_a_universal_joint_driven_in_both_angles_follows_its_profiles(tmp_path):

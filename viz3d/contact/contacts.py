@@ -52,7 +52,7 @@ from viz3d.compiled import (
 from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
 from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, NormalLaw
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, add_row, apply_force, bias
+from viz3d.points import BodyPoints, add_row, apply_pair, bias
 from viz3d.rotations import cross
 
 #: Contact treatments.
@@ -573,10 +573,7 @@ def _law_contacts(d, t, v, power):
         F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
         for c in range(3):
             f[c] = F * n[c]
-        apply_force(v, pa, f)
-        for c in range(3):
-            f[c] = -f[c]
-        apply_force(v, pb, f)
+        apply_pair(v, pa, pb, f)
         cross3(n, dv, f)
         for c in range(3):
             v.tau[bB, c] += F * f[c]
@@ -615,18 +612,14 @@ def _friction(d, k, v, pa, pb, bB, kg, F, n, dv):
             sb[c] -= sn * n[c]
     friction_vector(d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS], vt, sb, F, ft)
     P = -dot3(ft, vt)
+    apply_pair(v, pa, pb, ft)                  # f_t on A at a, -f_t on B at b
+    cross3(n, ft, t1)
     for c in range(3):
-        vt[c] = ft[c]                          # f_t on A
-    apply_force(v, pa, vt)
-    cross3(n, vt, t1)
-    for c in range(3):
-        v.tau[bA, c] -= r * t1[c]              # -r n x f_t
+        v.tau[bA, c] -= r * t1[c]              # -r n x f_t: the force acts at a - r n
         v.tau[bB, c] += r * t1[c]
-    cross3(dv, vt, t1)
+    cross3(dv, ft, t1)
     for c in range(3):
         v.tau[bB, c] -= t1[c]                  # -(d) x f_t (with the r n part above)
-        vt[c] = -vt[c]
-    apply_force(v, pb, vt)
     return P
 
 
