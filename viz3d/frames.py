@@ -256,6 +256,9 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     scalars: dict[str, float] = {}
     for out in system.outputs:
         scalars.update(out.values(cfg))
+    for e in system.forces:
+        if hasattr(e, "scalars"):
+            scalars.update(e.scalars(cfg))
     joint_values = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
     joint_values.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
     scalars.update({k: float(x) for k, x in joint_values.items()})

@@ -56,6 +56,8 @@ RNG_SEED = 20240
 
 CASES = {name: EXAMPLES[name] for name in sorted(NORMAL_LAWS)}
 CASES["linear_plastic_K_h2"] = replace(EXAMPLES["linear_plastic"], K_h2=1.8 * EXAMPLES["linear_plastic"].K_h)
+#: The fixed-constants parametrisation (Hunt-Crossley steel on steel, c = 0.2664 s/m): no approach speed read.
+CASES["hunt_crossley_fixed"] = replace(EXAMPLES["hunt_crossley"], damping_factor=0.2664)
 
 
 @numba.njit

@@ -57,8 +57,6 @@ from viz3d.rotations import cross
 
 #: Contact treatments.
 MODELS = ("law", "rigid", "restitution")
-#: Laws that act without contact memory (what a contact without located events may use).
-MEMORYLESS_LAWS = ("linear", "hertz")
 #: Restitution hypotheses of impulses.
 HYPOTHESES = ("newton", "poisson")
 

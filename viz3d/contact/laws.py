@@ -160,6 +160,12 @@ class NormalLaw(ABC):
         """False when loading and unloading follow the same curve (restitution 1)."""
         return self.kind != "elastic"
 
+    @property
+    def memoryless(self) -> bool:
+        """True when the force needs no contact memory (onset speed, largest indentation): such a law
+        may act without located events, and between shapes the collision library finds."""
+        return self.kind != "elastoplastic" and not isinstance(self, HysteresisLaw)
+
     def calibrated(self, restitution: float, m_eff: float) -> NormalLaw:
         """Copy whose damping is set from a target restitution by the law's own formula.
 
@@ -289,6 +295,10 @@ class HysteresisLaw(PowerLawElastic):
     ``K``, ``n``, mass or speed (thesis sec. 1.7-bis of the digest: external laws; do not add them
     to flexible models whose waves already radiate the energy).
 
+    The other parametrisation, fixed constants: ``damping_factor`` ``c > 0`` [s/m] gives
+    ``F = K alpha^n (1 + c alpha_dot)`` as written (e.g. Hunt-Crossley steel on steel, c = 0.2664
+    s/m); the law then needs no memory and ``restitution`` is not used.
+
     Attributes
     ----------
     stiffness : float
@@ -297,10 +307,13 @@ class HysteresisLaw(PowerLawElastic):
         ``n``.
     restitution : float
         Requested coefficient of restitution ``e`` in (0, 1].
+    damping_factor : float
+        ``c`` [s/m]; 0: the rate factor is ``chi / alpha_dot_0`` from ``restitution``.
     """
 
     kind = "viscoelastic"
     restitution: float = 1.0
+    damping_factor: float = 0.0
 
     @abstractmethod
     def factor(self) -> float:
@@ -308,10 +321,16 @@ class HysteresisLaw(PowerLawElastic):
 
     @property
     def dissipative(self) -> bool:
-        return self.restitution < 1.0
+        return self.restitution < 1.0 or self.damping_factor > 0.0
+
+    @property
+    def memoryless(self) -> bool:
+        return self.damping_factor > 0.0
 
     def _magnitude(self, alpha, alpha_dot, memory):
-        if memory.approach_speed <= 0.0:
+        if self.damping_factor > 0.0:
+            return self.stiffness * alpha**self.exponent * (1.0 + self.damping_factor * alpha_dot)
+        if memory is None or memory.approach_speed <= 0.0:
             raise ValueError(f"{self.name}: no approach speed in the contact memory; call onset() first")
         return self.stiffness * alpha**self.exponent * (1.0 + self.factor() * alpha_dot / memory.approach_speed)
 
@@ -319,11 +338,11 @@ class HysteresisLaw(PowerLawElastic):
         return replace(self, restitution=restitution)
 
     def params(self):
-        return np.array([self.stiffness, self.exponent, self.factor()])
+        return np.array([self.stiffness, self.exponent, self.factor(), self.damping_factor])
 
 
 class HysteresisItems(Items):
-    """Contacts with a ``HysteresisLaw``: f[p0:] = [K, n, chi]."""
+    """Contacts with a ``HysteresisLaw``: f[p0:] = [K, n, chi, c] (c > 0: fixed constants)."""
 
 
 HysteresisLaw.compiled_items = HysteresisItems
@@ -333,6 +352,8 @@ HysteresisLaw.compiled_items = HysteresisItems
 def _hysteresis(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
     if alpha <= 0.0:
         return 0.0
+    if d.f[k, p0 + 3] > 0.0:
+        return max(d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 3] * alpha_dot), 0.0)
     if not approach_speed > 0.0:
         return math.nan  # no onset in the memory: the step's health check reports it
     F = d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 2] * alpha_dot / approach_speed)

@@ -120,11 +120,13 @@ def free_impact_restitution(law: NormalLaw, m_eff: float, speed: float, memory: 
 
     Closed forms where they exist (elastic: 1; hysteresis laws: ``hysteresis_restitution(chi)``
     whatever mass and speed, as long as the law sees the true approach speed, i.e. above
-    ``MIN_APPROACH_SPEED``; the no-tension linear dashpot: ``linear_restitution(zeta)``),
+    ``MIN_APPROACH_SPEED``; with a fixed ``damping_factor`` c, ``chi = c speed``; the no-tension linear dashpot: ``linear_restitution(zeta)``),
     otherwise the law integrated through the contact (``single_impact.achieved_restitution``).
     """
     if not law.dissipative:
         return 1.0
+    if isinstance(law, HysteresisLaw) and law.damping_factor > 0.0:  # chi = c v0 at this speed
+        return hysteresis_restitution(law.damping_factor * speed)
     if isinstance(law, HysteresisLaw) and speed >= MIN_APPROACH_SPEED:
         return hysteresis_restitution(law.factor())
     if isinstance(law, Linear):

@@ -16,8 +16,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.bodies import Bodies, InertiaError
 from viz3d.constraints import SingularConstraintError, build_layout, constraint_jacobian, constraint_rows
-from viz3d.contact.contacts import MEMORYLESS_LAWS, ContactRows, ContactSet
-from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
+from viz3d.contact.contacts import ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
@@ -32,7 +31,8 @@ from viz3d.outputs import StrainGauges
 from viz3d.points import body_points
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.bars import flexible_body
-from viz3d.scene.contacts import contact_law
+from viz3d.scene.collisions import build_collisions
+from viz3d.scene.contacts import contact_law, friction_law
 from viz3d.scene.contacts import materials as contact_materials
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
@@ -80,7 +80,8 @@ def build(scene: Scene) -> tuple[System, State]:
     rows = joints + drives + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
-    forces = (gravity,) + build_forces(scene, bodies, pose0, joints)
+    forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_collisions(
+        scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies))
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, build_gauges(scene, bodies))
     frames = system.frame_body
     theta, chart = rotation.from_matrix(R0[frames])
@@ -158,6 +159,16 @@ def body_mass_properties(scene: Scene, i: int) -> MassProperties:
                          f"give {unit.volume:g} m^3)", b["shape"])
     density = b["density"] if "density" in b else b["mass"] / unit.volume
     return MassProperties(density * unit.volume, density * unit.inertia, unit.center)
+
+
+def shape_centers(scene: Scene, bodies: Bodies) -> list:
+    """Per body, its mesh shape's centroid in the mesh's own frame (mesh vertices are shifted by it;
+    zero for primitives, flexible bodies and given inertias) [m]."""
+    out = []
+    for i, b in enumerate(scene.data["bodies"]):
+        mesh = bodies.is_rigid[i] and b.get("shape", {}).get("type") == "mesh" and "inertia" not in b
+        out.append(body_mass_properties(scene, i).center if mesh else np.zeros(3))
+    return out
 
 
 def shape_unit_properties(scene: Scene, shape: dict, where: str):
@@ -428,50 +439,21 @@ def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies
     models, laws = [], []
     for c, i in zip(entries, index):
         model, law, _ = contact_law(c, contact_materials(c, scene.data["bodies"]), src, f"contacts[{i}]")
-        if not c["events"] and (model != "law" or law.kind == "elastoplastic" or law.name not in MEMORYLESS_LAWS):
-            raise SceneError(src, f"contacts[{i}].events", f"true for the {c['law']} law (it needs contact memory; "
-                             f"without events only {list(MEMORYLESS_LAWS)} act)")
+        if not c["events"] and (model != "law" or not law.memoryless):
+            raise SceneError(src, f"contacts[{i}].events", f"true for the {c['law']} law as given (it needs contact "
+                             "memory; without events only laws without one act: linear, hertz, and the rate laws with "
+                             "a fixed damping_factor)")
         models.append(model)
         laws.append(law)
     # the linear law carries its own dashpot; any other law gets it added (never pulling)
     dashpot = np.array([0.0 if (law is not None and law.name == "linear") else c["damping"] for c, law in zip(entries, laws)])
-    friction = tuple(_friction_law(src, c, i, model, body[k], bodies)
+    friction = tuple(friction_law(src, c, f"contacts[{i}]", model,
+                                  any(b < bodies.n_bodies and not bodies.is_rigid[b] for b in body[k]))
                      for k, (c, i, model) in enumerate(zip(entries, index, models)))
     return ContactSet(tuple(c["name"] for c in entries), body, (pa, pb), normal,
                       np.array([c["radius"] for c in entries], float), tuple(models), tuple(laws),
                       np.array([c.get("restitution", 1.0) for c in entries], float),
                       tuple(c["hypothesis"] for c in entries), dashpot, entries[0]["events"], friction)
-
-
-def _friction_law(src: str, entry: dict, i: int, model: str, body: np.ndarray, bodies: Bodies):
-    """The contact's friction law (``viz3d.contact.friction``), or None for ``friction = "none"``."""
-    kind = entry["friction"]
-    if kind == "none":
-        return None
-    where = f"contacts[{i}]"
-    if model != "law":
-        raise SceneError(src, f"{where}.friction", f"'none' with law = {entry['law']!r} (friction needs a force law: its "
-                         "normal force)", kind)
-    for side in (0, 1):
-        if body[side] < bodies.n_bodies and not bodies.is_rigid[body[side]]:
-            raise SceneError(src, f"{where}.friction", "'none' on a flexible body (friction acts between rigid bodies "
-                             "and ground)", kind)
-    if "mu" not in entry:
-        raise SceneError(src, f"{where}.mu", "a friction coefficient with friction = " + repr(kind))
-    if kind == "coulomb":
-        return RegularizedCoulomb(entry["mu"], entry["slip_speed"])
-    mu_s = entry.get("mu_static", entry["mu"])
-    if mu_s < entry["mu"]:
-        raise SceneError(src, f"{where}.mu_static", f"at least mu = {entry['mu']:g}", mu_s)
-    if kind == "stribeck":
-        return Stribeck(entry["mu"], mu_s, entry["stribeck_speed"], entry["viscous"], entry["slip_speed"])
-    if "stick_stiffness" not in entry:
-        raise SceneError(src, f"{where}.stick_stiffness", "the bristles' stiffness k_stick [N/m] with friction = 'bristle'")
-    if not entry["events"]:
-        raise SceneError(src, f"{where}.events", "true with friction = 'bristle' (its stick anchor is planted at onset)",
-                         entry["events"])
-    return Bristle(entry["mu"], mu_s, entry["stick_speed"], entry["stick_stiffness"], entry["stick_damping"],
-                   entry["viscous"], entry["stick_alpha"])
 
 
 def build_gauges(scene: Scene, bodies: Bodies) -> tuple:

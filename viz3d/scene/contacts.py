@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d.contact import laws as L
+from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.parameters import effective_modulus, hertz_stiffness
 from viz3d.scene.schema import SceneError
 
@@ -50,8 +51,14 @@ def _contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str
     exponent = entry.get("exponent", 1.5)
     if cls is L.Hertz:
         return "law", L.Hertz(stiffness, exponent), None
+    if "damping_factor" in entry:
+        if "restitution" in entry:
+            raise SceneError(src, f"{where}.restitution", f"no target restitution with a fixed damping_factor (the "
+                             f"{name} law takes one or the other)", entry["restitution"])
+        return "law", cls(stiffness, exponent, damping_factor=entry["damping_factor"]), None
     if "restitution" not in entry:
-        raise SceneError(src, f"{where}.restitution", f"the target restitution the {name} law is calibrated to")
+        raise SceneError(src, f"{where}.restitution", f"the target restitution the {name} law is calibrated to, "
+                         "or its fixed damping_factor [s/m]")
     return "law", cls(stiffness, exponent, entry["restitution"]), entry["restitution"]
 
 
@@ -109,3 +116,33 @@ def contact_time_estimate(model: str, law, mass: float, speed: float) -> float |
     from scipy.integrate import quad
 
     return float(2 * alpha_m / speed * quad(lambda s: 1.0 / np.sqrt(1.0 - s ** (n + 1)), 0.0, 1.0, limit=200)[0])
+
+
+def friction_law(src: str, entry: dict, where: str, model: str, flexible: bool):
+    """The friction law of the contact (or collision pair) at ``where`` (``viz3d.contact.friction``), or
+    None for ``friction = "none"``; ``flexible``: a side is a flexible body (refused)."""
+    kind = entry["friction"]
+    if kind == "none":
+        return None
+    if model != "law":
+        raise SceneError(src, f"{where}.friction", f"'none' with law = {entry['law']!r} (friction needs a force law: its "
+                         "normal force)", kind)
+    if flexible:
+        raise SceneError(src, f"{where}.friction", "'none' on a flexible body (friction acts between rigid bodies "
+                         "and ground)", kind)
+    if "mu" not in entry:
+        raise SceneError(src, f"{where}.mu", "a friction coefficient with friction = " + repr(kind))
+    if kind == "coulomb":
+        return RegularizedCoulomb(entry["mu"], entry["slip_speed"])
+    mu_s = entry.get("mu_static", entry["mu"])
+    if mu_s < entry["mu"]:
+        raise SceneError(src, f"{where}.mu_static", f"at least mu = {entry['mu']:g}", mu_s)
+    if kind == "stribeck":
+        return Stribeck(entry["mu"], mu_s, entry["stribeck_speed"], entry["viscous"], entry["slip_speed"])
+    if "stick_stiffness" not in entry:
+        raise SceneError(src, f"{where}.stick_stiffness", "the bristles' stiffness k_stick [N/m] with friction = 'bristle'")
+    if not entry.get("events", False):
+        raise SceneError(src, f"{where}.events", "true with friction = 'bristle' (its stick anchor is planted at onset)",
+                         entry["events"])
+    return Bristle(entry["mu"], mu_s, entry["stick_speed"], entry["stick_stiffness"], entry["stick_damping"],
+                   entry["viscous"], entry["stick_alpha"])

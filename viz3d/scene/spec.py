@@ -293,6 +293,8 @@ CONTACT = Table({
     "exponent": Field(positive, OPTIONAL, "n (default 1 linear, 1.5 otherwise)"),
     "damping": Field(nonnegative, 0.0, "linear dashpot added to the law [N s/m], never pulls"),
     "restitution": Field(positive, OPTIONAL, "restitution: e; rate laws: the target e they are calibrated to"),
+    "damping_factor": Field(positive, OPTIONAL, "rate laws (hunt_crossley, lankarani_nikravesh, flores): fixed c [s/m] "
+                            "in F = K alpha^n (1 + c alpha_dot), instead of a target restitution"),
     "hypothesis": Field(one_of(*HYPOTHESES), "newton", "restitution impulses: velocity ratio or impulse ratio"),
     "yield_stress": Field(positive, OPTIONAL, "sigma_Y of the softer body [Pa] (elastoplastic laws)"),
     "material1": Field(MATERIAL, OPTIONAL, "body 1's E, nu for Hertz-type laws (default: a flexible body's, else steel)"),
@@ -311,6 +313,76 @@ CONTACT = Table({
     "events": Field(boolean, True, "locate onset, maximum indentation and separation in time (false: the law acts "
                     "whenever the bodies overlap, stepped through; memoryless laws only)"),
 }, "a contact between a sphere (or point) on body 1 and a surface of body 2 or ground")
+
+def group_table(x):
+    if not (isinstance(x, dict) and all(isinstance(v, list) and v and all(isinstance(p, str) for p in v)
+                                        for v in x.values())):
+        raise Invalid("a table of group name -> non-empty list of body names or fnmatch patterns "
+                      "(e.g. { links = [\"link*\"] })")
+    return {str(k): list(v) for k, v in x.items()}
+
+
+def two_names(x):
+    if not (isinstance(x, list) and len(x) == 2 and all(isinstance(v, str) for v in x)):
+        raise Invalid('two group names, e.g. ["links", "ground"]')
+    return list(x)
+
+
+def names(x):
+    if not (isinstance(x, list) and all(isinstance(v, str) for v in x)):
+        raise Invalid("a list of body names or fnmatch patterns")
+    return list(x)
+
+
+_PLACED = {
+    "name": Field(name, OPTIONAL, "default ground<index>"),
+    "position": Field(vec3, ZERO3, "origin of the shape, world [m]"),
+    "euler_deg": Field(vec3, ZERO3, "ZXZ angles of the shape's axes (psi, theta, phi) [deg]"),
+}
+GROUND_SHAPES = {
+    **{kind: Table({**t.fields, **_PLACED}, t.doc) for kind, t in SHAPES.items() if kind != "mesh"},
+    "mesh": Table({**SHAPES["mesh"].fields, **_PLACED,
+                   "convex": Field(boolean, False, "collide as its convex hull instead of its triangles")},
+                  "triangle mesh (hull, pipe, pocket): collides as its triangles, or its convex hull"),
+    "plane": Table({"point": Field(vec3, ZERO3, "a point of the plane, world [m]"),
+                    "normal": Field(nonzero_vec3, [0.0, 0.0, 1.0], "outward normal, world"),
+                    "name": Field(name, OPTIONAL, "default ground<index>")}, "infinite plane (half-space below it)"),
+}
+GROUND_SHAPE = Table({"type": Field(one_of(*GROUND_SHAPES), doc=f"one of {list(GROUND_SHAPES)}")},
+                     "a collision shape fixed to ground", tag="type", variants=GROUND_SHAPES)
+
+COLLISION_PAIR = Table({
+    "groups": Field(two_names, doc='the two groups that collide (a group with itself: ["links", "links"]; '
+                    '"ground": the ground shapes)'),
+    "law": Field(one_of(*NORMAL_LAWS), "hertz", "normal law, one without contact memory: linear, hertz, or a rate "
+                 "law with damping_factor"),
+    "stiffness": Field(positive, OPTIONAL, "K [N/m^n] (default: Hertz from the materials, spheres and planes only)"),
+    "exponent": Field(positive, OPTIONAL, "n (default 1 linear, 1.5 otherwise)"),
+    "damping": Field(nonnegative, 0.0, "linear dashpot added to the law [N s/m] (linear law: its own), never pulls"),
+    "damping_factor": Field(positive, OPTIONAL, "rate laws: c [s/m] in F = K alpha^n (1 + c alpha_dot)"),
+    "material1": Field(MATERIAL, OPTIONAL, "first group's E, nu (default steel; ground rigid)"),
+    "material2": Field(MATERIAL, OPTIONAL, "second group's E, nu (default steel; ground rigid)"),
+    "friction": Field(one_of("none", "coulomb", "stribeck"), "none", "tangential law (memoryless)"),
+    "mu": Field(nonnegative, OPTIONAL, "friction coefficient (stribeck: the dynamic one)"),
+    "mu_static": Field(nonnegative, OPTIONAL, "stribeck: static coefficient (default mu)"),
+    "slip_speed": Field(positive, 1e-4, "regularisation: F_t = mu F_n tanh(s / slip_speed) [m/s]"),
+    "stribeck_speed": Field(positive, 1e-2, "stribeck: decay speed from mu_static to mu [m/s]"),
+    "viscous": Field(nonnegative, 0.0, "stribeck: viscous friction coefficient [N s/m]"),
+}, "what acts where two collision groups touch")
+
+COLLISION = Table({
+    "groups": Field(group_table, {}, "group name -> bodies (names or fnmatch patterns); default: one group "
+                    "'bodies' with every rigid body that has a shape. 'ground' is the ground shapes"),
+    "pairs": Field(ArrayOf(COLLISION_PAIR), list, "which groups collide, and the law where they touch"),
+    "ground": Field(ArrayOf(GROUND_SHAPE), list, "collision shapes fixed to ground"),
+    "skip_joined": Field(boolean, True, "bodies joined to each other never collide"),
+    "max_contacts": Field(positive_int, 4, "contacts kept per pair of shapes"),
+    "merge_distance": Field(nonnegative, 0.0, "contacts of one pair closer than this are one [m] (0: a tenth of the "
+                            "smaller shape's size)"),
+    "rim_points": Field(positive_int, 16, "cylinders against planes: points on each end rim"),
+    "triangle_meshes": Field(names, [], "bodies whose mesh shape collides as its triangles (default: its convex "
+                             "hull)"),
+}, "contacts between body shapes found by the collision library (FCL): broad phase, groups, laws")
 
 GAUGE = Table({
     "name": Field(name, doc="gauge name"),
@@ -380,6 +452,7 @@ SCENE_FILE = Table({
     "drives": Field(ArrayOf(DRIVE), list, "drives (prescribed joint coordinates)"),
     "forces": Field(ArrayOf(FORCE), list, "force elements"),
     "contacts": Field(ArrayOf(CONTACT), list, "contacts"),
+    "collision": Field(COLLISION, OPTIONAL, "contacts between shapes (collision library)"),
     "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
     "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),

@@ -1,0 +1,564 @@
+"""Contacts between body shapes that a collision library finds: the glue to Coal (hpp-fcl's successor).
+
+Every rigid body with a shape, and every ground shape, is a collision shape. At each evaluation of
+the forces the shapes are placed at the bodies' poses; the broad phase proposes the pairs whose
+bounding spheres (moving shapes) or boxes (ground shapes) overlap, from a k-d tree per collision
+group (``scipy.spatial.cKDTree``: O(N log N) per group, never the O(N^2) pair list), and only for
+the pairs of groups the scene declares. Coal's narrow phase then gives each touching pair its
+normal, penetration depth and contact patch (the polygon where the shapes touch, each point with
+its witness on both surfaces: a box on a box gets the corners of their overlap). Infinite planes
+are not in the broad phase: a shape's *support points* (a sphere's centre with its radius, a
+capsule's two end spheres, a box's corners, a cylinder's rim points, a convex or triangle mesh's
+vertices) are tested against each plane directly, one contact per point below it, exact for
+everything but the cylinder's rim (``rim_points`` chords).
+
+Each contact acts as a penalty contact stepped through (no events located): its pair's normal law
+(one without contact memory: linear, Hertz, the rate laws with a fixed ``damping_factor``) plus an
+optional linear dashpot that never pulls, and a memoryless friction law, at the contact point:
+
+    alpha = penetration depth,   alpha_dot = -n . (v_A(p) - v_B(p)),
+    F = max(law(alpha, alpha_dot) + c alpha_dot, 0),   f_A = F n + f_t,   f_B = -f_A,
+
+with ``n`` the unit normal pointing from B towards A (A is pushed along ``+n``) and ``p`` the middle
+of the two witness points. Every contact point carries the pair's law. ``potential_energy`` is the
+laws' elastic energy; the dashpots', the rate laws' and friction's power is ``nonconservative_power``.
+
+Triangle meshes are triangle soups: a shape overlapping several facets gets one contact per facet.
+Of a pair's contacts we keep the deepest, drop those whose normals differ from it by more than
+``COPLANAR`` (a neighbouring facet's view of the same touch), then add the farthest from those kept
+until ``max_contacts`` (a well-spread support), merging any closer than ``merge_distance``.
+
+Why Coal (3.0): sphere, capsule, box, cylinder, convex and triangle-mesh geometries; contact patches;
+and exact depths for curved shapes (it runs GJK/EPA on the shapes' cores and adds the radii): on a
+sphere against a convex cube its depth is exact to 1e-16 m where python-fcl 0.7 (libccd's EPA) was
+off by up to 2 cm on a 0.3 m sphere. The price is its size: 320 MB with Boost and Assimp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from viz3d._typing import FloatArray, IntArray
+from viz3d.forces import ForceElement
+from viz3d.kinematics import Configuration
+from viz3d.rotations import cross
+
+#: Normals within this angle [rad] of a pair's deepest contact count as the same face.
+COPLANAR = 0.05
+#: Contacts asked of Coal per pair that involves a triangle mesh (one per facet touched).
+MESH_CONTACTS = 32
+#: Shapes whose contact with anything is a single point, and curved ones (Coal's patches from the
+#: curved side first can collapse to one point; the other order is tried then).
+POINT_SHAPES, CURVED = ("sphere",), ("sphere", "capsule", "cylinder")
+
+
+def _coal():
+    import coal
+
+    return coal
+
+
+# --- shapes ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One collision shape fixed to a body (or to ground).
+
+    Attributes
+    ----------
+    name : str
+    body : int
+        Body index; ``nb``: ground.
+    kind : str
+        A key of ``GEOMETRIES``.
+    size : tuple of float
+        sphere (r,), capsule (r, h), box (a, b, c), cylinder (r, h), plane (); meshes ().
+    B_r : ndarray, shape (3,)
+        Shape origin in body axes from the body's frame origin (ground: world) [m].
+    B_R : ndarray, shape (3, 3)
+        Body-from-shape rotation.
+    vertices : ndarray, shape (m, 3)
+        Mesh vertices in shape axes [m] (convex: its hull's) (others: empty).
+    faces : ndarray of int, shape (f, 3)
+        Mesh triangles (others: empty).
+    support : ndarray, shape (s, 4)
+        Support points against a plane: centre in shape axes [m] and radius [m].
+    group : int
+        Index into ``Collisions.groups``.
+    normal : ndarray, shape (3,)
+        Planes: outward normal in shape axes (the plane passes through the shape origin).
+    """
+
+    name: str
+    body: int
+    kind: str
+    size: tuple = ()
+    B_r: FloatArray = field(default_factory=lambda: np.zeros(3))
+    B_R: FloatArray = field(default_factory=lambda: np.eye(3))
+    vertices: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    faces: IntArray = field(default_factory=lambda: np.zeros((0, 3), int))
+    support: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
+    group: int = 0
+    normal: FloatArray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius of a sphere about the shape origin holding the shape [m] (planes: inf)."""
+        if self.kind == "plane":
+            return np.inf
+        if len(self.vertices):
+            return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+        return float(np.max(np.linalg.norm(self.support[:, :3], axis=1) + self.support[:, 3]))
+
+
+def _sphere(s: Shape):
+    return _coal().Sphere(s.size[0])
+
+
+def _capsule(s: Shape):
+    return _coal().Capsule(s.size[0], s.size[1])
+
+
+def _box(s: Shape):
+    return _coal().Box(*s.size)
+
+
+def _cylinder(s: Shape):
+    return _coal().Cylinder(s.size[0], s.size[1])
+
+
+def _bvh(s: Shape):
+    bvh = _coal().BVHModelOBBRSS()
+    bvh.beginModel(len(s.faces), len(s.vertices))
+    bvh.addVertices(np.asarray(s.vertices, float))
+    bvh.addTriangles(np.asarray(s.faces, np.int64))
+    bvh.endModel()
+    return bvh
+
+
+def _convex(s: Shape):
+    bvh = _bvh(s)
+    bvh.buildConvexHull(True, "Qt")
+    return bvh.convex
+
+
+#: Collision geometries: shape kind -> Coal geometry of a ``Shape`` (planes are handled here, not by Coal).
+GEOMETRIES = {"sphere": _sphere, "capsule": _capsule, "box": _box, "cylinder": _cylinder, "convex": _convex,
+              "mesh": _bvh, "plane": None}
+
+
+def support_points(kind: str, size: tuple, vertices: FloatArray, rim_points: int = 16) -> FloatArray:
+    """Support points of a shape against a plane (s, 4): centre in shape axes [m] and radius [m]."""
+    if kind == "sphere":
+        return np.array([[0.0, 0.0, 0.0, size[0]]])
+    if kind == "capsule":
+        h = 0.5 * size[1]
+        return np.array([[0.0, 0.0, h, size[0]], [0.0, 0.0, -h, size[0]]])
+    if kind == "box":
+        half = 0.5 * np.asarray(size, float)
+        corners = [half * np.array([sx, sy, sz]) for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)]
+        return np.column_stack([corners, np.zeros(8)])
+    if kind == "cylinder":
+        r, h = size[0], 0.5 * size[1]
+        a = 2 * np.pi * np.arange(rim_points) / rim_points
+        rim = [[r * np.cos(t), r * np.sin(t), z] for z in (h, -h) for t in a]
+        return np.column_stack([rim, np.zeros(2 * rim_points)])
+    if kind in ("convex", "mesh"):
+        return np.column_stack([vertices, np.zeros(len(vertices))])
+    return np.zeros((0, 4))
+
+
+def convex_hull(vertices: FloatArray) -> tuple[FloatArray, IntArray]:
+    """Vertices and outward triangles of the convex hull of ``vertices`` (m, 3) (scipy's Qhull)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(vertices)
+    faces = hull.simplices.copy()
+    centre = vertices[hull.vertices].mean(axis=0)
+    v = vertices[faces]
+    outward = np.einsum("ki,ki->k", np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), v[:, 0] - centre) > 0
+    faces[~outward] = faces[~outward][:, ::-1]
+    used, inverse = np.unique(faces, return_inverse=True)
+    return vertices[used], inverse.reshape(-1, 3)
+
+
+# --- pair laws ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PairLaw:
+    """What acts where two groups touch.
+
+    Attributes
+    ----------
+    law : NormalLaw
+        A law without contact memory (``law.memoryless``); with ``hertz_modulus`` its stiffness is
+        replaced per pair of spheres (or sphere and plane) by Hertz's ``4/3 E* sqrt(R)``.
+    damping : float
+        Linear dashpot added to the law [N s/m] (never pulls).
+    friction : FrictionLaw or None
+        Memoryless tangential law (``viz3d.contact.friction``).
+    hertz_modulus : float
+        ``E*`` [Pa] when the stiffness comes from the shapes' radii; NaN otherwise.
+    """
+
+    law: object
+    damping: float = 0.0
+    friction: object = None
+    hertz_modulus: float = np.nan
+
+
+@dataclass(frozen=True)
+class Touches:
+    """Contacts found at one configuration (m of them).
+
+    Attributes
+    ----------
+    shape : ndarray of int, shape (m, 2)
+        Shapes A and B.
+    body : ndarray of int, shape (m, 2)
+    law : ndarray of int, shape (m,)
+        Index into ``Collisions.laws``.
+    point : ndarray, shape (m, 3)
+        Contact point, world [m].
+    n : ndarray, shape (m, 3)
+        Unit normal from B towards A.
+    depth : ndarray, shape (m,)
+        Penetration depth ``alpha > 0`` [m].
+    """
+
+    shape: IntArray
+    body: IntArray
+    law: IntArray
+    point: FloatArray
+    n: FloatArray
+    depth: FloatArray
+
+    @property
+    def m(self) -> int:
+        return len(self.depth)
+
+
+def _world_box(s: Shape) -> tuple[FloatArray, FloatArray]:
+    """World axis-aligned box (lower, upper corners) of a ground shape [m]: its transformed vertices,
+    or its bounding sphere."""
+    if len(s.vertices):
+        p = s.B_r + s.vertices @ np.asarray(s.B_R).T
+        return p.min(axis=0), p.max(axis=0)
+    return s.B_r - s.bounding_radius, s.B_r + s.bounding_radius
+
+
+def _no_touches() -> Touches:
+    return Touches(np.zeros((0, 2), int), np.zeros((0, 2), int), np.zeros(0, int), np.zeros((0, 3)), np.zeros((0, 3)),
+                   np.zeros(0))
+
+
+# --- the force element -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Collisions(ForceElement):
+    """Contact forces between every pair of shapes whose groups a scene declares (module docstring).
+
+    Attributes
+    ----------
+    shapes : tuple of Shape
+    groups : tuple of str
+    pair_law : ndarray of int, shape (G, G)
+        Index into ``laws`` of each pair of groups (symmetric), -1: they do not collide.
+    laws : tuple of PairLaw
+    n_bodies : int
+        Number of bodies (the body index of ground).
+    excluded : frozenset of (int, int)
+        Body pairs that never collide (lower index first): bodies joined to each other.
+    max_contacts : int
+        Contacts kept per pair of shapes.
+    merge_distance : float
+        Contacts of one pair closer than this are one [m]; 0: a tenth of the smaller shape's
+        bounding radius.
+    """
+
+    type_name: ClassVar[str] = "collisions"
+    shapes: tuple[Shape, ...]
+    groups: tuple[str, ...]
+    pair_law: IntArray
+    laws: tuple[PairLaw, ...]
+    n_bodies: int
+    excluded: frozenset = frozenset()
+    max_contacts: int = 4
+    merge_distance: float = 0.0
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __getstate__(self):  # Coal objects do not pickle: rebuilt on first use
+        state = dict(self.__dict__)
+        state["_cache"] = {}
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
+    # ------------------------------------------------------------------ the collision scene
+
+    def _world(self) -> dict:
+        """Coal geometries and requests, the bounding radii of moving shapes and the world boxes of
+        ground shapes, built once."""
+        w = self._cache
+        if w:
+            return w
+        coal = _coal()
+        w["geometry"] = [None if GEOMETRIES[s.kind] is None else GEOMETRIES[s.kind](s) for s in self.shapes]
+        w["radius"] = np.array([s.bounding_radius for s in self.shapes])
+        w["moving"] = np.array([s.body != self.n_bodies and s.kind != "plane" for s in self.shapes])
+        w["box"] = {i: _world_box(s) for i, s in enumerate(self.shapes) if s.body == self.n_bodies and s.kind != "plane"}
+        for key, n in (("point", 1), ("mesh", MESH_CONTACTS)):
+            req = coal.CollisionRequest()
+            req.enable_contact, req.num_max_contacts = True, n
+            w[key] = req
+        w["patch"] = coal.ContactPatchRequest()
+        return w
+
+    def shape_poses(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """World origins (S, 3) and rotations (S, 3, 3) of every shape."""
+        body = np.array([s.body for s in self.shapes], int)
+        R_b, r_b = cfg.pose.R_WB[body], cfg.pose.W_r[body]
+        B_R = np.array([s.B_R for s in self.shapes], float)
+        B_r = np.array([s.B_r for s in self.shapes], float)
+        return r_b + np.einsum("kij,kj->ki", R_b, B_r), R_b @ B_R
+
+    # ------------------------------------------------------------------ detection
+
+    def detect(self, cfg: Configuration) -> Touches:
+        """Every contact between shapes of colliding groups at this configuration (``Touches``)."""
+        if not self.shapes:
+            return _no_touches()
+        w = self._world()
+        r, R = self.shape_poses(cfg)
+        found: dict[tuple[int, int], list] = {}
+        coal = _coal()
+        tf = {}
+        for i, j in self.candidates(r):
+            for k in (i, j):
+                if k not in tf:
+                    tf[k] = coal.Transform3s(R[k], r[k])
+            self._narrow(w, i, j, tf, found)
+        self._planes(found, r, R)
+        return self._reduce(found)
+
+    def candidates(self, r: FloatArray) -> list[tuple[int, int]]:
+        """Broad phase: pairs of shapes (i, j) of colliding groups whose bounds overlap at shape origins
+        ``r`` (S, 3): bounding spheres of moving shapes from a k-d tree per group, ground shapes' world
+        boxes against the moving spheres' boxes; joined and same-body pairs left out."""
+        from scipy.spatial import cKDTree
+
+        w = self._world()
+        rho, moving = w["radius"], w["moving"]
+        members = [np.flatnonzero(moving & (np.array([s.group for s in self.shapes]) == g))
+                   for g in range(len(self.groups))]
+        trees = {}
+        pairs: list[tuple[int, int]] = []
+        G = len(self.groups)
+        for g1 in range(G):
+            for g2 in range(g1, G):
+                if self.pair_law[g1, g2] < 0 or not len(members[g1]) or not len(members[g2]):
+                    continue
+                for g in (g1, g2):
+                    if g not in trees:
+                        trees[g] = cKDTree(r[members[g]])
+                if g1 == g2:
+                    local = trees[g1].query_pairs(2.0 * rho[members[g1]].max(), output_type="ndarray")
+                    ij = members[g1][local]
+                else:
+                    near = trees[g2].query_ball_point(r[members[g1]], rho[members[g1]] + rho[members[g2]].max())
+                    ij = np.array([(i, members[g2][k]) for i, ks in zip(members[g1], near) for k in ks], int).reshape(-1, 2)
+                if len(ij):
+                    close = np.linalg.norm(r[ij[:, 0]] - r[ij[:, 1]], axis=1) <= rho[ij[:, 0]] + rho[ij[:, 1]]
+                    pairs += [tuple(p) for p in ij[close]]
+        for k, (lo, hi) in w["box"].items():
+            gk = self.shapes[k].group
+            for g in range(G):
+                if self.pair_law[g, gk] < 0 or not len(members[g]):
+                    continue
+                m = members[g]
+                hit = np.all((r[m] + rho[m, None] >= lo) & (r[m] - rho[m, None] <= hi), axis=1)
+                pairs += [(int(i), k) for i in m[hit]]
+        return [(i, j) for i, j in pairs if self._allowed(i, j)]
+
+    def _allowed(self, i: int, j: int) -> bool:
+        bi, bj = self.shapes[i].body, self.shapes[j].body
+        return bi != bj and (min(bi, bj), max(bi, bj)) not in self.excluded
+
+    def _narrow(self, w: dict, i: int, j: int, tf: dict, found: dict) -> None:
+        """Coal's contacts of shapes i and j, filed by ``_book`` (triangle meshes: one per facet;
+        otherwise the contact patch's points with their depths from the witness points)."""
+        coal = _coal()
+        si, sj = self.shapes[i], self.shapes[j]
+        mesh = "mesh" in (si.kind, sj.kind)
+        res = coal.CollisionResult()
+        coal.collide(w["geometry"][i], tf[i], w["geometry"][j], tf[j], w["mesh" if mesh else "point"], res)
+        if not res.isCollision():
+            return
+        contacts = res.getContacts()
+        if mesh or si.kind in POINT_SHAPES or sj.kind in POINT_SHAPES:
+            for c in contacts:  # depth from the witness points (Coal's own depth may carry EPA's 1e-11)
+                p_i, p_j, n = np.asarray(c.getNearestPoint1()), np.asarray(c.getNearestPoint2()), np.asarray(c.normal)
+                self._book(found, i, j, 0.5 * (p_i + p_j), n, float((p_i - p_j) @ n))
+            return
+        a, b, n, pts = self._patch(w, i, j, tf, res)
+        if sj.kind in CURVED and len(pts) <= 1:  # try the patch from the other side
+            res2 = coal.CollisionResult()
+            coal.collide(w["geometry"][j], tf[j], w["geometry"][i], tf[i], w["point"], res2)
+            if res2.isCollision():
+                other = self._patch(w, j, i, tf, res2)
+                a, b, n, pts = other if len(other[3]) > len(pts) else (a, b, n, pts)
+        c = (res if a == i else res2).getContacts()[0]
+        exact = float((np.asarray(c.getNearestPoint1()) - np.asarray(c.getNearestPoint2())) @ n)
+        depths = [float((p_a - p_b) @ n) for p_a, p_b in pts]
+        shift = max(depths) - exact  # the patch's points carry EPA's 1e-11; the witness points do not
+        for (p_a, p_b), depth in zip(pts, depths):
+            self._book(found, a, b, 0.5 * (p_a + p_b), n, depth - shift)
+
+    def _patch(self, w: dict, i: int, j: int, tf: dict, res) -> tuple[int, int, FloatArray, list]:
+        """``(i, j, n, [(witness on i, witness on j), ...])`` of a collision result's contact patch, with
+        ``n`` the normal from i to j."""
+        coal = _coal()
+        c = res.getContacts()[0]
+        n = np.asarray(c.normal, float)
+        out = coal.ContactPatchResult(w["patch"])
+        coal.computeContactPatch(w["geometry"][i], tf[i], w["geometry"][j], tf[j], res, w["patch"], out)
+        if out.numContactPatches() == 0:
+            return i, j, n, [(np.asarray(c.getNearestPoint1()), np.asarray(c.getNearestPoint2()))]
+        patch = out.getContactPatch(0)
+        return i, j, n, [(np.asarray(patch.getPointShape1(k)), np.asarray(patch.getPointShape2(k)))
+                         for k in range(patch.size())]
+
+    def _book(self, found: dict, i: int, j: int, pos, normal, depth: float) -> None:
+        """File one raw contact under its pair, A the moving (or lower-index) shape, ``n`` from B to A."""
+        if depth <= 0.0:
+            return
+        si, sj = self.shapes[i], self.shapes[j]
+        n = -np.asarray(normal, float)  # Coal's normal points from shape i to j: j pushes i back along -normal
+        if sj.body != self.n_bodies and (si.body == self.n_bodies or j < i):
+            i, j, n = j, i, -n
+        found.setdefault((i, j), []).append((np.asarray(pos, float), n, float(depth)))
+
+    def _planes(self, found: dict, r: FloatArray, R: FloatArray) -> None:
+        """Support points of moving shapes below ground planes of a colliding group."""
+        planes = [k for k, s in enumerate(self.shapes) if s.kind == "plane"]
+        for k in planes:
+            P = self.shapes[k]
+            n = R[k] @ P.normal
+            for i, s in enumerate(self.shapes):
+                if s.body == self.n_bodies or self.pair_law[s.group, P.group] < 0 or not len(s.support):
+                    continue
+                centres = r[i] + s.support[:, :3] @ R[i].T
+                depth = s.support[:, 3] - (centres - r[k]) @ n
+                for c, a, rad in zip(centres[depth > 0], depth[depth > 0], s.support[depth > 0, 3]):
+                    found.setdefault((i, k), []).append((c - (rad - 0.5 * a) * n, n, float(a)))
+
+    def _reduce(self, found: dict) -> Touches:
+        """Per pair: the deepest contact and, among those on its face (``COPLANAR``), the farthest from
+        the ones kept until ``max_contacts``, none closer than the merge distance to another."""
+        rows = []
+        for (i, j) in sorted(found):
+            raw = sorted(found[(i, j)], key=lambda c: -c[2])
+            merge = self.merge_distance or 0.1 * min(self.shapes[i].bounding_radius, self.shapes[j].bounding_radius)
+            face = [c for c in raw if c[1] @ raw[0][1] >= np.cos(COPLANAR)]
+            kept = [face[0]]
+            rest = face[1:]
+            while rest and len(kept) < self.max_contacts:
+                gap = [min(np.linalg.norm(c[0] - k[0]) for k in kept) for c in rest]
+                best = int(np.argmax(gap))
+                if gap[best] <= merge:
+                    break
+                kept.append(rest.pop(best))
+            law = self.pair_law[self.shapes[i].group, self.shapes[j].group]
+            rows += [(i, j, law, p, n, a) for p, n, a in kept]
+        if not rows:
+            return _no_touches()
+        shape = np.array([[r[0], r[1]] for r in rows], int)
+        body = np.array([[self.shapes[i].body, self.shapes[j].body] for i, j in shape], int)
+        return Touches(shape, body, np.array([r[2] for r in rows], int), np.array([r[3] for r in rows]),
+                       np.array([r[4] for r in rows]), np.array([r[5] for r in rows]))
+
+    # ------------------------------------------------------------------ forces
+
+    def _law(self, k: int, si: int, sj: int):
+        pl = self.laws[k]
+        if np.isnan(pl.hertz_modulus):
+            return pl.law
+        from dataclasses import replace
+
+        from viz3d.contact.parameters import hertz_stiffness
+
+        radii = [self.shapes[s].size[0] if self.shapes[s].kind == "sphere" else np.inf for s in (si, sj)]
+        R = 1.0 / sum(1.0 / x for x in radii)
+        return replace(pl.law, stiffness=float(hertz_stiffness(pl.hertz_modulus, R)))
+
+    def evaluate(self, cfg: Configuration, touches: Touches | None = None):
+        """``(touches, alpha_dot (m,), F (m,), F_el (m,), f (m, 3), v_t (m, 3))``: indentation rates, normal
+        forces, their elastic parts, the total force on A and the slip velocities."""
+        tc = self.detect(cfg) if touches is None else touches
+        m = tc.m
+        alpha_dot, F, F_el = np.zeros(m), np.zeros(m), np.zeros(m)
+        f, v_t = np.zeros((m, 3)), np.zeros((m, 3))
+        if m == 0:
+            return tc, alpha_dot, F, F_el, f, v_t
+        W_r, W_v, W_w = cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega
+        a, b = tc.body[:, 0], tc.body[:, 1]
+        v_rel = (W_v[a] + cross(W_w[a], tc.point - W_r[a])) - (W_v[b] + cross(W_w[b], tc.point - W_r[b]))
+        v_n = np.einsum("ki,ki->k", v_rel, tc.n)
+        alpha_dot = -v_n
+        v_t = v_rel - v_n[:, None] * tc.n
+        for k in range(m):
+            law = self._law(tc.law[k], *tc.shape[k])
+            F_el[k] = float(law.force(tc.depth[k], 0.0, None))
+            F[k] = max(float(law.force(tc.depth[k], alpha_dot[k], None)) + self.laws[tc.law[k]].damping * alpha_dot[k],
+                       0.0)
+            fr = self.laws[tc.law[k]].friction
+            f[k] = F[k] * tc.n[k] + (fr.vector(v_t[k], np.zeros(3), F[k]) if fr is not None and F[k] > 0 else 0.0)
+        return tc, alpha_dot, F, F_el, f, v_t
+
+    def wrench(self, cfg):
+        tc, _, _, _, f, _ = self.evaluate(cfg)
+        rows = cfg.pose.W_r.shape[0]
+        W_F, W_tau = np.zeros((rows, 3)), np.zeros((rows, 3))
+        if tc.m:
+            a, b = tc.body[:, 0], tc.body[:, 1]
+            np.add.at(W_F, a, f)
+            np.add.at(W_F, b, -f)
+            np.add.at(W_tau, a, cross(tc.point - cfg.pose.W_r[a], f))
+            np.add.at(W_tau, b, -cross(tc.point - cfg.pose.W_r[b], f))
+        return W_F, W_tau, None
+
+    def potential_energy(self, cfg):
+        """Elastic energy of the laws at the current depths [J]."""
+        tc = self.detect(cfg)
+        return float(sum(self._law(tc.law[k], *tc.shape[k]).elastic_energy(tc.depth[k], None) for k in range(tc.m)))
+
+    @property
+    def conservative(self) -> bool:
+        return all(not pl.law.dissipative and pl.damping == 0.0 and pl.friction is None for pl in self.laws)
+
+    def nonconservative_power(self, cfg):
+        """Power of the dashpots, the rate laws' damping and friction on the bodies [W] (<= 0)."""
+        tc, alpha_dot, F, F_el, f, v_t = self.evaluate(cfg)
+        if not tc.m:
+            return 0.0
+        f_t = f - F[:, None] * tc.n
+        return float(-np.sum((F - F_el) * alpha_dot) + np.sum(np.einsum("ki,ki->k", f_t, v_t)))
+
+    def contacts(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+        """Contact points (m, 3) that carry a force, and the force on A there (m, 3), for display."""
+        tc, _, F, _, f, _ = self.evaluate(cfg)
+        on = F > 0.0
+        return tc.point[on], f[on]
+
+    def scalars(self, cfg: Configuration) -> dict[str, float]:
+        """Frame scalars: number of contacts, deepest penetration [m], total normal force [N]."""
+        tc, _, F, _, _, _ = self.evaluate(cfg)
+        return {"collision/contacts": float(tc.m), "collision/max_depth": float(tc.depth.max(initial=0.0)),
+                "collision/normal_force": float(F.sum())}
