@@ -179,3 +179,44 @@ def test_the_convex_hull_keeps_outward_triangles_and_only_hull_vertices():
     assert np.all(np.einsum("ki,ki->k", normals, tri[:, 0] - centre) > 0)
     # every input point lies inside every face plane
     assert np.all(np.einsum("ki,pi->pk", normals, points) - np.einsum("ki,ki->k", normals, tri[:, 0]) <= 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_broad_phase_proposes_exactly_the_overlapping_bounds_of_colliding_groups(seed):
+    """k-d tree per group against the brute-force list of all pairs: the same set, groups that do not
+    collide and joined bodies left out; a ground box proposes the moving shapes its box overlaps."""
+    rng = np.random.default_rng(400 + seed)
+    n = 120
+    radii = rng.uniform(0.02, 0.15, n)
+    group = rng.integers(0, 3, n)  # groups a, b, c: a-a, a-b and c-ground collide, b-b and b-c do not
+    shapes = [_shape(f"s{i}", i, "sphere", (radii[i],), group=int(group[i])) for i in range(n)]
+    shapes.append(_shape("table", n, "box", (1.0, 1.0, 0.2), group=3, B_r=np.array([0.5, 0.5, 0.0])))
+    excluded = frozenset({(0, 1), (2, 3)})
+    world = _world(shapes, n, groups=("a", "b", "c", "ground"), pairs=((0, 0), (0, 1), (2, 3)), excluded=excluded)
+    centres = rng.uniform(0.0, 1.0, (n, 3))
+    got = {tuple(sorted(p)) for p in world.candidates(np.vstack([centres, [[0.5, 0.5, 0.0]]]))}
+    colliding = {(0, 0), (0, 1), (1, 0)}
+    expected = {(i, j) for i in range(n) for j in range(i + 1, n)
+                if (group[i], group[j]) in colliding and (i, j) not in excluded
+                and np.linalg.norm(centres[i] - centres[j]) <= radii[i] + radii[j]}
+    lo, hi = np.array([0.0, 0.0, -0.1]), np.array([1.0, 1.0, 0.1])
+    expected |= {(i, n) for i in range(n) if group[i] == 2 and np.all(centres[i] + radii[i] >= lo - 1e-12)
+                 and np.all(centres[i] - radii[i] <= hi + 1e-12)}
+    assert got == expected
+    assert len(expected) < n * (n - 1) / 2 / 20  # what a broad phase is for
+
+
+def test_segment_distance_matches_the_minimised_distance_including_degenerate_segments():
+    from viz3d.contact.collision import segment_distance
+
+    rng = np.random.default_rng(9)
+    p0, p1, q0, q1 = (rng.normal(size=(40, 3)) for _ in range(4))
+    p1[:5] = p0[:5]  # points against segments
+    q1[5:8] = q0[5:8]
+    u = np.cross(p1[8:12] - p0[8:12], rng.normal(size=(4, 3)))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    q0[8:12], q1[8:12] = p0[8:12] + u, p1[8:12] + u  # parallel, 1 apart
+    got = segment_distance(p0, p1, q0, q1)
+    for k in range(40):
+        assert got[k] == pytest.approx(_segment_distance(p0[k], p1[k], q0[k], q1[k]), abs=1e-7)
+    np.testing.assert_allclose(got[8:12], 1.0, atol=1e-14)

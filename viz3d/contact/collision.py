@@ -244,12 +244,37 @@ class Touches:
 
 
 def _world_box(s: Shape) -> tuple[FloatArray, FloatArray]:
-    """World axis-aligned box (lower, upper corners) of a ground shape [m]: its transformed vertices,
-    or its bounding sphere."""
+    """World axis-aligned box (lower, upper corners) of a ground shape [m], exact but for cylinders
+    (the box of their enclosing square prism)."""
     if len(s.vertices):
-        p = s.B_r + s.vertices @ np.asarray(s.B_R).T
-        return p.min(axis=0), p.max(axis=0)
-    return s.B_r - s.bounding_radius, s.B_r + s.bounding_radius
+        centres, radius = s.vertices, np.zeros(len(s.vertices))
+    elif s.kind == "cylinder":
+        r, h = s.size[0], 0.5 * s.size[1]
+        centres = np.array([[x, y, z] for x in (-r, r) for y in (-r, r) for z in (-h, h)])
+        radius = np.zeros(8)
+    else:
+        centres, radius = s.support[:, :3], s.support[:, 3]
+    p = s.B_r + centres @ np.asarray(s.B_R).T
+    return (p - radius[:, None]).min(axis=0), (p + radius[:, None]).max(axis=0)
+
+
+def segment_distance(p0: FloatArray, p1: FloatArray, q0: FloatArray, q1: FloatArray) -> FloatArray:
+    """Distance between segments p0-p1 and q0-q1 (k, 3 each) [m], shape (k,): the closest points by
+    clamping the parameters of the infinite lines' closest points (Ericson, Real-Time Collision
+    Detection, sec. 5.1.9), zero-length segments included."""
+    d1, d2, w = p1 - p0, q1 - q0, p0 - q0
+    a, e = np.einsum("ki,ki->k", d1, d1), np.einsum("ki,ki->k", d2, d2)
+    b, c, f = np.einsum("ki,ki->k", d1, d2), np.einsum("ki,ki->k", d1, w), np.einsum("ki,ki->k", d2, w)
+    tiny = 1e-300
+    den = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(den > tiny * np.maximum(a * e, tiny), np.clip((b * f - c * e) / den, 0.0, 1.0), 0.0)
+        s = np.where(e > tiny, s, np.clip(-c / a, 0.0, 1.0))  # q a point: p's parameter nearest it
+        s = np.where(a > tiny, s, 0.0)
+        t = np.where(e > tiny, (b * s + f) / e, 0.0)
+        t_c = np.clip(t, 0.0, 1.0)
+        s = np.where((t != t_c) & (a > tiny), np.clip((b * t_c - c) / a, 0.0, 1.0), s)
+    return np.linalg.norm(p0 + s[:, None] * d1 - q0 - t_c[:, None] * d2, axis=1)
 
 
 def _no_touches() -> Touches:
@@ -340,7 +365,7 @@ class Collisions(ForceElement):
         found: dict[tuple[int, int], list] = {}
         coal = _coal()
         tf = {}
-        for i, j in self.candidates(r):
+        for i, j in self.candidates(r, R):
             for k in (i, j):
                 if k not in tf:
                     tf[k] = coal.Transform3s(R[k], r[k])
@@ -348,10 +373,12 @@ class Collisions(ForceElement):
         self._planes(found, r, R)
         return self._reduce(found)
 
-    def candidates(self, r: FloatArray) -> list[tuple[int, int]]:
+    def candidates(self, r: FloatArray, R: FloatArray | None = None) -> list[tuple[int, int]]:
         """Broad phase: pairs of shapes (i, j) of colliding groups whose bounds overlap at shape origins
         ``r`` (S, 3): bounding spheres of moving shapes from a k-d tree per group, ground shapes' world
-        boxes against the moving spheres' boxes; joined and same-body pairs left out."""
+        boxes against the moving spheres' boxes; joined and same-body pairs left out. With the
+        rotations ``R`` (S, 3, 3), pairs of spheres and capsules whose cores (point or segment plus
+        radius) do not overlap are dropped as well: an exact test, vectorised."""
         from scipy.spatial import cKDTree
 
         w = self._world()
@@ -385,7 +412,21 @@ class Collisions(ForceElement):
                 m = members[g]
                 hit = np.all((r[m] + rho[m, None] >= lo) & (r[m] - rho[m, None] <= hi), axis=1)
                 pairs += [(int(i), k) for i in m[hit]]
-        return [(i, j) for i, j in pairs if self._allowed(i, j)]
+        pairs = [(i, j) for i, j in pairs if self._allowed(i, j)]
+        return self._cores_overlap(pairs, r, R) if R is not None else pairs
+
+    def _cores_overlap(self, pairs: list, r: FloatArray, R: FloatArray) -> list:
+        """Pairs whose shapes are not both spheres or capsules, and those whose cores overlap."""
+        if not pairs:
+            return pairs
+        ij = np.array(pairs, int)
+        half = np.array([0.5 * s.size[1] if s.kind == "capsule" else 0.0 for s in self.shapes])
+        radius = np.array([s.size[0] if s.kind in ("sphere", "capsule") else np.nan for s in self.shapes])
+        axis = R[:, :, 2] * half[:, None]
+        i, j = ij[:, 0], ij[:, 1]
+        d = segment_distance(r[i] - axis[i], r[i] + axis[i], r[j] - axis[j], r[j] + axis[j])
+        keep = ~(d > radius[i] + radius[j])  # NaN radius (other shapes): kept
+        return [tuple(p) for p in ij[keep]]
 
     def _allowed(self, i: int, j: int) -> bool:
         bi, bj = self.shapes[i].body, self.shapes[j].body
@@ -465,7 +506,7 @@ class Collisions(ForceElement):
         rows = []
         for (i, j) in sorted(found):
             raw = sorted(found[(i, j)], key=lambda c: -c[2])
-            merge = self.merge_distance or 0.1 * min(self.shapes[i].bounding_radius, self.shapes[j].bounding_radius)
+            merge = self.merge_distance or 0.1 * min(self._world()["radius"][i], self._world()["radius"][j])
             face = [c for c in raw if c[1] @ raw[0][1] >= np.cos(COPLANAR)]
             kept = [face[0]]
             rest = face[1:]
@@ -486,17 +527,16 @@ class Collisions(ForceElement):
 
     # ------------------------------------------------------------------ forces
 
-    def _law(self, k: int, si: int, sj: int):
+    def _stiffness_scale(self, tc: Touches, mask: np.ndarray, k: int) -> FloatArray | float:
+        """Factor on the law's force for the contacts ``mask`` of pair law ``k``: 1, or Hertz's
+        ``4/3 E* sqrt(R)`` of each pair of spheres (or sphere and plane; the law's stiffness is 1)."""
         pl = self.laws[k]
         if np.isnan(pl.hertz_modulus):
-            return pl.law
-        from dataclasses import replace
-
+            return 1.0
         from viz3d.contact.parameters import hertz_stiffness
 
-        radii = [self.shapes[s].size[0] if self.shapes[s].kind == "sphere" else np.inf for s in (si, sj)]
-        R = 1.0 / sum(1.0 / x for x in radii)
-        return replace(pl.law, stiffness=float(hertz_stiffness(pl.hertz_modulus, R)))
+        curvature = np.array([1.0 / s.size[0] if s.kind == "sphere" else 0.0 for s in self.shapes])
+        return hertz_stiffness(pl.hertz_modulus, 1.0 / curvature[tc.shape[mask]].sum(axis=1))
 
     def evaluate(self, cfg: Configuration, touches: Touches | None = None):
         """``(touches, alpha_dot (m,), F (m,), F_el (m,), f (m, 3), v_t (m, 3))``: indentation rates, normal
@@ -513,13 +553,19 @@ class Collisions(ForceElement):
         v_n = np.einsum("ki,ki->k", v_rel, tc.n)
         alpha_dot = -v_n
         v_t = v_rel - v_n[:, None] * tc.n
-        for k in range(m):
-            law = self._law(tc.law[k], *tc.shape[k])
-            F_el[k] = float(law.force(tc.depth[k], 0.0, None))
-            F[k] = max(float(law.force(tc.depth[k], alpha_dot[k], None)) + self.laws[tc.law[k]].damping * alpha_dot[k],
-                       0.0)
-            fr = self.laws[tc.law[k]].friction
-            f[k] = F[k] * tc.n[k] + (fr.vector(v_t[k], np.zeros(3), F[k]) if fr is not None and F[k] > 0 else 0.0)
+        f_t = np.zeros((m, 3))
+        for k in np.unique(tc.law):
+            on = tc.law == k
+            pl = self.laws[k]
+            scale = self._stiffness_scale(tc, on, k)
+            F_el[on] = scale * pl.law.force(tc.depth[on], np.zeros(on.sum()), None)
+            F[on] = np.maximum(scale * pl.law.force(tc.depth[on], alpha_dot[on], None) + pl.damping * alpha_dot[on], 0.0)
+            if pl.friction is not None:
+                speed = np.linalg.norm(v_t[on], axis=1)
+                moving = speed > 0.0
+                unit = np.divide(v_t[on], speed[:, None], out=np.zeros_like(v_t[on]), where=moving[:, None])
+                f_t[on] = -np.asarray(pl.friction.force(speed, F[on]))[:, None] * unit
+        f = F[:, None] * tc.n + f_t
         return tc, alpha_dot, F, F_el, f, v_t
 
     def wrench(self, cfg):
@@ -537,7 +583,11 @@ class Collisions(ForceElement):
     def potential_energy(self, cfg):
         """Elastic energy of the laws at the current depths [J]."""
         tc = self.detect(cfg)
-        return float(sum(self._law(tc.law[k], *tc.shape[k]).elastic_energy(tc.depth[k], None) for k in range(tc.m)))
+        U = 0.0
+        for k in np.unique(tc.law):
+            on = tc.law == k
+            U += float(np.sum(self._stiffness_scale(tc, on, k) * self.laws[k].law.elastic_energy(tc.depth[on], None)))
+        return U
 
     @property
     def conservative(self) -> bool:
