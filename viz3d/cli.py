@@ -526,6 +526,7 @@ def cmd_list(args) -> int:
     from viz3d.forces import FORCES
     from viz3d.formulation import FORMULATIONS
     from viz3d.integrators import INTEGRATORS
+    from viz3d.contact.collision import GEOMETRIES
     from viz3d.contact.friction import FRICTION_LAWS
     from viz3d.contact.laws import NORMAL_LAWS
     from viz3d.joints import DRIVES, JOINTS
@@ -545,7 +546,8 @@ def cmd_list(args) -> int:
             print(f"  {path.stem:<28} {_description(path)}")
     for title, names in (("integrators", INTEGRATORS), ("formulations", FORMULATIONS), ("rotations", ROTATIONS),
                          ("joints", JOINTS), ("drives", DRIVES), ("forces", FORCES), ("contact laws", NORMAL_LAWS),
-                         ("friction laws", FRICTION_LAWS), ("time functions", TIME_FUNCTIONS)):
+                         ("friction laws", FRICTION_LAWS), ("collision shapes", GEOMETRIES),
+                         ("time functions", TIME_FUNCTIONS)):
         print(f"{title}: {', '.join(names)}")
     return 0
 

@@ -63,6 +63,16 @@ def joint_fields(system, frames) -> dict:
     return out
 
 
+def collision_fields(system, frames) -> dict:
+    """Shape contacts (``[collision]``, ``viz3d.contact.collision``) as trajectory fields, none without
+    them: per frame ``collision_contacts`` (n,) how many, ``collision_max_depth`` (n,) [m] the deepest
+    penetration, ``collision_normal_force`` (n,) [N] the sum of their normal forces."""
+    if not any(getattr(e, "type_name", "") == "collisions" for e in system.forces):
+        return {}
+    keys = ("contacts", "max_depth", "normal_force")
+    return {f"collision_{k}": _series(frames, [f"collision/{k}"])[:, 0] for k in keys}
+
+
 def _series(frames, keys: list[str]) -> np.ndarray:
     """Frame scalars ``keys`` as columns, shape (n, len(keys)) (nan where the frames lack one)."""
     n = len(frames)

@@ -119,6 +119,25 @@ def test_restitution_model_gives_the_requested_coefficient_at_every_bounce():
     np.testing.assert_allclose(traj.extras["contact_restitution"], 0.7, rtol=1e-9)
 
 
+def test_linear_law_calibrated_to_a_restitution_gives_it_without_a_load():
+    """The other parametrisation of the linear law: a target restitution sets its dashpot from the
+    bodies' reduced mass (the impactor's, against the rigid wall); the no-tension Kelvin-Voigt
+    impact then restitutes it exactly (linear_damping inverts the closed form linear_restitution)."""
+    traj = viz3d.simulate(SCENES / "bouncing_sphere.toml", {
+        "contact.law": "linear", "contact.stiffness": 1e8, "contact.restitution": 0.7, "impactor.force": 0.0,
+        "impactor.gap": 0.0, "impactor.velocity": 1.0, "sim.t_end": 2e-4})
+    (t0, v_in, t1, v_out), = traj.extras["contacts"]
+    assert v_out / v_in == pytest.approx(0.7, abs=1e-6)
+
+
+def test_linear_law_with_a_restitution_and_a_damping_is_refused():
+    from viz3d.scene.schema import SceneError
+
+    with pytest.raises(SceneError, match="contact.damping"):
+        viz3d.simulate(SCENES / "bouncing_sphere.toml", {"contact.law": "linear", "contact.stiffness": 1e8,
+                                                           "contact.restitution": 0.7, "contact.damping": 3.0})
+
+
 def _three_element_bar(e, hypothesis="newton"):
     """Thesis Table 6.1's clamped bar as 3 consistent-mass rod elements (fixed frame; its 3 FE modes
     are an exact basis of the 3 nodal coordinates) struck at x = L by the bar's mass at 1 m/s, the

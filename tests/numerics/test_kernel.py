@@ -24,9 +24,19 @@ SENSITIVITY_SAMPLES = 4
 #: through a chart switch [seen ~1e-14].
 STEP_TOL = 1e-10
 
-#: Scenes of rigid bodies written as ordinary scenes (the impact shorthand has no sim.formulation key).
+#: Scenes of rigid bodies written as ordinary scenes (the impact shorthand has no sim.formulation key),
+#: without shape contacts (the collision library runs on the NumPy path: SHAPE_CONTACTS).
 RIGID = [p for p in sorted(SCENES.glob("*.toml")) if "[impactor]" not in p.read_text()
-         and all(b["type"] == "rigid" for b in viz3d.load_scene(p).data["bodies"])]
+         and all(b["type"] == "rigid" for b in viz3d.load_scene(p).data["bodies"])
+         and "collision" not in viz3d.load_scene(p).data]
+SHAPE_CONTACTS = [p for p in sorted(SCENES.glob("*.toml")) if "collision" in viz3d.load_scene(p).data]
+
+
+@pytest.mark.parametrize("path", SHAPE_CONTACTS, ids=lambda p: p.stem)
+def test_shape_contact_scenes_take_the_numpy_path_and_say_why(path):
+    _, system, state, form = _setup(path)
+    assert K.kernel_for(system, form) is None
+    assert "collisions" in K.kernel_coverage(system, form)[1]
 
 
 def _setup(path, formulation="index1", overrides=None):

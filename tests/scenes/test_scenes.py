@@ -47,6 +47,11 @@ def test_scene_runs_headless_and_passes_its_checks(path):
         assert traj.chart_switches.sum() >= checks["min_chart_switches"]
     if any(c["events"] for c in scene.data["contacts"]):  # located contacts: their ledger and report
         _contact_checks(traj, checks)
+    elif "collision" in scene.data:  # shape contacts: how many, never negative forces
+        x = traj.extras
+        assert np.all(np.isfinite(x["collision_normal_force"])) and np.all(x["collision_normal_force"] >= 0)
+        if "min_contacts" in checks:
+            assert x["collision_contacts"].max() >= checks["min_contacts"]
 
 
 def test_contact_scenes_ship():

@@ -17,7 +17,7 @@ import pytest
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from viz3d.contact.collision import Collisions, PairLaw, Shape, convex_hull, support_points
+from viz3d.contact.collision import SMALL_GROUPS, Collisions, PairLaw, Shape, convex_hull, support_points
 from viz3d.contact.laws import Linear
 from viz3d.kinematics import Configuration, pose_from, twist_from
 
@@ -181,24 +181,26 @@ def test_the_convex_hull_keeps_outward_triangles_and_only_hull_vertices():
     assert np.all(np.einsum("ki,pi->pk", normals, points) - np.einsum("ki,ki->k", normals, tri[:, 0]) <= 1e-12)
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_the_broad_phase_proposes_exactly_the_overlapping_bounds_of_colliding_groups(seed):
-    """k-d tree per group against the brute-force list of all pairs: the same set, groups that do not
-    collide and joined bodies left out; a ground box proposes the moving shapes its box overlaps."""
+@pytest.mark.parametrize("seed, n", [(0, 30), (1, 120), (2, 400), (3, 400)])
+def test_the_broad_phase_proposes_exactly_the_overlapping_bounds_of_colliding_groups(seed, n):
+    """Against the brute-force list of all pairs, with all pairs of small groups and a k-d tree per
+    large group (over ``SMALL_GROUPS`` pairs): the same set, groups that do not collide and joined
+    bodies left out; a ground box proposes the moving shapes its box overlaps."""
     rng = np.random.default_rng(400 + seed)
-    n = 120
     radii = rng.uniform(0.02, 0.15, n)
     group = rng.integers(0, 3, n)  # groups a, b, c: a-a, a-b and c-ground collide, b-b and b-c do not
     shapes = [_shape(f"s{i}", i, "sphere", (radii[i],), group=int(group[i])) for i in range(n)]
     shapes.append(_shape("table", n, "box", (1.0, 1.0, 0.2), group=3, B_r=np.array([0.5, 0.5, 0.0])))
     excluded = frozenset({(0, 1), (2, 3)})
     world = _world(shapes, n, groups=("a", "b", "c", "ground"), pairs=((0, 0), (0, 1), (2, 3)), excluded=excluded)
-    centres = rng.uniform(0.0, 1.0, (n, 3))
+    centres = rng.uniform(0.0, 1.0, (n, 3)) * (n / 120) ** (1 / 3)
     got = {tuple(sorted(p)) for p in world.candidates(np.vstack([centres, [[0.5, 0.5, 0.0]]]))}
+    assert (n * n / 9 > SMALL_GROUPS) == (n == 400)  # both paths covered
     colliding = {(0, 0), (0, 1), (1, 0)}
-    expected = {(i, j) for i in range(n) for j in range(i + 1, n)
-                if (group[i], group[j]) in colliding and (i, j) not in excluded
-                and np.linalg.norm(centres[i] - centres[j]) <= radii[i] + radii[j]}
+    I, J = np.triu_indices(n, 1)
+    overlap = np.linalg.norm(centres[I] - centres[J], axis=1) <= radii[I] + radii[J]
+    expected = {(int(i), int(j)) for i, j in zip(I[overlap], J[overlap])
+                if (group[i], group[j]) in colliding and (i, j) not in excluded}
     lo, hi = np.array([0.0, 0.0, -0.1]), np.array([1.0, 1.0, 0.1])
     expected |= {(i, n) for i in range(n) if group[i] == 2 and np.all(centres[i] + radii[i] >= lo - 1e-12)
                  and np.all(centres[i] - radii[i] <= hi + 1e-12)}

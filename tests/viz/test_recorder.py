@@ -132,3 +132,22 @@ def test_posts_are_recorded_as_static_geometry(tmp_path):
     path = tmp_path / "arm.rrd"
     viz3d.simulate(SCENES / "robot_arm.toml", t_end=0.01, sinks=[RerunRecorder(path)])
     assert ("/world/posts", True) in entities(path)
+
+
+def test_shape_contacts_are_recorded_as_arrows_and_plots(tmp_path):
+    """Collision-library contacts: their count, deepest penetration and total normal force as plots
+    (equal to the trajectory's fields), and their points and forces as /world/contacts arrows."""
+    path = tmp_path / "ramp.rrd"
+    traj = viz3d.simulate(SCENES / "shapes_on_a_ramp.toml", t_end=0.4, sinks=[RerunRecorder(path)])
+    t, n = read_scalars(path, "/plots/collision/contacts")
+    k = np.searchsorted(t, traj.t - 1e-9)
+    np.testing.assert_array_equal(n[k, 0], traj.extras["collision_contacts"])
+    assert traj.extras["collision_contacts"].max() >= 1
+    _, F = read_scalars(path, "/plots/collision/normal_force")
+    np.testing.assert_array_equal(F[k, 0], traj.extras["collision_normal_force"])
+    chunks = [c.to_record_batch() for c in RrdReader(path).stream().to_chunks()
+              if c.entity_path == "/world/contacts" and not c.is_static]  # arrows, or a Clear when none act
+    batches = [np.asarray(v, float) for rb in chunks if "Arrows3D:origins" in rb.schema.names
+               for v in rb.column("Arrows3D:origins").to_pylist() if v is not None]
+    assert batches and all(1 <= len(b) <= traj.extras["collision_contacts"].max() for b in batches)
+    assert all(np.all(np.isfinite(b)) for b in batches)

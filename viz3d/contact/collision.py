@@ -48,6 +48,8 @@ from viz3d.rotations import cross
 
 #: Normals within this angle [rad] of a pair's deepest contact count as the same face.
 COPLANAR = 0.05
+#: Below this many pairs of two groups' shapes all pairs are tested (vectorised) instead of a k-d tree.
+SMALL_GROUPS = 4096
 #: Contacts asked of Coal per pair that involves a triangle mesh (one per facet touched).
 MESH_CONTACTS = 32
 #: Shapes whose contact with anything is a single point, and curved ones (Coal's patches from the
@@ -258,6 +260,14 @@ def _world_box(s: Shape) -> tuple[FloatArray, FloatArray]:
     return (p - radius[:, None]).min(axis=0), (p + radius[:, None]).max(axis=0)
 
 
+def _all_pairs(a: IntArray, b: IntArray, same: bool) -> IntArray:
+    """Every pair (k, 2) of an index from ``a`` and one from ``b`` (``same``: a = b, each pair once)."""
+    if same:
+        x, y = np.triu_indices(len(a), 1)
+        return np.column_stack([a[x], a[y]])
+    return np.column_stack([np.repeat(a, len(b)), np.tile(b, len(a))])
+
+
 def segment_distance(p0: FloatArray, p1: FloatArray, q0: FloatArray, q1: FloatArray) -> FloatArray:
     """Distance between segments p0-p1 and q0-q1 (k, 3 each) [m], shape (k,): the closest points by
     clamping the parameters of the infinite lines' closest points (Ericson, Real-Time Collision
@@ -339,6 +349,23 @@ class Collisions(ForceElement):
         w["radius"] = np.array([s.bounding_radius for s in self.shapes])
         w["moving"] = np.array([s.body != self.n_bodies and s.kind != "plane" for s in self.shapes])
         w["box"] = {i: _world_box(s) for i, s in enumerate(self.shapes) if s.body == self.n_bodies and s.kind != "plane"}
+        group = np.array([s.group for s in self.shapes], int)
+        w["members"] = [np.flatnonzero(w["moving"] & (group == g)) for g in range(len(self.groups))]
+        w["half"] = np.array([0.5 * s.size[1] if s.kind == "capsule" else 0.0 for s in self.shapes])
+        w["core"] = np.array([s.size[0] if s.kind in ("sphere", "capsule") else np.nan for s in self.shapes])
+        w["excluded"] = np.array(sorted(self.excluded), int).reshape(-1, 2)
+        w["body"] = np.array([s.body for s in self.shapes], int)
+        w["all_pairs"] = {}
+        w["planes"] = []
+        for k, P in enumerate(self.shapes):  # per plane: the support points of the shapes it meets
+            if P.kind != "plane":
+                continue
+            meets = [i for i, s in enumerate(self.shapes) if s.body != self.n_bodies and len(s.support)
+                     and self.pair_law[s.group, P.group] >= 0]
+            owner = np.concatenate([np.full(len(self.shapes[i].support), i) for i in meets]).astype(int) if meets else \
+                np.zeros(0, int)
+            local = np.vstack([self.shapes[i].support for i in meets]) if meets else np.zeros((0, 4))
+            w["planes"].append((k, owner, local))
         for key, n in (("point", 1), ("mesh", MESH_CONTACTS)):
             req = coal.CollisionRequest()
             req.enable_contact, req.num_max_contacts = True, n
@@ -382,9 +409,7 @@ class Collisions(ForceElement):
         from scipy.spatial import cKDTree
 
         w = self._world()
-        rho, moving = w["radius"], w["moving"]
-        members = [np.flatnonzero(moving & (np.array([s.group for s in self.shapes]) == g))
-                   for g in range(len(self.groups))]
+        rho, members = w["radius"], w["members"]
         trees = {}
         pairs: list[tuple[int, int]] = []
         G = len(self.groups)
@@ -392,18 +417,24 @@ class Collisions(ForceElement):
             for g2 in range(g1, G):
                 if self.pair_law[g1, g2] < 0 or not len(members[g1]) or not len(members[g2]):
                     continue
-                for g in (g1, g2):
-                    if g not in trees:
-                        trees[g] = cKDTree(r[members[g]])
-                if g1 == g2:
-                    local = trees[g1].query_pairs(2.0 * rho[members[g1]].max(), output_type="ndarray")
-                    ij = members[g1][local]
+                if len(members[g1]) * len(members[g2]) <= SMALL_GROUPS:
+                    if (g1, g2) not in w["all_pairs"]:
+                        w["all_pairs"][g1, g2] = _all_pairs(members[g1], members[g2], g1 == g2)
+                    ij = w["all_pairs"][g1, g2]
                 else:
-                    near = trees[g2].query_ball_point(r[members[g1]], rho[members[g1]] + rho[members[g2]].max())
-                    ij = np.array([(i, members[g2][k]) for i, ks in zip(members[g1], near) for k in ks], int).reshape(-1, 2)
+                    for g in (g1, g2):
+                        if g not in trees:
+                            trees[g] = cKDTree(r[members[g]])
+                    if g1 == g2:
+                        local = trees[g1].query_pairs(2.0 * rho[members[g1]].max(), output_type="ndarray")
+                        ij = members[g1][local]
+                    else:
+                        near = trees[g2].query_ball_point(r[members[g1]], rho[members[g1]] + rho[members[g2]].max())
+                        ij = np.array([(i, members[g2][k]) for i, ks in zip(members[g1], near) for k in ks],
+                                      int).reshape(-1, 2)
                 if len(ij):
                     close = np.linalg.norm(r[ij[:, 0]] - r[ij[:, 1]], axis=1) <= rho[ij[:, 0]] + rho[ij[:, 1]]
-                    pairs += [tuple(p) for p in ij[close]]
+                    pairs.append(ij[close])
         for k, (lo, hi) in w["box"].items():
             gk = self.shapes[k].group
             for g in range(G):
@@ -411,26 +442,30 @@ class Collisions(ForceElement):
                     continue
                 m = members[g]
                 hit = np.all((r[m] + rho[m, None] >= lo) & (r[m] - rho[m, None] <= hi), axis=1)
-                pairs += [(int(i), k) for i in m[hit]]
-        pairs = [(i, j) for i, j in pairs if self._allowed(i, j)]
-        return self._cores_overlap(pairs, r, R) if R is not None else pairs
+                pairs.append(np.column_stack([m[hit], np.full(hit.sum(), k)]))
+        ij = np.vstack(pairs).astype(int) if pairs else np.zeros((0, 2), int)
+        ij = ij[self._allowed(ij)]
+        if R is not None and len(ij):
+            ij = ij[self._cores_overlap(ij, r, R)]
+        return [(int(i), int(j)) for i, j in ij]
 
-    def _cores_overlap(self, pairs: list, r: FloatArray, R: FloatArray) -> list:
-        """Pairs whose shapes are not both spheres or capsules, and those whose cores overlap."""
-        if not pairs:
-            return pairs
-        ij = np.array(pairs, int)
-        half = np.array([0.5 * s.size[1] if s.kind == "capsule" else 0.0 for s in self.shapes])
-        radius = np.array([s.size[0] if s.kind in ("sphere", "capsule") else np.nan for s in self.shapes])
-        axis = R[:, :, 2] * half[:, None]
+    def _cores_overlap(self, ij: IntArray, r: FloatArray, R: FloatArray) -> np.ndarray:
+        """Mask of the pairs ``ij`` (k, 2) to keep: not both spheres or capsules, or cores overlapping."""
+        w = self._world()
+        axis = R[:, :, 2] * w["half"][:, None]
         i, j = ij[:, 0], ij[:, 1]
         d = segment_distance(r[i] - axis[i], r[i] + axis[i], r[j] - axis[j], r[j] + axis[j])
-        keep = ~(d > radius[i] + radius[j])  # NaN radius (other shapes): kept
-        return [tuple(p) for p in ij[keep]]
+        return ~(d > w["core"][i] + w["core"][j])  # NaN core (other shapes): kept
 
-    def _allowed(self, i: int, j: int) -> bool:
-        bi, bj = self.shapes[i].body, self.shapes[j].body
-        return bi != bj and (min(bi, bj), max(bi, bj)) not in self.excluded
+    def _allowed(self, ij: IntArray) -> np.ndarray:
+        """Mask of the pairs ``ij`` (k, 2) on two different bodies not joined to each other."""
+        body = self._world()["body"][ij] if len(ij) else np.zeros((0, 2), int)
+        ok = body[:, 0] != body[:, 1]
+        ex = self._world()["excluded"]
+        if len(ex) and len(ij):
+            lo, hi = body.min(axis=1), body.max(axis=1)
+            ok &= ~np.any((lo[:, None] == ex[:, 0]) & (hi[:, None] == ex[:, 1]), axis=1)
+        return ok
 
     def _narrow(self, w: dict, i: int, j: int, tf: dict, found: dict) -> None:
         """Coal's contacts of shapes i and j, filed by ``_book`` (triangle meshes: one per facet;
@@ -488,17 +523,15 @@ class Collisions(ForceElement):
 
     def _planes(self, found: dict, r: FloatArray, R: FloatArray) -> None:
         """Support points of moving shapes below ground planes of a colliding group."""
-        planes = [k for k, s in enumerate(self.shapes) if s.kind == "plane"]
-        for k in planes:
-            P = self.shapes[k]
-            n = R[k] @ P.normal
-            for i, s in enumerate(self.shapes):
-                if s.body == self.n_bodies or self.pair_law[s.group, P.group] < 0 or not len(s.support):
-                    continue
-                centres = r[i] + s.support[:, :3] @ R[i].T
-                depth = s.support[:, 3] - (centres - r[k]) @ n
-                for c, a, rad in zip(centres[depth > 0], depth[depth > 0], s.support[depth > 0, 3]):
-                    found.setdefault((i, k), []).append((c - (rad - 0.5 * a) * n, n, float(a)))
+        for k, owner, local in self._world()["planes"]:
+            if not len(owner):
+                continue
+            n = R[k] @ self.shapes[k].normal
+            centres = r[owner] + np.einsum("kij,kj->ki", R[owner], local[:, :3])
+            depth = local[:, 3] - (centres - r[k]) @ n
+            for p in np.flatnonzero(depth > 0.0):
+                found.setdefault((int(owner[p]), k), []).append((centres[p] - (local[p, 3] - 0.5 * depth[p]) * n, n,
+                                                                  float(depth[p])))
 
     def _reduce(self, found: dict) -> Touches:
         """Per pair: the deepest contact and, among those on its face (``COPLANAR``), the farthest from

@@ -437,8 +437,9 @@ def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.einsum("kji,kj->ki", pose0.R_WB[body[:, 1]], normal)  # world -> body 2 axes at t = 0
     models, laws = [], []
-    for c, i in zip(entries, index):
-        model, law, _ = contact_law(c, contact_materials(c, scene.data["bodies"]), src, f"contacts[{i}]")
+    for k, (c, i) in enumerate(zip(entries, index)):
+        model, law, _ = contact_law(c, contact_materials(c, scene.data["bodies"]), src, f"contacts[{i}]",
+                                    _reduced_mass(bodies, body[k]))
         if not c["events"] and (model != "law" or not law.memoryless):
             raise SceneError(src, f"contacts[{i}].events", f"true for the {c['law']} law as given (it needs contact "
                              "memory; without events only laws without one act: linear, hertz, and the rate laws with "
@@ -454,6 +455,17 @@ def _contact_set(src: str, entries: list[dict], index: list[int], bodies: Bodies
                       np.array([c["radius"] for c in entries], float), tuple(models), tuple(laws),
                       np.array([c.get("restitution", 1.0) for c in entries], float),
                       tuple(c["hypothesis"] for c in entries), dashpot, entries[0]["events"], friction)
+
+
+def _reduced_mass(bodies: Bodies, pair) -> float | None:
+    """``m1 m2 / (m1 + m2)`` of two rigid bodies (ground: infinite) [kg]; None with a flexible one."""
+    inverse = 0.0
+    for b in pair:
+        if b < bodies.n_bodies:
+            if not bodies.is_rigid[b]:
+                return None
+            inverse += 1.0 / bodies.mass[b]
+    return 1.0 / inverse if inverse > 0.0 else None
 
 
 def build_gauges(scene: Scene, bodies: Bodies) -> tuple:

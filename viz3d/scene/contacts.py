@@ -18,13 +18,14 @@ DEFAULT_MATERIAL = {"E": 210e9, "nu": 0.3}
 RIGID = {"E": np.inf, "nu": 0.0}
 
 
-def contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str):
+def contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str, m_eff: float | None = None):
     """``(model, law, requested restitution)`` of one contact: model ``"law"``, ``"rigid"`` or
     ``"restitution"``; the law (None unless a law); the restitution asked for (None if none).
-    Parameters the law's own formulas cannot use (overflow, no root in floating point) are refused
-    naming the contact."""
+    ``m_eff`` [kg]: the two bodies' reduced mass, which a linear law calibrated to a target
+    restitution needs (None: not known, such a law is refused). Parameters the law's own formulas
+    cannot use (overflow, no root in floating point) are refused naming the contact."""
     try:
-        return _contact_law(entry, materials, src, where)
+        return _contact_law(entry, materials, src, where, m_eff)
     except SceneError:
         raise
     except (ValueError, ArithmeticError, RuntimeError) as exc:
@@ -32,7 +33,7 @@ def contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str)
                          f"(here: {exc})") from None
 
 
-def _contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str):
+def _contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str, m_eff: float | None = None):
     name = entry["law"]
     if name == "rigid":
         return "rigid", None, None
@@ -47,7 +48,15 @@ def _contact_law(entry: dict, materials: tuple[dict, dict], src: str, where: str
     if cls is L.Linear:
         if "stiffness" not in entry:
             raise SceneError(src, f"{where}.stiffness", "a stiffness [N/m] for the linear law")
-        return "law", L.Linear(stiffness, entry["damping"]), None
+        if "restitution" not in entry:
+            return "law", L.Linear(stiffness, entry["damping"]), None
+        if entry["damping"] > 0.0:
+            raise SceneError(src, f"{where}.damping", "no damping with a target restitution (the linear law's "
+                             "dashpot is calibrated to it)", entry["damping"])
+        if m_eff is None:
+            raise SceneError(src, f"{where}.restitution", "a damping [N s/m] instead: calibrating the linear law to a "
+                             "restitution needs the bodies' reduced mass (rigid bodies or ground)", entry["restitution"])
+        return "law", L.Linear(stiffness).calibrated(entry["restitution"], m_eff), entry["restitution"]
     exponent = entry.get("exponent", 1.5)
     if cls is L.Hertz:
         return "law", L.Hertz(stiffness, exponent), None

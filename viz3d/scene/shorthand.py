@@ -173,7 +173,8 @@ def expand(d: dict, src: str) -> dict:
     side = 1.0 if d["contact"].get("side", "+") == "+" else -1.0
     P, n = struck_point(bar, side, src)
     contact = contact_entry(d, P, n, side, src)
-    model, law, _ = contact_law(contact, (contact["material1"], contact.get("material2", RIGID)), src, "contact")
+    model, law, _ = contact_law(contact, (contact["material1"], contact.get("material2", RIGID)), src, "contact",
+                                mass if bar is None else None)
     bodies = [impactor_body(imp, mass, speed, P, n)]
     if bar is not None:
         t_c = contact_time_estimate(model, law, mass, speed)
