@@ -22,6 +22,12 @@ to Newton on the exact tangent of its residual by finite differences (the seed's
 geometric stiffness of the constraint forces ``d(C_v^T lam)/dx`` and, on rotations, the
 kinematics of the increment: it matters when joint arms turn fast). Then velocities and accelerations are projected
 with the same matrix (eqs. 3.27, 3.28), ``gamma = -C_v_dot v`` standing for ``-Phi_q_dot q_dot``.
+
+Above ``DENSE_MAX`` unknowns the matrices are sparse (``M`` block diagonal, ``C_v`` 12 entries per
+row, the force tangents with the zeros their finite differences leave) and ``T`` is factored by
+SuperLU with a fill-reducing column order: on a chain its factors stay banded, so a step costs
+O(N) in the number of links, not the O(N^3) of a dense LU; below, dense matrices and LAPACK cost
+less. Rebuilding the force tangents still costs 2 n_v + 1 force evaluations.
 """
 
 from __future__ import annotations
@@ -29,14 +35,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.linalg import lu_factor, lu_solve
+from scipy.sparse.linalg import splu
 
 from viz3d._typing import FloatArray
-from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian
+from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
 from viz3d.dynamics import accelerations, body_state, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import fd_jacobian
-from viz3d.mass import dense_mass_matrix
+from viz3d.mass import dense_mass_matrix, sparse_mass_matrix
 from viz3d.system import State, System
 
 #: Iterations of the augmented-Lagrangian Newton loop per attempt.
@@ -49,6 +57,9 @@ SLOW_RATE = 0.5
 #: An iteration whose updates stop shrinking (rate above STALL_RATE) while below
 #: ROUND_OFF_FACTOR times the tolerance has reached round-off: accepted if |C| <= tol.
 STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
+#: Systems up to this many velocity unknowns factor T densely (21 rigid bodies; above, multithreaded
+#: LAPACK on this 2-core machine took 28 ms for the 150 x 150 T of 25 links where SuperLU takes 3.6 ms).
+DENSE_MAX = 128
 
 
 @dataclass(frozen=True)
@@ -61,7 +72,7 @@ class ALI3PMemory:
         Accelerations at the current state [m/s^2, rad/s^2] (eq. 3.20 needs them).
     lam : ndarray, shape (n_c,)
         Augmented-Lagrangian multipliers ``lam*`` [N].
-    K, D : ndarray, shape (n_v, n_v) or None
+    K, D : sparse matrix, shape (n_v, n_v), or None
         Force tangents ``-dQ/dx`` [N/m, N] and ``-dQ/dv`` [N s/m, N s], possibly from an
         earlier step; ``None``: rebuild before the next step.
     n_evals : int
@@ -83,9 +94,9 @@ class _Point:
     v: FloatArray
     a: FloatArray
     C: FloatArray
-    Cv: FloatArray
+    Cv: object  # sparse (n_c, n_v)
     Q: FloatArray
-    M: FloatArray
+    M: object  # sparse (n_v, n_v)
 
 
 def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
@@ -144,13 +155,15 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
         prev = step
         residual = _residual(p, alpha, lam, h)
         if lu is None:
-            lu = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
+            lu = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
         elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
-            lu, exact = lu_factor(_residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual)), True
+            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual)
+            lu = _factor(tangent if _dense(system) else sp.csc_matrix(tangent))
+            exact = True
             evals += dx.size
-        ddx = lu_solve(lu, -residual)
+        ddx = lu.solve(-residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
     return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m", evals
@@ -161,9 +174,9 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     v1 = 2.0 / h * dx - state.v
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
     cfg = body_state(system, q1, v1, state.chart, t1)
-    C_v = dense_jacobian(system, *constraint_jacobian(system.joints, cfg))
+    C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
     Q = flat_velocity(system, *generalized_forces(system, cfg))
-    M = dense_mass_matrix(system, cfg) if system.n_elastic else None
+    M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg) if system.n_elastic else None
     return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
 
 
@@ -171,13 +184,29 @@ def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) 
     """Project velocities (eq. 3.27; the joints are scleronomic, ``Phi_t = 0``) and accelerations
     (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged positions. A step
     that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent for the next."""
-    T = lu_factor(W + 0.25 * h * h * alpha * p.Cv.T @ p.Cv)
-    v = lu_solve(T, W @ p.v)
+    T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
+    v = T.solve(W @ p.v)
     gamma = constraint_rows(system.joints, body_state(system, p.q, v, state.chart, t1)).gamma
-    a = lu_solve(T, W @ p.a + 0.25 * h * h * alpha * p.Cv.T @ gamma)
+    a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
     keep = evals <= REFRESH_ITER
     return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
                                                        memory.n_evals + evals + 1)
+
+
+class _DenseLU:
+    """LAPACK's LU of a dense matrix with SuperLU's ``solve`` interface."""
+
+    def __init__(self, A):
+        self.lu = lu_factor(A)
+
+    def solve(self, b):
+        return lu_solve(self.lu, b)
+
+
+def _factor(A):
+    """Factors of the square matrix ``A`` with ``.solve(b)``: SuperLU (COLAMD column order) for a
+    sparse one, LAPACK's LU for a dense one (``_dense``)."""
+    return splu(sp.csc_matrix(A)) if sp.issparse(A) else _DenseLU(A)
 
 
 def _too_slow(step: float, rate: float, tol: float, left: int) -> bool:
@@ -202,16 +231,23 @@ def _with_mass(p: _Point, M: FloatArray) -> _Point:
     return p if p.M is not None else _Point(p.q, p.v, p.a, p.C, p.Cv, p.Q, M)
 
 
-def mass_matrix(system: System, state: State) -> FloatArray:
-    """Dense ``M`` (n_v, n_v) at ``state`` [kg, kg m^2, ...]: ``diag(m I3, I)`` per rigid body, the
-    flexible bodies' blocks at their configuration."""
-    return dense_mass_matrix(system, body_state(system, state.q, state.v, state.chart, state.t))
+def mass_matrix(system: System, state: State):
+    """``M`` (n_v, n_v) at ``state`` [kg, kg m^2, ...], dense or sparse (``_dense``): ``diag(m I3, I)``
+    per rigid body, the flexible bodies' blocks at their configuration."""
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    return dense_mass_matrix(system, cfg) if _dense(system) else sparse_mass_matrix(system, cfg)
+
+
+def _dense(system: System) -> bool:
+    """Dense matrices up to ``DENSE_MAX`` velocity unknowns (their lower overhead wins), sparse above."""
+    return system.n_v <= DENSE_MAX
 
 
 def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray
-                  ) -> tuple[FloatArray, FloatArray]:
-    """``K = -dQ/dx`` and ``D = -dQ/dv``, shapes (n_v, n_v), by forward differences of the applied
-    and gyroscopic forces (``dx``: velocity-space displacement of the positions)."""
+                  ):
+    """``K = -dQ/dx`` and ``D = -dQ/dv``, sparse (n_v, n_v) (the entries the differences leave exactly
+    zero dropped), by forward differences of the applied and gyroscopic forces (``dx``:
+    velocity-space displacement of the positions)."""
 
     def forces(q_, v_):
         return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t)))
@@ -219,4 +255,4 @@ def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart:
     Q0 = forces(q, v)
     K = -fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), np.zeros(system.n_v), Q0)
     D = -fd_jacobian(lambda v_: forces(q, v_), v, Q0)
-    return K, D
+    return (K, D) if _dense(system) else (sp.csr_matrix(K), sp.csr_matrix(D))

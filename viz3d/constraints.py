@@ -263,15 +263,40 @@ def constraint_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[F
                             for js, (_, Je) in zip(layout.joints, parts)]))
 
 
-def dense_jacobian(system, J: FloatArray, Je: FloatArray) -> FloatArray:
-    """``C_v`` as a dense matrix, shape (n_c, n_v) in the order of ``v``, from its blocks."""
+def jacobian_entries(system, J: FloatArray, Je: FloatArray) -> tuple[IntArray, IntArray, FloatArray]:
+    """``C_v``'s entries as (rows, columns, values) in the order of ``v``, from its blocks: 12 per row
+    on the frames of its two bodies (ground's dropped), then the elastic columns (duplicates add)."""
     layout = system.joints
     n_c, nb = J.shape[0], system.n_bodies
-    per_body = np.zeros((n_c, 6 * (nb + 1)))
-    cols = layout.row_body[:, :, None] * 6 + np.arange(6)
-    np.add.at(per_body, (np.arange(n_c)[:, None], cols.reshape(n_c, 12)), J.reshape(n_c, 12))
-    frames = per_body[:, :6 * nb].reshape(n_c, nb, 6)[:, system.frame_body].reshape(n_c, 6 * system.n_frames)
-    return np.concatenate([frames, Je.sum(axis=1)], axis=1)
+    slot = np.full(nb + 1, -1)
+    slot[system.frame_body] = np.arange(system.n_frames)
+    body_slot = slot[layout.row_body] if n_c else np.zeros((0, 2), int)   # (n_c, 2), -1: ground or no frame
+    cols = body_slot[:, :, None] * 6 + np.arange(6)
+    rows = np.broadcast_to(np.arange(n_c)[:, None, None], cols.shape)
+    keep = np.broadcast_to((body_slot >= 0)[:, :, None], cols.shape)
+    r, c, v = rows[keep], cols[keep], J[keep]
+    if system.n_elastic:
+        Je_sum = Je.sum(axis=1)
+        er, ec = np.nonzero(Je_sum)
+        r, c, v = (np.concatenate([r, er]), np.concatenate([c, ec + 6 * system.n_frames]),
+                   np.concatenate([v, Je_sum[er, ec]]))
+    return r, c, v
+
+
+def sparse_jacobian(system, J: FloatArray, Je: FloatArray):
+    """``C_v`` as a sparse CSR matrix, shape (n_c, n_v) (``jacobian_entries``)."""
+    import scipy.sparse as sp
+
+    r, c, v = jacobian_entries(system, J, Je)
+    return sp.csr_matrix((v, (r, c)), shape=(J.shape[0], system.n_v))
+
+
+def dense_jacobian(system, J: FloatArray, Je: FloatArray) -> FloatArray:
+    """``C_v`` as a dense matrix, shape (n_c, n_v) (``jacobian_entries``)."""
+    out = np.zeros((J.shape[0], system.n_v))
+    r, c, v = jacobian_entries(system, J, Je)
+    np.add.at(out, (r, c), v)
+    return out
 
 
 def constraint_residual(layout: ConstraintLayout, cfg: Configuration) -> FloatArray:

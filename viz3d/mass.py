@@ -71,20 +71,45 @@ def mass_matrix(bodies, v_elastic: tuple[slice, ...], cfg: Configuration) -> Mas
     return MassMatrix(bodies.M_inv, bodies.flexible, factors, v_elastic)
 
 
-def dense_mass_matrix(system, cfg: Configuration) -> FloatArray:
-    """``M`` as a dense (n_v, n_v) matrix in the order of ``v`` (``viz3d.system``) [kg, kg m^2, ...]."""
+def mass_entries(system, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``M``'s entries as (rows, columns, values) in the order of ``v`` (``viz3d.system``) [kg, kg m^2,
+    ...]: ``diag(m I3, I)`` per rigid body, each flexible body's block at its configuration."""
     b = system.bodies
-    M = np.zeros((system.n_v, system.n_v))
-    for k, body in enumerate(system.frame_body):
-        if b.is_rigid[body]:
-            M[6 * k:6 * k + 3, 6 * k:6 * k + 3] = b.mass[body] * np.eye(3)
-            M[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = b.inertia[body]
+    rows, cols, vals = [np.zeros(0, int)], [np.zeros(0, int)], [np.zeros(0)]
     frame_slot = {int(body): k for k, body in enumerate(system.frame_body)}
+    rigid = [k for k, body in enumerate(system.frame_body) if b.is_rigid[body]]
+    if rigid:
+        blocks = np.zeros((len(rigid), 6, 6))
+        bodies = system.frame_body[rigid]
+        blocks[:, :3, :3] = b.mass[bodies, None, None] * np.eye(3)
+        blocks[:, 3:, 3:] = b.inertia[bodies]
+        idx = 6 * np.asarray(rigid)[:, None] + np.arange(6)
+        rows.append(np.repeat(idx, 6, axis=1).ravel())
+        cols.append(np.tile(idx, (1, 6)).ravel())
+        vals.append(blocks.ravel())
     for i, fb in enumerate(b.flexible):
         block = fb.mass_matrix(cfg.pose.R_WB[fb.index], cfg.eta[i])
-        cols = np.arange(system.v_elastic[i].start, system.v_elastic[i].stop)
+        idx = np.arange(system.v_elastic[i].start, system.v_elastic[i].stop)
         if fb.floating:
             k = frame_slot[fb.index]
-            cols = np.concatenate([np.arange(6 * k, 6 * k + 6), cols])
-        M[np.ix_(cols, cols)] = block
+            idx = np.concatenate([np.arange(6 * k, 6 * k + 6), idx])
+        rows.append(np.repeat(idx, len(idx)))
+        cols.append(np.tile(idx, len(idx)))
+        vals.append(np.asarray(block).ravel())
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+
+
+def sparse_mass_matrix(system, cfg: Configuration):
+    """``M`` as a sparse CSR matrix (n_v, n_v) (``mass_entries``)."""
+    import scipy.sparse as sp
+
+    r, c, v = mass_entries(system, cfg)
+    return sp.csr_matrix((v, (r, c)), shape=(system.n_v, system.n_v))
+
+
+def dense_mass_matrix(system, cfg: Configuration) -> FloatArray:
+    """``M`` as a dense (n_v, n_v) matrix (``mass_entries``)."""
+    M = np.zeros((system.n_v, system.n_v))
+    r, c, v = mass_entries(system, cfg)
+    np.add.at(M, (r, c), v)
     return M

@@ -238,9 +238,12 @@ def expand_generators(raw: dict, source: str) -> dict:
         return raw
     raw = copy.deepcopy(raw)
     if "chain" in raw:
-        bodies, joints = chain_elements(validate(raw["chain"], spec.CHAIN, source, "chain"))
+        sim = raw.get("sim", {}) if isinstance(raw.get("sim", {}), dict) else {}
+        gravity = np.asarray(validate(sim, spec.SIM, source, "sim")["gravity"], float)
+        bodies, joints, forces = chain_elements(validate(raw["chain"], spec.CHAIN, source, "chain"), gravity, source)
         raw["bodies"] = list(raw.get("bodies", [])) + bodies
         raw["joints"] = list(raw.get("joints", [])) + joints
+        raw["forces"] = list(raw.get("forces", [])) + forces
     if "incline" in raw:
         incline = validate(raw["incline"], spec.INCLINE, source, "incline")
         sim = raw.setdefault("sim", {}) if isinstance(raw.get("sim", {}), dict) else {}
@@ -280,27 +283,75 @@ def _shape_contacts(raw: dict, entry, i: int, source: str) -> list:
             for k, (c, r) in enumerate(spheres)]
 
 
-def chain_elements(chain: dict) -> tuple[list[dict], list[dict]]:
-    """Raw body and joint tables of an N-link capsule chain (see ``spec.CHAIN``)."""
+def chain_elements(chain: dict, gravity=(0.0, 0.0, -9.81), source: str = "<scene>"
+                   ) -> tuple[list[dict], list[dict], list[dict]]:
+    """Raw body, joint and force tables of an N-link capsule chain (see ``spec.CHAIN``): from the
+    anchor along ``direction``, or with ``end`` hanging between the two as a circular arc."""
     n, L, r = chain["n"], chain["link_length"], chain["radius"]
-    d = np.asarray(chain["direction"], float)
-    d /= np.linalg.norm(d)
     anchor, omega = np.asarray(chain["anchor"], float), np.asarray(chain["omega"], float)
-    euler = euler_from_matrix(frame_with_z(d)).tolist()
+    if "end" in chain:
+        if np.any(omega):
+            raise SceneError(source, "chain.omega", "no initial rotation for a chain between two anchors", chain["omega"])
+        nodes, normal = _arc_nodes(anchor, np.asarray(chain["end"], float), n, L, np.asarray(gravity, float), source)
+    else:
+        d = np.asarray(chain["direction"], float)
+        d /= np.linalg.norm(d)
+        nodes, normal = anchor + np.arange(n + 1)[:, None] * L * d, _normal_to(d)
     mass = {"mass": chain["mass"]} if "mass" in chain else {"density": chain["density"]}
-    bodies, joints = [], []
+    p = chain["prefix"]
+    bodies, joints, forces = [], [], []
     for i in range(n):
-        c = anchor + (i + 0.5) * L * d
+        d = (nodes[i + 1] - nodes[i]) / L
+        c = 0.5 * (nodes[i] + nodes[i + 1])
         bodies.append({
-            "name": f"{chain['prefix']}{i}", "shape": {"type": "capsule", "radius": r, "height": L}, **mass,
-            "position": c.tolist(), "euler": euler, "velocity": np.cross(omega, c - anchor).tolist(),
-            "omega": omega.tolist(), "color": chain["color"],
+            "name": f"{p}{i}", "shape": {"type": "capsule", "radius": r, "height": L}, **mass,
+            "position": c.tolist(), "euler": euler_from_matrix(frame_with_z(d)).tolist(),
+            "velocity": np.cross(omega, c - anchor).tolist(), "omega": omega.tolist(), "color": chain["color"],
         })
-        joints.append({
-            "name": f"{chain['prefix']}_j{i}", "type": "ball", "body1": f"{chain['prefix']}{i}",
-            "body2": "ground" if i == 0 else f"{chain['prefix']}{i - 1}", "point": (anchor + i * L * d).tolist(),
-        })
-    return bodies, joints
+        joint = {"name": f"{p}_j{i}", "type": "ball", "body1": f"{p}{i}", "body2": "ground" if i == 0 else f"{p}{i - 1}",
+                 "point": nodes[i].tolist()}
+        if i > 0 and chain["joint"] == "universal":
+            before = (nodes[i] - nodes[i - 1]) / L
+            joint.update(type="universal", axis1=normal.tolist(), axis2=np.cross(before, normal).tolist())
+            if chain["joint_damping"] > 0.0:
+                forces += [{"type": "joint_motor", "name": f"{p}_damper{i}_{k}", "joint": joint["name"], "coordinate": k,
+                            "kp": 0.0, "kd": chain["joint_damping"]} for k in ("angle1", "angle2")]
+        joints.append(joint)
+    if "end" in chain:
+        joints.append({"name": f"{p}_j{n}", "type": "ball", "body1": f"{p}{n - 1}", "body2": "ground",
+                       "point": nodes[n].tolist()})
+    return bodies, joints, forces
+
+
+def _normal_to(d: np.ndarray) -> np.ndarray:
+    """A unit vector normal to ``d``."""
+    e = np.eye(3)[int(np.argmin(np.abs(d)))]
+    w = np.cross(d, e)
+    return w / np.linalg.norm(w)
+
+
+def _arc_nodes(A: np.ndarray, E: np.ndarray, n: int, L: float, gravity: np.ndarray, source: str):
+    """Joint points (n + 1, 3) of n chords of length L on a circular arc from A to E sagging along
+    gravity, and the unit normal of its plane. The chords subtend 2 beta each: span / L =
+    sin(n beta) / sin(beta), solved for beta in (0, pi / n)."""
+    from scipy.optimize import brentq
+
+    S = float(np.linalg.norm(E - A))
+    if not n * L > S > 0.0:
+        raise SceneError(source, "chain.end", f"an end closer to the anchor than the chain's length {n * L:g} m (and "
+                         "apart from it)", float(S))
+    u = (E - A) / S
+    down = gravity - (gravity @ u) * u
+    if np.linalg.norm(down) < 1e-12 * max(np.linalg.norm(gravity), 1.0):
+        down = _normal_to(u)  # a vertical chord (or no gravity): sag sideways
+    down /= np.linalg.norm(down)
+    beta = brentq(lambda b: np.sin(n * b) / np.sin(b) - S / L, 1e-12 / n, np.pi / n * (1 - 1e-12), xtol=1e-15)
+    R = L / (2 * np.sin(beta))
+    C = 0.5 * (A + E) - R * np.cos(n * beta) * down
+    phi = -n * beta + 2 * beta * np.arange(n + 1)
+    nodes = C + R * (np.sin(phi)[:, None] * u + np.cos(phi)[:, None] * down)
+    nodes[0], nodes[-1] = A, E
+    return nodes, np.cross(u, down)
 
 
 # ---------------------------------------------------------------- cross checks

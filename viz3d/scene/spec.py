@@ -407,7 +407,13 @@ CHAIN = Table({
     "omega": Field(vec3, ZERO3, "initial rigid rotation of the whole chain about the anchor [rad/s]"),
     "color": Field(color, [200, 120, 40], "display colour"),
     "prefix": Field(name, "link", "body names are <prefix><index>"),
-}, "generator: an N-link spatial chain of capsules on ball joints, hanging from the anchor")
+    "end": Field(vec3, OPTIONAL, "second anchor: the chain hangs between anchor and end (ball joints to ground at "
+                 "both), starting as a circular arc below their chord (needs n * link_length > the span)"),
+    "joint": Field(one_of("ball", "universal"), "ball", "joints between links: ball, or universal (two relative "
+                   "rotations, as seed 004's links: in the hanging plane and out of it)"),
+    "joint_damping": Field(nonnegative, 0.0, "universal joints: a damper on both angles [N m s/rad] (a joint_motor "
+                           "with kp = 0): lets a hanging chain settle"),
+}, "generator: an N-link spatial chain of capsules, hanging from the anchor (or between anchor and end)")
 
 INCLINE = Table({
     "angle_deg": Field(number, doc="tilt of gravity about the world y axis [deg]: a level floor becomes an incline "
