@@ -27,7 +27,7 @@ LAYERS = {
                 "viz3d.geometry", "viz3d.mass", "viz3d.kinematics", "viz3d.coordinates", "viz3d.constraints",
                 "viz3d.system", "viz3d.dynamics", "viz3d.contact.*", "viz3d.flexible.*", "viz3d.hydro.*"],
     "numerics": ["viz3d.integrators.*", "viz3d.formulation", "viz3d.stabilization", "viz3d.ali3p", "viz3d.methods",
-                 "viz3d.kernel.*", "viz3d.events", "viz3d.diagnosis"],
+                 "viz3d.kernel.*", "viz3d.events", "viz3d.diagnosis", "viz3d.sparsity"],
     "drivers": ["viz3d.scene.*", "viz3d.simulate", "viz3d.realtime", "viz3d.bench", "viz3d.stability",
                 "viz3d.frames", "viz3d.trajectory", "viz3d.outputs", "viz3d.extras", "viz3d.sink", "viz3d.interrupts", "viz3d.columns"],
     "view": ["viz3d.viz.*"],

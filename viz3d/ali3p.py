@@ -27,12 +27,13 @@ Above ``DENSE_MAX`` unknowns the matrices are sparse (``M`` block diagonal, ``C_
 row, the force tangents with the zeros their finite differences leave) and ``T`` is factored by
 SuperLU with a fill-reducing column order: on a chain its factors stay banded, so a step costs
 O(N) in the number of links, not the O(N^3) of a dense LU; below, dense matrices and LAPACK cost
-less. Rebuilding the force tangents still costs 2 n_v + 1 force evaluations.
+less. The finite-difference tangents difference the columns of bodies that share no neighbour
+together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any length.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,8 +44,9 @@ from viz3d._typing import FloatArray
 from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
 from viz3d.dynamics import accelerations, body_state, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
-from viz3d.integrators.implicit import fd_jacobian
+from viz3d.integrators.implicit import FD_REL
 from viz3d.mass import dense_mass_matrix, sparse_mass_matrix
+from viz3d.sparsity import grouped_fd_jacobian, sparse_fd_plan
 from viz3d.system import State, System
 
 #: Iterations of the augmented-Lagrangian Newton loop per attempt.
@@ -77,6 +79,9 @@ class ALI3PMemory:
         earlier step; ``None``: rebuild before the next step.
     n_evals : int
         Evaluations of forces and constraint rows so far (the cost, like vector-field evaluations).
+    plan : tuple
+        ``viz3d.sparsity.sparse_fd_plan`` of the system: which columns one evaluation differences
+        together for the tangents.
     """
 
     v_dot: FloatArray
@@ -84,6 +89,7 @@ class ALI3PMemory:
     K: FloatArray | None
     D: FloatArray | None
     n_evals: int = 0
+    plan: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -102,7 +108,7 @@ class _Point:
 def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
     """Initial accelerations and multipliers from ``formulation.start`` (the penalty method)."""
     acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart)
-    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1)
+    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system))
 
 
 def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory
@@ -115,12 +121,12 @@ def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3
     with np.errstate(all="ignore"):
         for fresh in ((False, True) if memory.K is not None else (True,)):
             if fresh:
-                K, D = force_tangent(system, state.t, state.q, state.v, state.chart)
-                memory = ALI3PMemory(memory.v_dot, memory.lam, K, D, memory.n_evals + 2 * system.n_v + 1)
+                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan)
+                memory = replace(memory, K=K, D=D, n_evals=memory.n_evals + 2 * len(memory.plan[0]) + 1)
             result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh)
             if isinstance(result, tuple):
                 return result + (Status.OK,)
-            memory = ALI3PMemory(memory.v_dot, memory.lam, memory.K, memory.D, memory.n_evals + evals)
+            memory = replace(memory, n_evals=memory.n_evals + evals)
     return state, memory, Status.failed(f"t = {state.t:.6g} s: ALI3-P iteration did not converge in {MAX_ITER} "
                                         f"iterations with h = {h:.3g} s ({result}); try a smaller sim.dt or "
                                         f"another sim.ali3p_alpha")
@@ -159,10 +165,10 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
         elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
-            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual)
-            lu = _factor(tangent if _dense(system) else sp.csc_matrix(tangent))
+            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan)
+            lu = _factor(tangent.toarray() if _dense(system) else tangent)
             exact = True
-            evals += dx.size
+            evals += len(memory.plan[0])
         ddx = lu.solve(-residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
@@ -189,8 +195,8 @@ def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) 
     gamma = constraint_rows(system.joints, body_state(system, p.q, v, state.chart, t1)).gamma
     a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
     keep = evals <= REFRESH_ITER
-    return State(t1, p.q, v, state.chart), ALI3PMemory(a, lam, memory.K if keep else None, memory.D if keep else None,
-                                                       memory.n_evals + evals + 1)
+    return State(t1, p.q, v, state.chart), replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None,
+                                                   D=memory.D if keep else None, n_evals=memory.n_evals + evals + 1)
 
 
 class _DenseLU:
@@ -219,11 +225,13 @@ def _residual(p: _Point, alpha, lam, h) -> FloatArray:
     return 0.25 * h * h * (p.M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
 
 
-def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0) -> FloatArray:
-    """``d residual / d dx`` at fixed multipliers by forward differences, shape (n_v, n_v):
-    everything the seed's tangent (eq. 3.26) leaves out (the geometric stiffness of the constraint
-    forces, the rotation kinematics, gyroscopic terms at the iterate) is in it."""
-    return fd_jacobian(lambda x: _residual(_with_mass(_evaluate(system, state, a0, x, h, t1), M), alpha, lam, h), dx, r0)
+def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan):
+    """``d residual / d dx`` at fixed multipliers by forward differences, sparse (n_v, n_v), columns
+    grouped by ``plan`` (``viz3d.sparsity``): everything the seed's tangent (eq. 3.26) leaves out
+    (the geometric stiffness of the constraint forces, the rotation kinematics, gyroscopic terms at
+    the iterate) is in it."""
+    return grouped_fd_jacobian(lambda x: _residual(_with_mass(_evaluate(system, state, a0, x, h, t1), M), alpha, lam, h),
+                               dx, r0, *plan, FD_REL * np.maximum(np.abs(dx), 1.0))
 
 
 def _with_mass(p: _Point, M: FloatArray) -> _Point:
@@ -243,16 +251,17 @@ def _dense(system: System) -> bool:
     return system.n_v <= DENSE_MAX
 
 
-def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray
-                  ):
-    """``K = -dQ/dx`` and ``D = -dQ/dv``, sparse (n_v, n_v) (the entries the differences leave exactly
-    zero dropped), by forward differences of the applied and gyroscopic forces (``dx``:
-    velocity-space displacement of the positions)."""
+def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray, plan: tuple = ()):
+    """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), dense or sparse (``_dense``), by forward
+    differences of the applied and gyroscopic forces (``dx``: velocity-space displacement of the
+    positions), columns grouped by ``plan`` (``viz3d.sparsity.sparse_fd_plan``; default: built here)."""
 
     def forces(q_, v_):
         return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t)))
 
+    plan = plan or sparse_fd_plan(system)
     Q0 = forces(q, v)
-    K = -fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), np.zeros(system.n_v), Q0)
-    D = -fd_jacobian(lambda v_: forces(q, v_), v, Q0)
-    return (K, D) if _dense(system) else (sp.csr_matrix(K), sp.csr_matrix(D))
+    zero = np.zeros(system.n_v)
+    K = -grouped_fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), zero, Q0, *plan, FD_REL * np.ones(system.n_v))
+    D = -grouped_fd_jacobian(lambda v_: forces(q, v_), v, Q0, *plan, FD_REL * np.maximum(np.abs(v), 1.0))
+    return (K.toarray(), D.toarray()) if _dense(system) else (K.tocsr(), D.tocsr())

@@ -46,6 +46,11 @@ class ForceElement(ABC):
         """Potential energy [J]; zero for non-conservative elements."""
         return 0.0
 
+    def coupled_bodies(self) -> IntArray | None:
+        """Pairs of bodies (k, 2) whose coordinates each other's forces from this element depend on
+        (``viz3d.sparsity``; ground may appear); None: not known, every body with every other."""
+        return None
+
     @property
     def conservative(self) -> bool:
         """True when the element's forces are minus the gradient of ``potential_energy``."""
@@ -80,6 +85,9 @@ class Gravity(ForceElement):
     g: FloatArray
     flexible: tuple = ()
     n_elastic: int = 0
+
+    def coupled_bodies(self):
+        return np.zeros((0, 2), int)  # each body's weight depends on its own configuration only
 
     def wrench(self, cfg):
         F = np.zeros_like(cfg.pose.W_r)
@@ -205,6 +213,9 @@ class SpringDamper(ForceElement):
         _, _, length, _ = self._geometry(cfg)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
 
+    def coupled_bodies(self):
+        return self.body
+
     def compiled(self, pack) -> Items:
         i = np.column_stack([pack.points(self.sides[0]), pack.points(self.sides[1])])
         return items(SpringItems, i, np.column_stack([self.stiffness, self.damping, self.rest_length]), k=len(self.names))
@@ -273,6 +284,9 @@ class AppliedForce(ForceElement):
     def __post_init__(self):
         if self.points is None:
             object.__setattr__(self, "points", rigid_points(self.body, self.B_s))
+
+    def coupled_bodies(self):
+        return np.zeros((0, 2), int)  # on one body each
 
     def world_value(self, cfg: Configuration) -> FloatArray:
         """The prescribed vectors in world axes, shape (k, 3)."""
@@ -379,6 +393,9 @@ class JointCoordinateForce(ForceElement):
 
     def _code(self, k: int) -> int:
         return self.joints[k].FREE[self.free[k]][1]
+
+    def coupled_bodies(self):
+        return np.array([js.body[j] for js, j in zip(self.joints, self.index)], int).reshape(-1, 2)
 
     def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """Each item's coordinate and rate, shapes (k,) [rad or m, per s]."""

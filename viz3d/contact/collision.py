@@ -373,6 +373,14 @@ class Collisions(ForceElement):
         w["patch"] = coal.ContactPatchRequest()
         return w
 
+    def coupled_bodies(self) -> IntArray:
+        """Every pair of bodies whose shapes' groups collide (any of them may touch)."""
+        body = np.array([s.body for s in self.shapes], int)
+        group = np.array([s.group for s in self.shapes], int)
+        pairs = [np.column_stack(np.nonzero(self.pair_law[group[:, None], group[None, :]] >= 0))]
+        ij = np.vstack(pairs)
+        return np.unique(body[ij], axis=0) if len(ij) else np.zeros((0, 2), int)
+
     def shape_poses(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """World origins (S, 3) and rotations (S, 3, 3) of every shape."""
         body = np.array([s.body for s in self.shapes], int)
