@@ -68,9 +68,9 @@ SIM = Table({
     "penalty_alpha": Field(positive, 1e7, "penalty factor [kg] (formulation = penalty; seed 004: 1e6 to 1e11)"),
     "penalty_xi": Field(positive, 1.0, "damping ratio of the penalty springs [-] (formulation = penalty)"),
     "penalty_omega": Field(positive, 10.0, "natural frequency of the penalty springs [rad/s] (formulation = penalty)"),
-    "ali3p_alpha": Field(positive, 1e9, "augmented-Lagrangian penalty factor [N/m] (formulation = ali3p); the "
-                         "multiplier iteration converges linearly, faster the larger it is against 4 m N^2 / (pi h)^2 "
-                         "(benchmarks/bench_ali3p.py: 1e10-1e11 for 100-400 links)"),
+    "ali3p_alpha": Field(positive, 1e9, "augmented-Lagrangian penalty factor [N/m] (formulation = ali3p); its "
+                         "multiplier iteration converges linearly, more slowly on longer chains: a larger alpha "
+                         "takes fewer iterations (benchmarks/bench_ali3p.py: 1e10-1e11 for 100-400 links)"),
     "blowup_violation": Field(positive, 0.1, "stop with a diagnosis when max |C| exceeds this [m]"),
     "blowup_speed": Field(positive, 1e4, "stop with a diagnosis when a body's speed exceeds this [m/s]"),
     "blowup_energy": Field(positive, 0.5, "conservative scenes: stop with a diagnosis when the total energy grows by more "
