@@ -63,14 +63,12 @@ def joint_fields(system, frames) -> dict:
     return out
 
 
-def collision_fields(system, frames) -> dict:
-    """Shape contacts (``[collision]``, ``viz3d.contact.collision``) as trajectory fields, none without
-    them: per frame ``collision_contacts`` (n,) how many, ``collision_max_depth`` (n,) [m] the deepest
-    penetration, ``collision_normal_force`` (n,) [N] the sum of their normal forces."""
-    if not any(getattr(e, "type_name", "") == "collisions" for e in system.forces):
-        return {}
-    keys = ("contacts", "max_depth", "normal_force")
-    return {f"collision_{k}": _series(frames, [f"collision/{k}"])[:, 0] for k in keys}
+def element_fields(system, frames) -> dict:
+    """Force elements' frame scalars as trajectory fields, ``a/b`` saved as ``a_b`` (n,): shape contacts
+    (``collision_contacts``, ``collision_max_depth`` [m], ``collision_normal_force`` [N]) and water
+    (``water_submerged_volume`` [m^3], ``water_buoyancy`` [N]); none without such elements."""
+    keys = [k for e in system.forces for k in getattr(e, "scalar_names", ())]
+    return {k.replace("/", "_"): _series(frames, [k])[:, 0] for k in keys}
 
 
 def _series(frames, keys: list[str]) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_chart, check_state, check_violation, redundant_joints
 from viz3d.dynamics import VectorField, body_state
-from viz3d.extras import collision_fields, joint_fields, run_extras
+from viz3d.extras import element_fields, joint_fields, run_extras
 from viz3d.columns import FrameColumns, StateLog
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
@@ -570,7 +570,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     wall = time.perf_counter() - wall0
     cols = log.columns(check=False)
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
-    if joints := {**joint_fields(sim.system, cols), **collision_fields(sim.system, cols)}:
+    if joints := {**joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
         extras = {**(extras or {}), **joints}
     return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)

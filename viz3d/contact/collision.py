@@ -318,6 +318,8 @@ class Collisions(ForceElement):
     """
 
     type_name: ClassVar[str] = "collisions"
+    #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
+    scalar_names: ClassVar[tuple[str, ...]] = ("collision/contacts", "collision/max_depth", "collision/normal_force")
     shapes: tuple[Shape, ...]
     groups: tuple[str, ...]
     pair_law: IntArray

@@ -81,7 +81,7 @@ def build(scene: Scene) -> tuple[System, State]:
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
     forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_collisions(
-        scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies))
+        scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies)) + build_water(scene, bodies)
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, build_gauges(scene, bodies))
     frames = system.frame_body
     theta, chart = rotation.from_matrix(R0[frames])
@@ -159,6 +159,50 @@ def body_mass_properties(scene: Scene, i: int) -> MassProperties:
                          f"give {unit.volume:g} m^3)", b["shape"])
     density = b["density"] if "density" in b else b["mass"] / unit.volume
     return MassProperties(density * unit.volume, density * unit.inertia, unit.center)
+
+
+def build_water(scene: Scene, bodies: Bodies) -> tuple:
+    """The ``Water`` element of a scene's ``[water]`` table (none without one, or when disabled)."""
+    from fnmatch import fnmatchcase
+
+    from viz3d.water import Water, volume_cells
+
+    spec, src = scene.data.get("water"), scene.source()
+    if spec is None or not spec["enabled"]:
+        return ()
+    specs = scene.data["bodies"]
+    primitive = ("sphere", "capsule", "box", "cylinder")
+    if spec["bodies"]:
+        chosen = []
+        for pattern in spec["bodies"]:
+            hit = [i for i, b in enumerate(specs) if fnmatchcase(b["name"], pattern)]
+            if not hit:
+                raise SceneError(src, "water.bodies", "body names or patterns that match a body", pattern)
+            chosen += [i for i in hit if i not in chosen]
+    else:
+        chosen = [i for i, b in enumerate(specs) if bodies.is_rigid[i] and b.get("shape", {}).get("type") in primitive]
+    body, cells, weights, size, area = [], [], [], [], []
+    for i in chosen:
+        b = specs[i]
+        if not bodies.is_rigid[i] or b.get("shape", {}).get("type") not in primitive:
+            raise SceneError(src, "water.bodies", f"rigid bodies with a {', '.join(primitive)} shape (body {b['name']!r})",
+                             b["name"])
+        V = primitive_properties(b["shape"]).volume
+        X, w, c = volume_cells(b["shape"], V, spec["cells"])
+        body.append(i)
+        cells.append(X)
+        weights.append(w)
+        size.append(c)
+        area.append(np.pi * (3 * V / (4 * np.pi)) ** (2 / 3))
+    if not body:
+        return ()
+    g = np.asarray(scene.data["sim"]["gravity"], float)
+    normal = np.asarray(spec["normal"], float) if "normal" in spec else -g
+    if not np.linalg.norm(normal) > 0.0:
+        raise SceneError(src, "water.normal", "a normal, or a sim.gravity that gives one", spec.get("normal"))
+    return (Water(np.array(body, int), tuple(cells), tuple(weights), np.array(size), np.array(area),
+                  float(spec["level"]), normal / np.linalg.norm(normal), float(spec["density"]),
+                  float(np.linalg.norm(g)), float(spec["drag_coefficient"])),)
 
 
 def shape_centers(scene: Scene, bodies: Bodies) -> list:

@@ -386,6 +386,20 @@ COLLISION = Table({
                              "hull)"),
 }, "contacts between body shapes found by the collision library (FCL): broad phase, groups, laws")
 
+WATER = Table({
+    "enabled": Field(boolean, True, "false: no water (the table stays in the scene)"),
+    "level": Field(number, 0.0, "height of the surface along its normal [m]"),
+    "normal": Field(nonzero_vec3, OPTIONAL, "unit normal of the surface, up out of the water (default: against "
+                    "sim.gravity)"),
+    "density": Field(positive, 1025.0, "[kg/m^3] (sea water)"),
+    "drag_coefficient": Field(nonnegative, 0.0, "C_d of quadratic drag on the frontal area of the sphere of the body's "
+                              "volume (0: no drag)"),
+    "bodies": Field(names, [], "bodies in the water, names or fnmatch patterns (default: every rigid body with a "
+                    "sphere, capsule, box or cylinder shape)"),
+    "cells": Field(positive_int, 512, "cells per body for the buoyancy (the wet fraction of each is linear in its "
+                   "depth across one cell size)"),
+}, "still water: buoyancy and quadratic drag on submerged parts (viz3d.water)")
+
 GAUGE = Table({
     "name": Field(name, doc="gauge name"),
     "body": Field(string, OPTIONAL, "flexible body (default: the only one)"),
@@ -461,6 +475,7 @@ SCENE_FILE = Table({
     "forces": Field(ArrayOf(FORCE), list, "force elements"),
     "contacts": Field(ArrayOf(CONTACT), list, "contacts"),
     "collision": Field(COLLISION, OPTIONAL, "contacts between shapes (collision library)"),
+    "water": Field(WATER, OPTIONAL, "still water: buoyancy and drag"),
     "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
     "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),

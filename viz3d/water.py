@@ -1,0 +1,187 @@
+"""Bodies in still water: buoyancy and quadratic drag on their submerged parts (seed 004's anchor and
+chain below the waterline; issue 11).
+
+The water fills the half-space below a plane (``level`` along the unit ``normal``, which points up
+out of the water). Each body's shape is cut into cells (``volume_cells``): centres ``x_i`` in body
+axes with volumes ``w_i`` summing to the shape's exact volume, cell size ``c``. A cell whose centre
+lies at depth ``t = level - n . x`` is wet by the fraction ``f(t) = clip(t / c + 1/2, 0, 1)``
+(continuous: a cell drains linearly as the surface sweeps through it), so that
+
+    buoyancy on the cell  B_i = rho g w_i f(t_i) n,   at its centre,
+    its potential         U_i = rho g w_i H(t_i),   H' = f,   H(t) = 0, (t + c/2)^2 / (2c), t,
+
+below, through and above the band ``|t| < c/2`` (the force is ``-dU/dx``: buoyancy is conservative).
+A fully submerged body feels ``rho g V`` exactly, at its cells' centroid.
+
+Drag on a body acts at the wet cells' centroid ``p`` against its velocity ``v_p`` through the water:
+``D = -1/2 rho C_d A phi |v_p| v_p``, with ``phi`` the wet fraction of the volume and ``A`` the
+frontal area of the sphere of the same volume (exact for spheres; an estimate for other shapes).
+Its power is booked as work done by non-conservative forces. No added mass, no rotational drag.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from viz3d._typing import FloatArray, IntArray
+from viz3d.forces import ForceElement
+from viz3d.kinematics import Configuration
+from viz3d.rotations import cross
+
+
+def volume_cells(shape: dict, volume: float, n: int = 512) -> tuple[FloatArray, FloatArray, float]:
+    """About ``n`` cells of a primitive shape table (sphere, capsule, box, cylinder; axes along body z):
+    centres (m, 3) in shape axes [m], volumes (m,) summing to ``volume`` [m^3], and the cell size
+    [m]. A regular grid over the bounding box, its cells whose centres lie inside kept.
+
+    Raises
+    ------
+    ValueError
+        For shapes without an inside test here (meshes).
+    """
+    kind = shape["type"]
+    if kind == "box":
+        half = 0.5 * np.asarray(shape["extents"], float)
+    elif kind == "sphere":
+        half = np.full(3, shape["radius"])
+    elif kind in ("capsule", "cylinder"):
+        r = shape["radius"]
+        extra = r if kind == "capsule" else 0.0
+        half = np.array([r, r, 0.5 * shape["height"] + extra])
+    else:
+        raise ValueError(f"water acts on spheres, capsules, boxes and cylinders, not {kind!r}")
+    c = float((8 * np.prod(half) / n) ** (1 / 3))
+    axes = [(np.arange(max(1, int(round(2 * h / c)))) + 0.5) * (2 * h / max(1, int(round(2 * h / c)))) - h
+            for h in half]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = _inside(kind, shape, X)
+    X = X[inside]
+    return X, np.full(len(X), volume / len(X)), c
+
+
+def _inside(kind: str, shape: dict, X: FloatArray) -> np.ndarray:
+    if kind == "box":
+        return np.ones(len(X), dtype=bool)
+    r = shape["radius"]
+    if kind == "sphere":
+        return np.einsum("ki,ki->k", X, X) <= r * r
+    if kind == "cylinder":
+        return X[:, 0] ** 2 + X[:, 1] ** 2 <= r * r
+    h = 0.5 * shape["height"]
+    axial = np.clip(X[:, 2], -h, h)
+    return X[:, 0] ** 2 + X[:, 1] ** 2 + (X[:, 2] - axial) ** 2 <= r * r
+
+
+def wet_fraction(t: FloatArray, c: FloatArray) -> FloatArray:
+    """``f(t) = clip(t / c + 1/2, 0, 1)`` of cells at depth ``t`` [m], size ``c`` [m]."""
+    return np.clip(t / c + 0.5, 0.0, 1.0)
+
+
+def wet_potential(t: FloatArray, c: FloatArray) -> FloatArray:
+    """``H(t)`` [m] with ``H' = f``: 0 above the band, ``(t + c/2)^2 / (2c)`` in it, ``t`` below."""
+    return np.where(t <= -0.5 * c, 0.0, np.where(t >= 0.5 * c, t, (t + 0.5 * c) ** 2 / (2.0 * c)))
+
+
+@dataclass(frozen=True, eq=False)
+class Water(ForceElement):
+    """Buoyancy and drag of still water on the cells of k bodies (module docstring).
+
+    Attributes
+    ----------
+    body : ndarray of int, shape (k,)
+    cells : tuple of ndarray, each (m_b, 3)
+        Cell centres in body axes from the body's frame origin [m].
+    weights : tuple of ndarray, each (m_b,)
+        Cell volumes [m^3].
+    size : ndarray, shape (k,)
+        Cell size of each body [m].
+    area : ndarray, shape (k,)
+        Frontal area for drag [m^2].
+    level : float
+        Height of the surface along ``normal`` [m].
+    normal : ndarray, shape (3,)
+        Unit normal of the surface, up out of the water.
+    density : float
+        [kg/m^3].
+    gravity : float
+        Magnitude of gravity [m/s^2].
+    drag : float
+        ``C_d`` [-] (0: no drag).
+    """
+
+    type_name: ClassVar[str] = "water"
+    #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
+    scalar_names: ClassVar[tuple[str, ...]] = ("water/submerged_volume", "water/buoyancy")
+    body: IntArray
+    cells: tuple
+    weights: tuple
+    size: FloatArray
+    area: FloatArray
+    level: float
+    normal: FloatArray
+    density: float
+    gravity: float
+    drag: float = 0.0
+
+    def coupled_bodies(self):
+        return np.zeros((0, 2), int)  # each body's water forces depend on its own pose only
+
+    def _world(self, cfg: Configuration, k: int):
+        b = self.body[k]
+        lever = self.cells[k] @ cfg.pose.R_WB[b].T
+        depth = self.level - (cfg.pose.W_r[b] + lever) @ self.normal
+        return b, lever, depth
+
+    def wrench(self, cfg):
+        rows = cfg.pose.W_r.shape[0]
+        F, tau = np.zeros((rows, 3)), np.zeros((rows, 3))
+        for k in range(len(self.body)):
+            b, lever, depth = self._world(cfg, k)
+            wet = self.weights[k] * wet_fraction(depth, self.size[k])
+            B = self.density * self.gravity * wet
+            F[b] += B.sum() * self.normal
+            tau[b] += cross(lever, np.outer(B, self.normal)).sum(axis=0)
+            D, arm = self._drag(cfg, k, b, lever, wet)
+            F[b] += D
+            tau[b] += np.cross(arm, D)
+        return F, tau, None
+
+    def _drag(self, cfg: Configuration, k: int, b: int, lever: FloatArray, wet: FloatArray):
+        """Drag force on body b [N] and its lever from the frame origin [m] (zero when dry or C_d = 0)."""
+        total = wet.sum()
+        if self.drag == 0.0 or total <= 0.0:
+            return np.zeros(3), np.zeros(3)
+        arm = (wet @ lever) / total
+        v = cfg.twist.W_v[b] + np.cross(cfg.twist.W_omega[b], arm)
+        phi = total / self.weights[k].sum()
+        return -0.5 * self.density * self.drag * self.area[k] * phi * np.linalg.norm(v) * v, arm
+
+    def potential_energy(self, cfg):
+        U = 0.0
+        for k in range(len(self.body)):
+            _, _, depth = self._world(cfg, k)
+            U += self.density * self.gravity * float(self.weights[k] @ wet_potential(depth, self.size[k]))
+        return U
+
+    @property
+    def conservative(self) -> bool:
+        return self.drag == 0.0
+
+    def nonconservative_power(self, cfg):
+        """The drag's power on the bodies [W] (<= 0); buoyancy's is in ``potential_energy``."""
+        P = 0.0
+        for k in range(len(self.body)):
+            b, lever, depth = self._world(cfg, k)
+            wet = self.weights[k] * wet_fraction(depth, self.size[k])
+            D, arm = self._drag(cfg, k, b, lever, wet)
+            P += float(D @ (cfg.twist.W_v[b] + np.cross(cfg.twist.W_omega[b], arm)))
+        return P
+
+    def scalars(self, cfg: Configuration) -> dict[str, float]:
+        """Frame scalars: the submerged volume [m^3] and the buoyancy [N] of all bodies."""
+        wet = sum(float(self.weights[k] @ wet_fraction(self._world(cfg, k)[2], self.size[k]))
+                  for k in range(len(self.body)))
+        return {"water/submerged_volume": wet, "water/buoyancy": self.density * self.gravity * wet}
