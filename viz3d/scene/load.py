@@ -308,8 +308,8 @@ def chain_elements(chain: dict, gravity=(0.0, 0.0, -9.81), source: str = "<scene
             "position": c.tolist(), "euler": euler_from_matrix(frame_with_z(d)).tolist(),
             "velocity": np.cross(omega, c - anchor).tolist(), "omega": omega.tolist(), "color": chain["color"],
         })
-        joint = {"name": f"{p}_j{i}", "type": "ball", "body1": f"{p}{i}", "body2": "ground" if i == 0 else f"{p}{i - 1}",
-                 "point": nodes[i].tolist()}
+        joint = {"name": f"{p}_j{i}", "type": "ball", "body1": f"{p}{i}",
+                 "body2": chain["attach"] if i == 0 else f"{p}{i - 1}", "point": nodes[i].tolist()}
         if i > 0 and chain["joint"] == "universal":
             before = (nodes[i] - nodes[i - 1]) / L
             joint.update(type="universal", axis1=normal.tolist(), axis2=np.cross(before, normal).tolist())

@@ -423,6 +423,7 @@ CHAIN = Table({
     "omega": Field(vec3, ZERO3, "initial rigid rotation of the whole chain about the anchor [rad/s]"),
     "color": Field(color, [200, 120, 40], "display colour"),
     "prefix": Field(name, "link", "body names are <prefix><index>"),
+    "attach": Field(string, "ground", "the body the first link hangs from (a ball joint at anchor)"),
     "end": Field(vec3, OPTIONAL, "second anchor: the chain hangs between anchor and end (ball joints to ground at "
                  "both), starting as a circular arc below their chord (needs n * link_length > the span)"),
     "joint": Field(one_of("ball", "universal"), "ball", "joints between links: ball, or universal (two relative "

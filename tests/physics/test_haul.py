@@ -1,0 +1,66 @@
+"""A windlass hauls a chain and its anchor straight up through still water (issue 11's quasi-static
+haul, without the hull): a velocity drive on a prismatic joint pulls the head the chain hangs from.
+
+The hanging system translates as one body, so the drive's force is, exactly (written here from
+Newton's second law, not from the simulator): the weight of head, chain and anchor, minus the
+water's buoyancy on their volumes (all under water), plus their mass times the prescribed
+acceleration, plus each body's quadratic drag at the hauling speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import viz3d
+
+G, RHO_W, CD = 9.81, 1025.0, 0.6
+N, ELL, R_LINK, RHO = 10, 0.1, 0.01, 7800.0
+#: Hauling speed profile v = V (1 - cos(2 pi f t)): smooth from rest (a ramp's corners are kinks the
+#: steps would have to land on).
+V_HAUL, FREQ = 0.1, 2.5
+
+
+def _scene(tmp_path, water: bool):
+    text = f"""[sim]\nt_end = 0.2\ndt = 4e-4\noutput_dt = 0.01\n
+[[bodies]]\nname = "head"\nshape = {{ type = "box", extents = [0.1, 0.1, 0.1] }}\nmass = 2.0
+inertia = [0.00333, 0.00333, 0.00333]\nposition = [0.0, 0.0, 0.0]\n
+[[bodies]]\nname = "anchor"\nshape = {{ type = "sphere", radius = 0.05 }}\ndensity = {RHO}
+position = [0.0, 0.0, {-0.05 - N * ELL - 0.05}]\n
+[[joints]]\nname = "winch"\ntype = "prismatic"\nbody1 = "head"\nbody2 = "ground"\npoint = [0.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]\n
+[[joints]]\nname = "shackle"\ntype = "ball"\nbody1 = "anchor"\nbody2 = "link{N - 1}"\npoint = [0.0, 0.0, {-0.05 - N * ELL}]\n
+[[drives]]\nname = "windlass"\njoint = "winch"\nmode = "velocity"\nkind = "sine"\nvalue = {V_HAUL}
+amplitude = {V_HAUL}\nfrequency = {FREQ}\nphase = {-np.pi / 2}\n
+[chain]\nn = {N}\nlink_length = {ELL}\nradius = {R_LINK}\ndensity = {RHO}\nanchor = [0.0, 0.0, -0.05]
+direction = [0.0, 0.0, -1.0]\nattach = "head"\n"""
+    if water:
+        text += f"\n[water]\nlevel = 2.0\ndensity = {RHO_W}\ndrag_coefficient = {CD}\ncells = 27\n"  # all wet: any cells
+    path = tmp_path / f"haul{water}.toml"
+    path.write_text(text)
+    traj = viz3d.simulate(viz3d.load_scene(path))
+    assert traj.status == "ok", traj.status
+    return traj
+
+
+def _volumes():
+    link = np.pi * R_LINK**2 * ELL + 4 / 3 * np.pi * R_LINK**3
+    return np.array([0.1**3] + [link] * N + [4 / 3 * np.pi * 0.05**3])
+
+
+@pytest.mark.parametrize("water", [False, True])
+def test_the_windlass_force_is_the_submerged_weight_plus_inertia_plus_drag(tmp_path, water):
+    traj = _scene(tmp_path, water)
+    V = _volumes()
+    m = np.concatenate([[2.0], RHO * V[1:]])
+    M = m.sum()
+    t, w = traj.t, 2 * np.pi * FREQ
+    v, a = V_HAUL * (1 - np.cos(w * t)), V_HAUL * w * np.sin(w * t)
+    F = M * (G + a)
+    if water:
+        A = np.pi * (3 * V / (4 * np.pi)) ** (2 / 3)
+        F = F - RHO_W * G * V.sum() + 0.5 * RHO_W * CD * A.sum() * v**2
+    effort = traj.extras["drive_effort"][:, 0]
+    # the state is RK4's (truncation ~ (w dt)^4 of the motion: 1e-10 here); the force follows it exactly
+    np.testing.assert_allclose(effort, F, rtol=1e-8)
+    np.testing.assert_allclose(traj.position[:, 0, 2], V_HAUL * (t - np.sin(w * t) / w), atol=1e-9)
