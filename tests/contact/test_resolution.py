@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from law_examples import EXAMPLES, M_EFF, V0
 
+from viz3d.contact.exact import hertz_impact
 from viz3d.contact.laws import NORMAL_LAWS, Hertz, Linear
-from viz3d.contact.single_impact import achieved_restitution
 from viz3d.contact.resolution import (
     admissible_indentation,
     contact_time_scale,
@@ -22,7 +22,7 @@ from viz3d.contact.resolution import (
     load_restitution_slack,
     restitution_diagnosis,
 )
-from viz3d.contact.exact import hertz_impact
+from viz3d.contact.single_impact import achieved_restitution
 
 #: Root finding to ALPHA_RTOL = 1e-10; the 1-DOF reference is integrated at rtol 1e-12.
 ROOT_TOL = 1e-9

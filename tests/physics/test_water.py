@@ -16,8 +16,8 @@ import pytest
 from scipy.optimize import brentq
 
 import viz3d
-from viz3d.water import volume_cells, wet_fraction, wet_potential
 from viz3d.scene.schema import SceneError
+from viz3d.water import volume_cells, wet_fraction, wet_potential
 
 G, RHO_W = 9.81, 1000.0
 

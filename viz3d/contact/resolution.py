@@ -120,7 +120,8 @@ def free_impact_restitution(law: NormalLaw, m_eff: float, speed: float, memory: 
 
     Closed forms where they exist (elastic: 1; hysteresis laws: ``hysteresis_restitution(chi)``
     whatever mass and speed, as long as the law sees the true approach speed, i.e. above
-    ``MIN_APPROACH_SPEED``; with a fixed ``damping_factor`` c, ``chi = c speed``; the no-tension linear dashpot: ``linear_restitution(zeta)``),
+    ``MIN_APPROACH_SPEED``; with a fixed ``damping_factor`` c, ``chi = c speed``; the no-tension
+    linear dashpot: ``linear_restitution(zeta)``),
     otherwise the law integrated through the contact (``single_impact.achieved_restitution``).
     """
     if not law.dissipative:
