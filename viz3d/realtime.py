@@ -137,6 +137,15 @@ def plot_series(system) -> tuple[tuple, tuple]:
     else:
         plots.append(("Constraint violation [m]", ("max |C|",)))
         series.append(lambda f: f.constraint_violation)
+    drives = [n for js in system.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
+    if drives:  # the windlass's hauling force, a crank's torque
+        plots.append(("Drive effort [N or N m]", tuple(drives)))
+        series += [lambda f, n=n: f.scalars[f"drive/{n}/effort"] for n in drives]
+    for e in system.forces:  # shape contacts, water: the element's own plot
+        if getattr(e, "live_plot", None):
+            title, key = e.live_plot
+            plots.append((title, (key.split("/")[-1].replace("_", " "),)))
+            series.append(lambda f, key=key: f.scalars[key])
     return tuple(plots), tuple(series)
 
 

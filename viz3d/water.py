@@ -115,6 +115,8 @@ class Water(ForceElement):
     type_name: ClassVar[str] = "water"
     #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
     scalar_names: ClassVar[tuple[str, ...]] = ("water/submerged_volume", "water/buoyancy")
+    #: The live viewer's plot of this element: (title, frame scalar).
+    live_plot: ClassVar[tuple[str, str]] = ("Water: buoyancy [N]", "water/buoyancy")
     body: IntArray
     cells: tuple
     weights: tuple

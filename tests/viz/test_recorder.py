@@ -151,3 +151,4 @@ def test_shape_contacts_are_recorded_as_arrows_and_plots(tmp_path):
                for v in rb.column("Arrows3D:origins").to_pylist() if v is not None]
     assert batches and all(1 <= len(b) <= traj.extras["collision_contacts"].max() for b in batches)
     assert all(np.all(np.isfinite(b)) for b in batches)
+

@@ -320,6 +320,8 @@ class Collisions(ForceElement):
     type_name: ClassVar[str] = "collisions"
     #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
     scalar_names: ClassVar[tuple[str, ...]] = ("collision/contacts", "collision/max_depth", "collision/normal_force")
+    #: The live viewer's plot of this element: (title, frame scalar).
+    live_plot: ClassVar[tuple[str, str]] = ("Shape contacts: normal force [N]", "collision/normal_force")
     shapes: tuple[Shape, ...]
     groups: tuple[str, ...]
     pair_law: IntArray
