@@ -87,6 +87,19 @@ def check_violation(system: System, states, violation, limit: float) -> None:
                                 frame=i)
 
 
+def check_capacity(states, scalars: dict, capacity: dict[str, float]) -> None:
+    """Raise ``SimulationFailure`` at the first of ``states`` where a drive's effort (frame scalar
+    ``drive/<name>/effort``, one value per state) exceeds its ``capacity[name]`` [N or N m]: the
+    mechanism jams, or the drive is too small for it."""
+    for name, limit in capacity.items():
+        effort = np.abs(np.asarray(scalars.get(f"drive/{name}/effort", ()), float))
+        bad = np.flatnonzero(effort > limit)
+        if bad.size:
+            i = int(bad[0])
+            raise SimulationFailure(f"t = {states[i].t:.6g} s: drive {name!r} needs {effort[i]:.4g} (N or N m), over its "
+                                    f"capacity {limit:.4g}: the mechanism jams or the drive is too small", frame=i)
+
+
 class EnergyWatch:
     """Stops a conservative run whose total energy grows: a step beyond the method's stability
     limit on a stiff force (a hard contact, a stiff spring) pumps energy into the motion long

@@ -18,7 +18,15 @@ from typing import Callable, Sequence
 import numpy as np
 
 from viz3d.constraints import SingularConstraintError, constraint_rows
-from viz3d.diagnosis import EnergyWatch, SimulationFailure, check_chart, check_state, check_violation, redundant_joints
+from viz3d.diagnosis import (
+    EnergyWatch,
+    SimulationFailure,
+    check_capacity,
+    check_chart,
+    check_state,
+    check_violation,
+    redundant_joints,
+)
 from viz3d.dynamics import VectorField, body_state
 from viz3d.extras import element_fields, joint_fields, run_extras
 from viz3d.columns import FrameColumns, StateLog
@@ -527,8 +535,11 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     status, wall0 = "ok", time.perf_counter()
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
 
+    capacity = {d["name"]: d["capacity"] for d in scene.data["drives"] if "capacity" in d}
+
     def check(cols, states):
         check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
+        check_capacity(states, cols.scalars, capacity)
         energy.check(cols)
 
     log = StateLog(sim, check)

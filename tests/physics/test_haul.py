@@ -22,6 +22,14 @@ V_HAUL, FREQ = 0.1, 2.5
 
 
 def _scene(tmp_path, water: bool):
+    path = tmp_path / f"haul{water}.toml"
+    path.write_text(_scene_text(water))
+    traj = viz3d.simulate(viz3d.load_scene(path))
+    assert traj.status == "ok", traj.status
+    return traj
+
+
+def _scene_text(water: bool) -> str:
     text = f"""[sim]\nt_end = 0.2\ndt = 4e-4\noutput_dt = 0.01\n
 [[bodies]]\nname = "head"\nshape = {{ type = "box", extents = [0.1, 0.1, 0.1] }}\nmass = 2.0
 inertia = [0.00333, 0.00333, 0.00333]\nposition = [0.0, 0.0, 0.0]\n
@@ -36,11 +44,7 @@ amplitude = {V_HAUL}\nfrequency = {FREQ}\nphase = {-np.pi / 2}\n
 direction = [0.0, 0.0, -1.0]\nattach = "head"\n"""
     if water:
         text += f"\n[water]\nlevel = 2.0\ndensity = {RHO_W}\ndrag_coefficient = {CD}\ncells = 27\n"  # all wet: any cells
-    path = tmp_path / f"haul{water}.toml"
-    path.write_text(text)
-    traj = viz3d.simulate(viz3d.load_scene(path))
-    assert traj.status == "ok", traj.status
-    return traj
+    return text
 
 
 def _volumes():
@@ -64,3 +68,18 @@ def test_the_windlass_force_is_the_submerged_weight_plus_inertia_plus_drag(tmp_p
     # the state is RK4's (truncation ~ (w dt)^4 of the motion: 1e-10 here); the force follows it exactly
     np.testing.assert_allclose(effort, F, rtol=1e-8)
     np.testing.assert_allclose(traj.position[:, 0, 2], V_HAUL * (t - np.sin(w * t) / w), atol=1e-9)
+
+
+def test_a_windlass_over_its_capacity_stops_the_run_with_a_diagnosis(tmp_path):
+    """Capacity between the dry hanging weight (86.9 N) and the peak hauling force (weight + M a_max,
+    100.8 N): the run stops at the first output frame that needs more, naming the drive, the time
+    and the force; the trajectory keeps the frames up to that one."""
+    path = tmp_path / "haul_capacity.toml"
+    text = _scene_text(water=False).replace('frequency = ', 'capacity = 95.0\nfrequency = ')
+    path.write_text(text)
+    traj = viz3d.simulate(viz3d.load_scene(path))
+    assert traj.status.startswith("t = ") and "drive 'windlass' needs" in traj.status
+    assert "over its capacity 95" in traj.status
+    effort = np.abs(traj.extras["drive_effort"][:, 0])
+    assert 0.0 < traj.t[-1] < 0.2 and np.all(effort[:-1] <= 95.0) and effort[-1] > 95.0
+    assert f"t = {traj.t[-1]:.6g} s" in traj.status

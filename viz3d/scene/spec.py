@@ -465,6 +465,8 @@ DRIVE = Table({
     "phase": Field(number, 0.0, "[rad] (sine)"),
     "start": Field(number, 0.0, "[s] (ramp)"),
     "duration": Field(nonnegative, 0.0, "[s] (ramp)"),
+    "capacity": Field(positive, OPTIONAL, "largest |effort| the drive can give [N or N m] (a windlass's): the run "
+                      "stops with a diagnosis at the first output frame that needs more"),
 }, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
 
 SCENE_FILE = Table({
