@@ -128,45 +128,54 @@ class Water(ForceElement):
     gravity: float
     drag: float = 0.0
 
+    def __post_init__(self):  # every body's cells stacked once, for whole-array evaluations
+        owner = np.concatenate([np.full(len(c), k) for k, c in enumerate(self.cells)]).astype(int)
+        object.__setattr__(self, "_owner", owner)
+        object.__setattr__(self, "_X", np.vstack(self.cells).reshape(-1, 3))
+        object.__setattr__(self, "_w", np.concatenate(self.weights))
+        object.__setattr__(self, "_volume", np.bincount(owner, self._w, minlength=len(self.body)))
+
     def coupled_bodies(self):
         return np.zeros((0, 2), int)  # each body's water forces depend on its own pose only
 
-    def _world(self, cfg: Configuration, k: int):
-        b = self.body[k]
-        lever = self.cells[k] @ cfg.pose.R_WB[b].T
+    def _cells(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Every cell's lever from its body's frame origin, world (M, 3) [m], depth (M,) [m] and wet
+        volume (M,) [m^3]."""
+        b = self.body[self._owner]
+        lever = np.einsum("kij,kj->ki", cfg.pose.R_WB[b], self._X)
         depth = self.level - (cfg.pose.W_r[b] + lever) @ self.normal
-        return b, lever, depth
+        return lever, depth, self._w * wet_fraction(depth, self.size[self._owner])
+
+    def _drag(self, cfg: Configuration, lever: FloatArray, wet: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Drag on each body (k, 3) [N] and its lever from the frame origin, world (k, 3) [m] (zero
+        when dry or C_d = 0)."""
+        k = len(self.body)
+        total = np.bincount(self._owner, wet, minlength=k)
+        moment = np.stack([np.bincount(self._owner, wet * lever[:, i], minlength=k) for i in range(3)], axis=1)
+        arm = np.divide(moment, total[:, None], out=np.zeros((k, 3)), where=total[:, None] > 0.0)
+        if self.drag == 0.0:
+            return np.zeros((k, 3)), arm
+        v = cfg.twist.W_v[self.body] + cross(cfg.twist.W_omega[self.body], arm)
+        phi = total / self._volume
+        D = -0.5 * self.density * self.drag * (self.area * phi * np.linalg.norm(v, axis=1))[:, None] * v
+        return D, arm
 
     def wrench(self, cfg):
         rows = cfg.pose.W_r.shape[0]
         F, tau = np.zeros((rows, 3)), np.zeros((rows, 3))
-        for k in range(len(self.body)):
-            b, lever, depth = self._world(cfg, k)
-            wet = self.weights[k] * wet_fraction(depth, self.size[k])
-            B = self.density * self.gravity * wet
-            F[b] += B.sum() * self.normal
-            tau[b] += cross(lever, np.outer(B, self.normal)).sum(axis=0)
-            D, arm = self._drag(cfg, k, b, lever, wet)
-            F[b] += D
-            tau[b] += np.cross(arm, D)
+        lever, _, wet = self._cells(cfg)
+        B = (self.density * self.gravity * wet)[:, None] * self.normal
+        b = self.body[self._owner]
+        np.add.at(F, b, B)
+        np.add.at(tau, b, cross(lever, B))
+        D, arm = self._drag(cfg, lever, wet)
+        np.add.at(F, self.body, D)
+        np.add.at(tau, self.body, cross(arm, D))
         return F, tau, None
 
-    def _drag(self, cfg: Configuration, k: int, b: int, lever: FloatArray, wet: FloatArray):
-        """Drag force on body b [N] and its lever from the frame origin [m] (zero when dry or C_d = 0)."""
-        total = wet.sum()
-        if self.drag == 0.0 or total <= 0.0:
-            return np.zeros(3), np.zeros(3)
-        arm = (wet @ lever) / total
-        v = cfg.twist.W_v[b] + np.cross(cfg.twist.W_omega[b], arm)
-        phi = total / self.weights[k].sum()
-        return -0.5 * self.density * self.drag * self.area[k] * phi * np.linalg.norm(v) * v, arm
-
     def potential_energy(self, cfg):
-        U = 0.0
-        for k in range(len(self.body)):
-            _, _, depth = self._world(cfg, k)
-            U += self.density * self.gravity * float(self.weights[k] @ wet_potential(depth, self.size[k]))
-        return U
+        _, depth, _ = self._cells(cfg)
+        return self.density * self.gravity * float(self._w @ wet_potential(depth, self.size[self._owner]))
 
     @property
     def conservative(self) -> bool:
@@ -174,16 +183,12 @@ class Water(ForceElement):
 
     def nonconservative_power(self, cfg):
         """The drag's power on the bodies [W] (<= 0); buoyancy's is in ``potential_energy``."""
-        P = 0.0
-        for k in range(len(self.body)):
-            b, lever, depth = self._world(cfg, k)
-            wet = self.weights[k] * wet_fraction(depth, self.size[k])
-            D, arm = self._drag(cfg, k, b, lever, wet)
-            P += float(D @ (cfg.twist.W_v[b] + np.cross(cfg.twist.W_omega[b], arm)))
-        return P
+        lever, _, wet = self._cells(cfg)
+        D, arm = self._drag(cfg, lever, wet)
+        v = cfg.twist.W_v[self.body] + cross(cfg.twist.W_omega[self.body], arm)
+        return float(np.sum(D * v))
 
     def scalars(self, cfg: Configuration) -> dict[str, float]:
         """Frame scalars: the submerged volume [m^3] and the buoyancy [N] of all bodies."""
-        wet = sum(float(self.weights[k] @ wet_fraction(self._world(cfg, k)[2], self.size[k]))
-                  for k in range(len(self.body)))
+        wet = float(self._cells(cfg)[2].sum())
         return {"water/submerged_volume": wet, "water/buoyancy": self.density * self.gravity * wet}

@@ -43,6 +43,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.forces import ForceElement
+from viz3d.geometry import contact_spheres
 from viz3d.kinematics import Configuration
 from viz3d.rotations import cross
 
@@ -154,24 +155,15 @@ GEOMETRIES = {"sphere": _sphere, "capsule": _capsule, "box": _box, "cylinder": _
 
 
 def support_points(kind: str, size: tuple, vertices: FloatArray, rim_points: int = 16) -> FloatArray:
-    """Support points of a shape against a plane (s, 4): centre in shape axes [m] and radius [m]."""
-    if kind == "sphere":
-        return np.array([[0.0, 0.0, 0.0, size[0]]])
-    if kind == "capsule":
-        h = 0.5 * size[1]
-        return np.array([[0.0, 0.0, h, size[0]], [0.0, 0.0, -h, size[0]]])
-    if kind == "box":
-        half = 0.5 * np.asarray(size, float)
-        corners = [half * np.array([sx, sy, sz]) for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)]
-        return np.column_stack([corners, np.zeros(8)])
-    if kind == "cylinder":
-        r, h = size[0], 0.5 * size[1]
-        a = 2 * np.pi * np.arange(rim_points) / rim_points
-        rim = [[r * np.cos(t), r * np.sin(t), z] for z in (h, -h) for t in a]
-        return np.column_stack([rim, np.zeros(2 * rim_points)])
+    """Support points of a shape against a plane (s, 4): centre in shape axes [m] and radius [m]; the
+    primitives' are ``viz3d.geometry.contact_spheres``, a mesh's its vertices."""
     if kind in ("convex", "mesh"):
         return np.column_stack([vertices, np.zeros(len(vertices))])
-    return np.zeros((0, 4))
+    if kind not in ("sphere", "capsule", "box", "cylinder"):
+        return np.zeros((0, 4))
+    table = {"type": "box", "extents": list(size)} if kind == "box" else {"type": kind,
+                                                                           **dict(zip(("radius", "height"), size))}
+    return np.array([[*c, r] for c, r in contact_spheres(table, rim_points)])
 
 
 def convex_hull(vertices: FloatArray) -> tuple[FloatArray, IntArray]:
@@ -359,6 +351,9 @@ class Collisions(ForceElement):
         w["core"] = np.array([s.size[0] if s.kind in ("sphere", "capsule") else np.nan for s in self.shapes])
         w["excluded"] = np.array(sorted(self.excluded), int).reshape(-1, 2)
         w["body"] = np.array([s.body for s in self.shapes], int)
+        w["B_R"] = np.array([s.B_R for s in self.shapes], float)
+        w["B_r"] = np.array([s.B_r for s in self.shapes], float)
+        w["curvature"] = np.array([1.0 / s.size[0] if s.kind == "sphere" else 0.0 for s in self.shapes])
         w["all_pairs"] = {}
         w["planes"] = []
         for k, P in enumerate(self.shapes):  # per plane: the support points of the shapes it meets
@@ -381,17 +376,14 @@ class Collisions(ForceElement):
         """Every pair of bodies whose shapes' groups collide (any of them may touch)."""
         body = np.array([s.body for s in self.shapes], int)
         group = np.array([s.group for s in self.shapes], int)
-        pairs = [np.column_stack(np.nonzero(self.pair_law[group[:, None], group[None, :]] >= 0))]
-        ij = np.vstack(pairs)
+        ij = np.column_stack(np.nonzero(self.pair_law[group[:, None], group[None, :]] >= 0))
         return np.unique(body[ij], axis=0) if len(ij) else np.zeros((0, 2), int)
 
     def shape_poses(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
         """World origins (S, 3) and rotations (S, 3, 3) of every shape."""
-        body = np.array([s.body for s in self.shapes], int)
-        R_b, r_b = cfg.pose.R_WB[body], cfg.pose.W_r[body]
-        B_R = np.array([s.B_R for s in self.shapes], float)
-        B_r = np.array([s.B_r for s in self.shapes], float)
-        return r_b + np.einsum("kij,kj->ki", R_b, B_r), R_b @ B_R
+        w = self._world()
+        R_b, r_b = cfg.pose.R_WB[w["body"]], cfg.pose.W_r[w["body"]]
+        return r_b + np.einsum("kij,kj->ki", R_b, w["B_r"]), R_b @ w["B_R"]
 
     # ------------------------------------------------------------------ detection
 
@@ -423,7 +415,7 @@ class Collisions(ForceElement):
         w = self._world()
         rho, members = w["radius"], w["members"]
         trees = {}
-        pairs: list[tuple[int, int]] = []
+        pairs: list[IntArray] = []  # (k, 2) blocks of candidate pairs
         G = len(self.groups)
         for g1 in range(G):
             for g2 in range(g1, G):
@@ -580,8 +572,7 @@ class Collisions(ForceElement):
             return 1.0
         from viz3d.contact.parameters import hertz_stiffness
 
-        curvature = np.array([1.0 / s.size[0] if s.kind == "sphere" else 0.0 for s in self.shapes])
-        return hertz_stiffness(pl.hertz_modulus, 1.0 / curvature[tc.shape[mask]].sum(axis=1))
+        return hertz_stiffness(pl.hertz_modulus, 1.0 / self._world()["curvature"][tc.shape[mask]].sum(axis=1))
 
     def evaluate(self, cfg: Configuration, touches: Touches | None = None):
         """``(touches, alpha_dot (m,), F (m,), F_el (m,), f (m, 3), v_t (m, 3))``: indentation rates, normal

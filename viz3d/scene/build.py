@@ -31,7 +31,7 @@ from viz3d.outputs import StrainGauges
 from viz3d.points import body_points
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.bars import flexible_body
-from viz3d.scene.collisions import build_collisions
+from viz3d.scene.collisions import bodies_matching, build_collisions
 from viz3d.scene.contacts import contact_law, friction_law
 from viz3d.scene.contacts import materials as contact_materials
 from viz3d.scene.load import Scene
@@ -163,8 +163,6 @@ def body_mass_properties(scene: Scene, i: int) -> MassProperties:
 
 def build_water(scene: Scene, bodies: Bodies) -> tuple:
     """The ``Water`` element of a scene's ``[water]`` table (none without one, or when disabled)."""
-    from fnmatch import fnmatchcase
-
     from viz3d.water import Water, volume_cells
 
     spec, src = scene.data.get("water"), scene.source()
@@ -173,12 +171,7 @@ def build_water(scene: Scene, bodies: Bodies) -> tuple:
     specs = scene.data["bodies"]
     primitive = ("sphere", "capsule", "box", "cylinder")
     if spec["bodies"]:
-        chosen = []
-        for pattern in spec["bodies"]:
-            hit = [i for i, b in enumerate(specs) if fnmatchcase(b["name"], pattern)]
-            if not hit:
-                raise SceneError(src, "water.bodies", "body names or patterns that match a body", pattern)
-            chosen += [i for i in hit if i not in chosen]
+        chosen = bodies_matching(src, "water.bodies", spec["bodies"], specs)
     else:
         chosen = [i for i, b in enumerate(specs) if bodies.is_rigid[i] and b.get("shape", {}).get("type") in primitive]
     body, cells, weights, size, area = [], [], [], [], []

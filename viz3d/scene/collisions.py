@@ -69,12 +69,7 @@ def _groups(src: str, spec: dict, bodies: list[dict], is_rigid) -> dict[str, lis
         where = f"collision.groups.{g}"
         if g == GROUND:
             raise SceneError(src, where, "a group name other than 'ground' (the ground shapes' group)")
-        members = []
-        for pattern in patterns:
-            hit = [i for i, b in enumerate(bodies) if fnmatchcase(b["name"], pattern)]
-            if not hit:
-                raise SceneError(src, where, "body names or patterns that match a body", pattern)
-            members += [i for i in hit if i not in members]
+        members = bodies_matching(src, where, patterns, bodies)
         for i in members:
             b = bodies[i]
             if not is_rigid[i] or "shape" not in b:
@@ -85,6 +80,18 @@ def _groups(src: str, spec: dict, bodies: list[dict], is_rigid) -> dict[str, lis
                                  b["name"])
             owner[i] = g
         out[g] = members
+    return out
+
+
+def bodies_matching(src: str, where: str, patterns: list[str], bodies: list[dict]) -> list[int]:
+    """Indices of the scene bodies whose names match any of ``patterns`` (fnmatch), in first-match
+    order; a pattern that matches no body is a ``SceneError`` at ``where``."""
+    out: list[int] = []
+    for pattern in patterns:
+        hit = [i for i, b in enumerate(bodies) if fnmatchcase(b["name"], pattern)]
+        if not hit:
+            raise SceneError(src, where, "body names or patterns that match a body", pattern)
+        out += [i for i in hit if i not in out]
     return out
 
 
