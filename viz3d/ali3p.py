@@ -59,6 +59,8 @@ SLOW_RATE = 0.5
 #: An iteration whose updates stop shrinking (rate above STALL_RATE) while below
 #: ROUND_OFF_FACTOR times the tolerance has reached round-off: accepted if |C| <= tol.
 STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
+#: A step that fails is retried as two halves, down to ``h / 2**MAX_HALVINGS``.
+MAX_HALVINGS = 3
 #: Systems up to this many velocity unknowns factor T densely (21 rigid bodies; above, multithreaded
 #: LAPACK on this 2-core machine took 28 ms for the 150 x 150 T of 25 links where SuperLU takes 3.6 ms).
 DENSE_MAX = 128
@@ -107,23 +109,37 @@ class _Point:
 
 def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
     """Initial accelerations and multipliers from ``formulation.start`` (the penalty method)."""
-    acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart)
+    acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart,
+                        elements=state.element_memory)
     return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system))
 
 
-def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory
+def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory, halvings: int = 0
                ) -> tuple[State, ALI3PMemory, Status]:
     """Advance ``state`` by ``h`` [s]; return the new state, memory and a status.
 
-    Tries with the kept force tangent first, then once with a fresh one; a failed step returns the
-    old state and memory with the reason.
+    Tries with the kept force tangent first, then once with a fresh one, then as two steps of
+    ``h / 2`` (down to ``h / 2^MAX_HALVINGS``: a contact that starts within the step, a snatch of a
+    chain); a failed step returns the old state and memory with the reason.
     """
+    state1, memory1, status = _one_step(system, formulation, state, h, memory)
+    if status.ok or halvings >= MAX_HALVINGS:
+        return state1, memory1, status
+    mid, memory_mid, status = ali3p_step(system, formulation, state, h / 2, memory1, halvings + 1)
+    if not status.ok:
+        return state, memory_mid, status
+    end, memory_end, status = ali3p_step(system, formulation, mid, h / 2, memory_mid, halvings + 1)
+    return (end, memory_end, status) if status.ok else (state, memory_end, status)
+
+
+def _one_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory
+              ) -> tuple[State, ALI3PMemory, Status]:
     with np.errstate(all="ignore"):
         for fresh in ((False, True) if memory.K is not None else (True,)):
             if fresh:
-                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan)
+                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory)
                 memory = replace(memory, K=K, D=D, n_evals=memory.n_evals + 2 * len(memory.plan[0]) + 1)
-            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh)
+            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh and _smooth(system))
             if isinstance(result, tuple):
                 return result + (Status.OK,)
             memory = replace(memory, n_evals=memory.n_evals + evals)
@@ -166,9 +182,11 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
             tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan)
-            lu = _factor(tangent.toarray() if _dense(system) else tangent)
-            exact = True
             evals += len(memory.plan[0])
+            try:
+                lu, exact = _factor(tangent.toarray() if _dense(system) else tangent), True
+            except RuntimeError:  # a singular difference tangent: go on with the approximate one
+                exact_ok = False
         ddx = lu.solve(-residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
@@ -181,22 +199,25 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
     cfg = body_state(system, q1, v1, state.chart, t1)
     C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
-    Q = flat_velocity(system, *generalized_forces(system, cfg))
+    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
     M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg) if system.n_elastic else None
     return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
 
 
 def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
-    """Project velocities (eq. 3.27; the joints are scleronomic, ``Phi_t = 0``) and accelerations
-    (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged positions. A step
-    that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent for the next."""
+    """Project velocities (eq. 3.27, with the drives' explicit rate ``C_t``: ``C_v v = -C_t``) and
+    accelerations (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged
+    positions. A step that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent
+    for the next."""
     T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
-    v = T.solve(W @ p.v)
+    C_t = constraint_rows(system.joints, body_state(system, p.q, p.v, state.chart, t1)).C_t
+    v = T.solve(W @ p.v if C_t is None else W @ p.v - 0.25 * h * h * alpha * (p.Cv.T @ C_t))
     gamma = constraint_rows(system.joints, body_state(system, p.q, v, state.chart, t1)).gamma
     a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
     keep = evals <= REFRESH_ITER
-    return State(t1, p.q, v, state.chart), replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None,
-                                                   D=memory.D if keep else None, n_evals=memory.n_evals + evals + 1)
+    new = State(t1, p.q, v, state.chart, element_memory=state.element_memory)  # (renewed by the simulation)
+    return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
+                        n_evals=memory.n_evals + evals + 1)
 
 
 class _DenseLU:
@@ -213,6 +234,14 @@ def _factor(A):
     """Factors of the square matrix ``A`` with ``.solve(b)``: SuperLU (COLAMD column order) for a
     sparse one, LAPACK's LU for a dense one (``_dense``)."""
     return splu(sp.csc_matrix(A)) if sp.issparse(A) else _DenseLU(A)
+
+
+def _smooth(system: System) -> bool:
+    """Are the applied forces smooth in the positions? Not with shape contacts (a force element with
+    ``smooth = False``): their contact sets change between iterates, a difference tangent taken
+    across such a change sends Newton's iterate anywhere (through a thin triangle surface, where
+    the residual has a spurious root), so their steps keep the approximate tangent."""
+    return all(e.smooth for e in system.forces)
 
 
 def _too_slow(step: float, rate: float, tol: float, left: int) -> bool:
@@ -251,13 +280,15 @@ def _dense(system: System) -> bool:
     return system.n_v <= DENSE_MAX
 
 
-def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray, plan: tuple = ()):
+def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray, plan: tuple = (),
+                  elements: tuple = ()):
     """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), dense or sparse (``_dense``), by forward
     differences of the applied and gyroscopic forces (``dx``: velocity-space displacement of the
-    positions), columns grouped by ``plan`` (``viz3d.sparsity.sparse_fd_plan``; default: built here)."""
+    positions), columns grouped by ``plan`` (``viz3d.sparsity.sparse_fd_plan``; default: built here);
+    ``elements``: the force elements' memory (``State.element_memory``), fixed during a step."""
 
     def forces(q_, v_):
-        return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t)))
+        return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t), elements=elements))
 
     plan = plan or sparse_fd_plan(system)
     Q0 = forces(q, v)

@@ -115,6 +115,14 @@ def _parser() -> argparse.ArgumentParser:
     stab.add_argument("--dt", type=_positive_flag, help="step of the runs without --sweep (default: the scene's)")
     _report_args(stab, "stability")
     stab.set_defaults(func=cmd_stability)
+    stow = sub.add_parser("stowage", help="verdict and peak hauling force of a haul over a grid of heel and trim")
+    stow.add_argument("scene", type=Path)
+    stow.add_argument("--heel", type=_number_list("--heel"), default=[-5.0, 0.0, 5.0], help="ship.heel values [deg]")
+    stow.add_argument("--trim", type=_number_list("--trim"), default=[-2.0, 0.0, 2.0], help="ship.trim values [deg]")
+    stow.add_argument("--workers", type=int, default=1, help="runs at a time (processes)")
+    _set_arg(stow)
+    stow.add_argument("--out", type=Path, help="report folder (default out/stowage/<scene>)")
+    stow.set_defaults(func=cmd_stowage)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
     _set_arg(check)
@@ -162,7 +170,18 @@ def _positive_list(flag: str):
     """``type=`` of a comma-separated list of positive numbers (``--dt 1e-3,5e-4``)."""
     from viz3d.scene.schema import positive
 
-    check = flag_type(positive)
+    return _list_of(flag_type(positive))
+
+
+def _number_list(flag: str):
+    """``type=`` of a comma-separated list of numbers (``--heel -5,0,5``)."""
+    from viz3d.scene.schema import number
+
+    return _list_of(flag_type(number))
+
+
+def _list_of(check):
+    """``type=`` of a comma-separated list of values each passing ``check``."""
 
     def convert(text: str) -> list[float]:
         return [check(x.strip()) for x in text.split(",") if x.strip()] or check("")
@@ -279,6 +298,14 @@ def port_number(x):
     if isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 65535:
         raise Invalid("an integer 0..65535")
     return x
+
+
+def cmd_stowage(args) -> int:
+    from viz3d.stowagestudy import save, stowage_study
+
+    out = _writable_dir(args.out or Path("out") / "stowage" / args.scene.stem, "stowage")
+    grid = {"ship.heel": args.heel, "ship.trim": args.trim}
+    return _report(lambda: stowage_study(args.scene, grid, args.overrides, args.workers), save, out)
 
 
 def cmd_run(args) -> int:
@@ -428,10 +455,25 @@ def summary(traj, out: Path) -> str:
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
         f"kernel      {meta.get('kernel', 'n/a')}",
+        *_stowage_lines(x),
         f"status      {traj.status}",
         f"wrote       {out}",
     ]
     return "\n".join(lines)
+
+
+def _stowage_lines(x: dict) -> list[str]:
+    """The haul's verdict and the generator's chain choice (``[stowage]`` scenes), else nothing."""
+    if "stowage_verdict" not in x:
+        return []
+    lines = [f"verdict     {x['stowage_verdict']} at t = {float(x['stowage_time']):.3f} s ({x['stowage_reason']}); peak "
+             f"hauling force {float(x['stowage_peak_force']) / 1e3:.1f} kN; at the end "
+             f"{float(x['stowage_position_error']):.3f} m, {float(x['stowage_angle_error']):.2f} deg from stowed"]
+    if "stowage_simulated_links" in x:
+        lines.append(f"chain       {int(x['stowage_simulated_links'])} simulated links of "
+                     f"{int(x['stowage_real_links_each'])} real link(s) each (pitch {float(x['stowage_pitch']):.3f} m, "
+                     f"{float(x['stowage_real_link_mass']):.1f} kg), haul {float(x['stowage_haul']):.2f} m")
+    return lines
 
 
 def contact_lines(traj) -> list[str]:

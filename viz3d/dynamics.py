@@ -51,21 +51,23 @@ def _with_fixed_frames(system: System, W_r, R, W_v, B_omega) -> tuple[Pose, Twis
     return pose, twist_from(v_all, w_all, pose)
 
 
-def generalized_forces(system: System, cfg: Configuration, memory: tuple = ()) -> tuple[FloatArray, FloatArray]:
+def generalized_forces(system: System, cfg: Configuration, memory: tuple = (),
+                       elements: tuple = ()) -> tuple[FloatArray, FloatArray]:
     """``Q``: frame part (nb + 1, 6) ``[W_F, B_tau - gyroscopic]`` [N, N m] and elastic part (n_e,).
 
     Forces are world vectors at the frame origins; torques are about them, in body axes. Rigid
     bodies add ``-B_omega x I B_omega``; flexible bodies their velocity forces (centrifugal,
     Coriolis, gyroscopic) and elastic forces ``-K eta - C eta_dot``; contacts their law forces,
-    given their phases in ``memory`` (``State.memory``). Rows of ground and of fixed frames are zero
-    (their reactions are not unknowns).
+    given their phases in ``memory`` (``State.memory``); force elements with memory theirs in
+    ``elements`` (``State.element_memory``). Rows of ground and of fixed frames are zero (their
+    reactions are not unknowns).
     """
     pose, twist = cfg.pose, cfg.twist
     W_F = np.zeros_like(pose.W_r)
     W_tau = np.zeros_like(pose.W_r)
     Q_e = np.zeros(system.n_elastic)
-    for element in system.forces:
-        F, tau, e = element.wrench(cfg)
+    for i, element in enumerate(system.forces):
+        F, tau, e = element.wrench(cfg) if not elements or elements[i] is None else element.wrench(cfg, elements[i])
         W_F += F
         W_tau += tau
         if e is not None:
@@ -140,12 +142,14 @@ class Accelerations:
 
 
 def accelerations(system: System, formulation, t: float, q: FloatArray, v: FloatArray,
-                  chart: FloatArray, memory: tuple = (), cfg: Configuration | None = None) -> Accelerations:
-    """Accelerations and multipliers at ``(t, q, v)`` with the contact phases ``memory`` (the physics
-    recipe); ``cfg``: the configuration at that point if the caller has it."""
+                  chart: FloatArray, memory: tuple = (), cfg: Configuration | None = None,
+                  elements: tuple = ()) -> Accelerations:
+    """Accelerations and multipliers at ``(t, q, v)`` with the contact phases ``memory`` and the force
+    elements' memory ``elements`` (the physics recipe); ``cfg``: the configuration at that point if
+    the caller has it."""
     cfg = body_state(system, q, v, chart, t) if cfg is None else cfg
     mass = system_mass(system, cfg)
-    Q = generalized_forces(system, cfg, memory)
+    Q = generalized_forces(system, cfg, memory, elements)
     rows = constraint_rows(system.joints, cfg, memory)
     (a, a_e), lam = formulation.solve(system, mass, Q, rows, cfg)
     return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
@@ -189,7 +193,7 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
     return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi), eta)
 
 
-def aux_rates(system: System, cfg: Configuration, memory: tuple) -> FloatArray:
+def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple = ()) -> FloatArray:
     """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
     contact ``F alpha_dot``, the damping power of the flexible bodies, the power of the force
     elements' non-conservative forces (``ForceElement.nonconservative_power``) [W]."""
@@ -198,13 +202,25 @@ def aux_rates(system: System, cfg: Configuration, memory: tuple) -> FloatArray:
     damping = 0.0
     for i, fb in enumerate(system.bodies.flexible):
         damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
-    power_in = sum(element.nonconservative_power(cfg) for element in system.forces)
+    power_in = sum(element.nonconservative_power(cfg) if not elements or elements[i] is None
+                   else element.nonconservative_power(cfg, elements[i]) for i, element in enumerate(system.forces))
     return np.concatenate(parts + [[damping, power_in]])
 
 
+def element_memory(system: System, state: State) -> tuple:
+    """``State.element_memory`` after an accepted step that ends at ``state`` (or at the start of a
+    run): each force element with memory renews its own (``ForceElement.memory_after_step``) from
+    the one it carried during the step; () when no element keeps one."""
+    if not any(e.has_memory for e in system.forces):
+        return ()
+    cfg = body_state(system, state.q, state.v, state.chart, state.t)
+    old = state.element_memory or (None,) * len(system.forces)
+    return tuple(e.memory_after_step(cfg, m) if e.has_memory else None for e, m in zip(system.forces, old))
+
+
 class VectorField:
-    """``y_dot = f(t, y)`` with ``y = [q, v, w]``, for a fixed chart and contact phases; what
-    integrators see (``w``: the ledger's work integrals, present with contacts).
+    """``y_dot = f(t, y)`` with ``y = [q, v, w]``, for a fixed chart, contact phases and force elements'
+    memory; what integrators see (``w``: the ledger's work integrals, present with contacts).
 
     Besides ``__call__`` it offers the ``retract`` hook of ``viz3d.integrators.base.Rhs``.
 
@@ -216,18 +232,19 @@ class VectorField:
         Number of evaluations so far.
     """
 
-    def __init__(self, system: System, formulation, chart: FloatArray, memory: tuple = ()):
+    def __init__(self, system: System, formulation, chart: FloatArray, memory: tuple = (), elements: tuple = ()):
         self.system, self.formulation, self.chart, self.memory = system, formulation, chart, memory
+        self.elements = elements
         self.n_q, self.n_v = system.n_q, system.n_v
         self.n_evals = 0
 
     def __call__(self, t: float, y: FloatArray) -> FloatArray:
         self.n_evals += 1
         q, v = y[: self.n_q], y[self.n_q:self.n_q + self.n_v]
-        acc = accelerations(self.system, self.formulation, t, q, v, self.chart, self.memory)
+        acc = accelerations(self.system, self.formulation, t, q, v, self.chart, self.memory, elements=self.elements)
         parts = [kinematic_rates(self.system, q, v), acc.v_dot]
         if self.system.n_aux:
-            parts.append(aux_rates(self.system, acc.cfg, self.memory))
+            parts.append(aux_rates(self.system, acc.cfg, self.memory, self.elements))
         return np.concatenate(parts)
 
     def retract(self, q: FloatArray, w: FloatArray) -> FloatArray:

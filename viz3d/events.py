@@ -211,10 +211,11 @@ class ContactStepping:
         return ledger(self.system, state, *self.kernel.configuration(state.t, state.y, state.chart))
 
     def state_at(self, t: float, y: FloatArray, like: State) -> State:
-        """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""
+        """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart, contact phases and force
+        elements' memory."""
         s = self.system
         n_q, n_v = s.n_q, s.n_v
-        return State(t, y[:n_q], y[n_q:n_q + n_v], like.chart, y[n_q + n_v:], like.memory)
+        return State(t, y[:n_q], y[n_q:n_q + n_v], like.chart, y[n_q + n_v:], like.memory, like.element_memory)
 
     def _gap(self, state: State, k: int):
         return self.system.contacts[k].gap(body_state(self.system, state.q, state.v, state.chart, state.t))
@@ -307,13 +308,15 @@ class ContactStepping:
 
     def multiplier(self, state: State, k: int, i: int) -> float:
         """Multiplier of kinematic contact ``(k, i)`` (its row active in ``state``) [N]; >= 0 compressive."""
-        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory)
+        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory,
+                            elements=state.element_memory)
         return float(acc.lam[_row_index(self.system, k, i)])
 
     def pressing_force(self, state: State, k: int, i: int) -> float:
         """Multiplier that would keep ``alpha_dd = 0`` at contact ``(k, i)`` given everything else [N]
         (what the loads press the surfaces together with, if > 0)."""
-        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory)
+        acc = accelerations(self.system, self.formulation, state.t, state.q, state.v, state.chart, state.memory,
+                            elements=state.element_memory)
         cfg, J, Je, gamma = self._contact_row(state, k, i)
         frame, elastic = split_velocity(self.system, acc.v_dot)
         alpha_dd = float(apply_jacobian(_single_row(self.system, k, i), J[None], frame, Je[None], elastic)[0]) - gamma

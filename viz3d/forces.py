@@ -33,9 +33,17 @@ __all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity",
 
 class ForceElement(ABC):
     """Base class. Subclasses set ``type_name`` and implement ``wrench``; those with a compiled
-    piece (``viz3d.compiled``) also ``compiled(pack)``, returning their packed ``Items``."""
+    piece (``viz3d.compiled``) also ``compiled(pack)``, returning their packed ``Items``.
+
+    An element with memory (``has_memory``: shape contacts with bristle friction keep their stick
+    anchors) keeps it in ``State.element_memory``, fixed during a step: its ``wrench`` then takes
+    it as a second argument, ``wrench(cfg, memory)``, and ``memory_after_step`` renews it after
+    each accepted step (``viz3d.dynamics.element_memory``)."""
 
     type_name: ClassVar[str]
+    #: Forces smooth in the positions (False: shape contacts, whose contact sets change between
+    #: nearby configurations, so a difference tangent across a change misleads Newton; ``viz3d.ali3p``).
+    smooth: ClassVar[bool] = True
 
     @abstractmethod
     def wrench(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray | None]:
@@ -45,6 +53,16 @@ class ForceElement(ABC):
     def potential_energy(self, cfg: Configuration) -> float:
         """Potential energy [J]; zero for non-conservative elements."""
         return 0.0
+
+    @property
+    def has_memory(self) -> bool:
+        """True when the element's forces depend on a memory kept in ``State.element_memory``."""
+        return False
+
+    def memory_after_step(self, cfg: Configuration, memory):
+        """The element's memory after an accepted step that ends at ``cfg``, from the one it carried
+        during the step (None at the start of a run); elements without memory: None."""
+        return None
 
     def coupled_bodies(self) -> IntArray | None:
         """Pairs of bodies (k, 2) whose coordinates each other's forces from this element depend on

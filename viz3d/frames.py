@@ -242,7 +242,8 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     if solved is not None:
         lam, C, J = solved
     elif system.n_c:  # multipliers: joint reactions, kinematic contact forces
-        acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg)
+        acc = accelerations(system, formulation, state.t, state.q, state.v, state.chart, state.memory, cfg,
+                            state.element_memory)
         lam, C, J = acc.lam, acc.rows.C, acc.rows.J
     lam = np.zeros(0) if lam is None else lam
     if joints:  # (a kinematic contact's row is its indentation, not a violation)
@@ -252,7 +253,9 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
                                                lam[sl].reshape(js.n_joints, js.n_eq)))
             points.append(js.points(cfg))
     springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
-    contacts = [e.contacts(cfg) for e in system.forces if hasattr(e, "contacts")]
+    memories = state.element_memory or (None,) * len(system.forces)
+    contacts = [e.contacts(cfg) if m is None else e.contacts(cfg, m)
+                for e, m in zip(system.forces, memories) if hasattr(e, "contacts")]
     scalars: dict[str, float] = {}
     for out in system.outputs:
         scalars.update(out.values(cfg))

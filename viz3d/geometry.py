@@ -90,6 +90,24 @@ def load_mesh(path: Path, scale: float):
     return mesh
 
 
+def shape_mesh(shape: dict, base_dir: Path):
+    """``trimesh.Trimesh`` of a mesh shape table: its ``file`` (relative to ``base_dir``) or its
+    ``generator`` with ``params`` (``viz3d.anchoring.MESHES``), scaled by ``scale``; raise ``MeshError``."""
+    if "generator" not in shape:
+        return load_mesh(base_dir / shape["file"], shape["scale"])
+    import trimesh
+
+    from viz3d.anchoring import generated_mesh
+
+    try:
+        V, F = generated_mesh(shape["generator"], shape.get("params", {}))
+    except ValueError as exc:
+        raise MeshError(str(exc)) from None
+    mesh = trimesh.Trimesh(V, F, process=False)
+    mesh.apply_scale(shape["scale"])
+    return mesh
+
+
 def mesh_properties(mesh) -> UnitMassProperties:
     """Properties of a watertight, outward-oriented mesh; raise ``MeshError`` otherwise."""
     if not mesh.is_watertight:
@@ -115,7 +133,7 @@ def display_mesh(shape: dict, base_dir: Path, center: FloatArray):
     if kind == "capsule":
         return trimesh.creation.capsule(height=shape["height"], radius=shape["radius"],
                                         count=[CYLINDER_SECTIONS, CYLINDER_SECTIONS])
-    mesh = load_mesh(base_dir / shape["file"], shape["scale"])
+    mesh = shape_mesh(shape, base_dir)
     mesh.apply_translation(-np.asarray(center))
     return mesh
 

@@ -74,7 +74,7 @@ def method_overrides(method: str) -> list[str]:
     return [f"{key}={value}" for key, value in parse_method(method).items()]
 
 
-def check_combination(integrator, formulation, rotation=None, rtol: float | None = None, drives: bool = False) -> None:
+def check_combination(integrator, formulation, rotation=None, rtol: float | None = None) -> None:
     """Raise ``MethodError`` unless the methods can run together.
 
     ``integrator``, ``formulation``, ``rotation`` are registry names or the objects (an
@@ -82,8 +82,7 @@ def check_combination(integrator, formulation, rotation=None, rtol: float | None
     Rules: a formulation that steps itself (``ali3p``) runs only with its own integrator;
     adaptive stepping (a tolerance ``rtol``, scene key ``sim.rtol``) needs an integrator with an
     embedded error estimate; Lie-group methods need rotation coordinates that implement
-    ``advance``; drives (rheonomic constraints, ``drives``) do not run with ``ali3p`` (its
-    projections assume ``C_t = 0``).
+    ``advance``.
     """
     integrator = INTEGRATORS[integrator]() if isinstance(integrator, str) else integrator
     formulation = FORMULATIONS[formulation] if isinstance(formulation, str) else formulation
@@ -97,10 +96,6 @@ def check_combination(integrator, formulation, rotation=None, rtol: float | None
         embedded = [n for n, make in INTEGRATORS.items() if make().embedded]
         raise MethodError("sim.rtol", f"no tolerance with sim.integrator = {integrator.name!r}: adaptive steps need an "
                           f"embedded error estimate ({', '.join(embedded)})", rtol)
-    if drives and own is not None:
-        raise MethodError("sim.formulation", f"a formulation other than {formulation.name!r} in a scene with drives "
-                          "(its velocity and acceleration projections assume joints without explicit time dependence)",
-                          formulation.name)
     lie = integrator.name in LIE_GROUP_INTEGRATORS or own is not None
     if lie and rotation is not None and rotation.advance is RotationCoordinates.advance:
         raise MethodError("sim.rotation", f"rotation coordinates with a finite-rotation update (advance) for "

@@ -31,7 +31,7 @@ from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
-from viz3d.scene.visuals import flexible_drawings, scene_visuals
+from viz3d.scene.visuals import flexible_drawings, live_plots, scene_visuals
 from viz3d.simulate import Simulation
 
 #: Frames published per second of wall time [Hz].
@@ -141,9 +141,8 @@ def plot_series(system) -> tuple[tuple, tuple]:
     if drives:  # the windlass's hauling force, a crank's torque
         plots.append(("Drive effort [N or N m]", tuple(drives)))
         series += [lambda f, n=n: f.scalars[f"drive/{n}/effort"] for n in drives]
-    for e in system.forces:  # shape contacts, water: the element's own plot
-        if getattr(e, "live_plot", None):
-            title, key = e.live_plot
+    for e in system.forces:  # shape contacts, water, joint stops: the element's own plot
+        for title, key in live_plots(e):
             plots.append((title, (key.split("/")[-1].replace("_", " "),)))
             series.append(lambda f, key=key: f.scalars[key])
     return tuple(plots), tuple(series)

@@ -27,7 +27,7 @@ from viz3d.diagnosis import (
     check_violation,
     redundant_joints,
 )
-from viz3d.dynamics import VectorField, body_state
+from viz3d.dynamics import VectorField, body_state, element_memory
 from viz3d.extras import element_fields, joint_fields, run_extras
 from viz3d.columns import FrameColumns, StateLog
 from viz3d.frames import Frame, frame_from_state
@@ -42,6 +42,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
+from viz3d.stowage import run_events, run_verdict, verdict_fields
 from viz3d.sink import Sink
 
 #: Output interval when the scene gives none [s].
@@ -67,8 +68,9 @@ class Simulation:
     * a formulation that steps itself (``ALI3P``): its own ``step`` with its memory.
 
     Between accepted steps, always in this order: ``formulation.post_step`` (projections), the
-    health check, ``rotation.normalize`` (unit quaternions) and ``rotation.rechart`` (per-body
-    chart switch).
+    health check, ``rotation.normalize`` (unit quaternions), ``rotation.rechart`` (per-body
+    chart switch) and the force elements' memory (``viz3d.dynamics.element_memory``: shape
+    contacts' stick anchors, planted here at the start too).
 
     Parameters
     ----------
@@ -104,8 +106,7 @@ class Simulation:
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
                  blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True):
-        check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol,
-                          drives=any(getattr(js, "rheonomic", False) for js in system.joints.joints))
+        check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
         self.system, self.state = system, state
         self.integrator, self.formulation, self.dt = integrator, formulation, dt
         self.blowup_speed, self.controller = blowup_speed, controller
@@ -121,6 +122,9 @@ class Simulation:
         self._kernel, self.kernel_note = (_compiled(system, integrator, formulation) if compiled
                                           else (None, "NumPy path (compiled = false)"))
         self._contacts = None   # contact events (systems with contacts): viz3d.events.ContactStepping
+        self._remembers = any(e.has_memory for e in system.forces)  # force elements with memory
+        if self._remembers and not state.element_memory:
+            self.state = self._inner = state = state.replace(element_memory=element_memory(system, state))
         self._fired = None      # the event handled last: its contact's events start at a root next step
         #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
         self.event_states: list[State] = []
@@ -217,7 +221,7 @@ class Simulation:
             new = self._kernel_step(target)
             if new is not None:
                 return new
-        rhs = self._field(s.chart)
+        rhs = self._field(s.chart, s.memory, s.element_memory)
         if self._solver is None:
             self._solver = self.integrator.init(rhs, s.t, s.y)
         with np.errstate(all="ignore"):
@@ -292,7 +296,7 @@ class Simulation:
     def _event_step(self, s: State, target: float) -> State:
         """One accepted step from ``s``, cut at the first contact event inside it (then handled)."""
         system, method, contacts = self.system, self.integrator, self._contacts
-        rhs = self._field(s.chart, s.memory)
+        rhs = self._field(s.chart, s.memory, s.element_memory)
         f0 = rhs(s.t, s.y) if self._f is None else self._f
         bound = contacts.step_bound(s)
         with np.errstate(all="ignore"):
@@ -364,7 +368,7 @@ class Simulation:
 
     def _adaptive_step(self) -> None:
         s, system, method = self._inner, self.system, self.integrator
-        rhs = self._field(s.chart)
+        rhs = self._field(s.chart, s.memory, s.element_memory)
         f = rhs(s.t, s.y) if self._f is None else self._f
         if self._h is None:
             self._h = min(self.controller.first_step(rhs, s.t, s.y, f, error_order(method)), self._turn_limit(f))
@@ -381,8 +385,17 @@ class Simulation:
     # ------------------------------------------------------------------ between steps
 
     def _accept(self, raw: State, f1, h: float, post_step: bool = True) -> State:
-        """An integration step's end state after projections, checks, normalization and re-charting;
-        keeps ``f1`` (the vector field at ``raw``) for the next step while ``raw`` is unchanged."""
+        """An integration step's end state after projections, checks, normalization, re-charting and
+        the force elements' new memory; keeps ``f1`` (the vector field at ``raw``) for the next step
+        while ``raw`` and that memory are unchanged."""
+        new = self._settle(raw, f1, h, post_step)
+        if not self._remembers:
+            return new
+        self._f = None  # f1 was evaluated with the step's memory
+        return new.replace(element_memory=element_memory(self.system, new))
+
+    def _settle(self, raw: State, f1, h: float, post_step: bool) -> State:
+        """``_accept`` but for the force elements' memory."""
         new = self.formulation.post_step(self.system, raw) if post_step else raw
         if self._kernel is None or not self._kernel.state_ok(new.y, h, self.blowup_speed):
             check_state(self.system, new, self.blowup_speed, h)
@@ -404,8 +417,8 @@ class Simulation:
         fastest = np.max(np.abs(rates), initial=0.0)
         return ADAPTIVE_MAX_TURN / fastest if fastest > 0.0 else np.inf
 
-    def _field(self, chart, memory: tuple = ()) -> VectorField:
-        rhs = VectorField(self.system, self.formulation, chart, memory)
+    def _field(self, chart, memory: tuple = (), elements: tuple = ()) -> VectorField:
+        rhs = VectorField(self.system, self.formulation, chart, memory, elements)
         self._fields.append(rhs)
         if self._kernel is not None:  # evaluations in the compiled kernel (same interface)
             from viz3d.kernel import CompiledField
@@ -426,9 +439,10 @@ def hermite_interpolant(t0, y0, f0, t1, y1, f1) -> Callable:
 
 
 def _state_at(system: System, t: float, y: np.ndarray, like: State) -> State:
-    """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart and contact phases."""
+    """The state with ``y = [q, v, w]`` at ``t``, in ``like``'s chart, contact phases and force
+    elements' memory."""
     q, v, w = system.split_y(y)
-    return State(t, q, v, like.chart, w, like.memory)
+    return State(t, q, v, like.chart, w, like.memory, like.element_memory)
 
 
 class _Span:
@@ -577,12 +591,17 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                 if status != "ok":  # the frames of events before the stop, unchecked (the run has stopped)
                     log.check = None
                     emitter.emit_events()
+                cols = log.columns(check=False)
+                verdict = run_verdict(scene.data, cols, sim.system.bodies.names)
+                emitter.announce(run_events(scene.data, cols)
+                                 + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
                 emitter.close(status)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
-    cols = log.columns(check=False)
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
     if joints := {**joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
         extras = {**(extras or {}), **joints}
+    if verdict is not None:
+        extras = {**(extras or {}), **verdict_fields(verdict, scene.data["stowage"])}
     return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)
 
@@ -640,6 +659,12 @@ class _Emitter:
                 s.log(frame)
             if output:
                 self.log.record(state)  # (may compute a chunk of frames and fail its checks)
+
+    def announce(self, events: list[tuple[float, str]]) -> None:
+        """Milestones found after the run (``viz3d.stowage.run_events``, the verdict) to every sink."""
+        for t, text in sorted(events):
+            for s in self.opened:
+                s.event(t, text)
 
     def close(self, status: str) -> None:
         for s in self.opened:

@@ -192,6 +192,11 @@ class State:
         Work integrals of the energy ledger [J] (``System.n_aux``; empty without contacts).
     memory : tuple
         Per contact set of ``System.contacts``, the tuple of its contacts' ``ContactPhase``.
+    element_memory : tuple
+        Per force element of ``System.forces``, the memory of those that keep one
+        (``ForceElement.has_memory``: shape contacts' stick anchors), None for the others; empty when
+        no element keeps one. Fixed during a step, renewed after each accepted step
+        (``viz3d.dynamics.element_memory``).
     """
 
     t: float
@@ -200,6 +205,7 @@ class State:
     chart: FloatArray
     w: FloatArray = field(default_factory=lambda: np.zeros(0))
     memory: tuple = ()
+    element_memory: tuple = ()
 
     def replace(self, **changes) -> "State":
         return dataclasses.replace(self, **changes)

@@ -400,13 +400,11 @@ def test_joint_forces_power_is_effort_times_rate_and_stops_store_their_spring_en
 
 @pytest.mark.filterwarnings("ignore::viz3d.scene.build.InitialConditionsWarning")  # the drive starts the rod
 def test_drives_refuse_what_they_cannot_follow(tmp_path):
-    """A position profile must have a bounded acceleration (no ramp), the joint must exist, and ali3p
-    does not take drives: each is an error naming the file and the key."""
+    """A position profile must have a bounded acceleration (no ramp) and the joint must exist: each is
+    an error naming the file and the key."""
     base = _hanging_rod(0.5, 1.0) + "[[drives]]\n"
     _refused(tmp_path, base + 'joint = "hinge"\nmode = "position"\nkind = "ramp"\n', r"drives\[0\]\.kind.*'sine'")
     _refused(tmp_path, base + 'joint = "nope"\n', r"drives\[0\]\.joint")
-    _refused(tmp_path, base + 'joint = "hinge"\nvalue = 1.0\n', r"bad\.toml: sim\.formulation.*drives",
-             sim='formulation = "ali3p"\nintegrator = "trapezoidal"\n')
 
 
 def test_a_universal_joint_driven_in_both_angles_follows_its_profiles(tmp_path):

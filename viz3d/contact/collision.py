@@ -14,7 +14,7 @@ everything but the cylinder's rim (``rim_points`` chords).
 
 Each contact acts as a penalty contact stepped through (no events located): its pair's normal law
 (one without contact memory: linear, Hertz, the rate laws with a fixed ``damping_factor``) plus an
-optional linear dashpot that never pulls, and a memoryless friction law, at the contact point:
+optional linear dashpot that never pulls, and a friction law, at the contact point:
 
     alpha = penetration depth,   alpha_dot = -n . (v_A(p) - v_B(p)),
     F = max(law(alpha, alpha_dot) + c alpha_dot, 0),   f_A = F n + f_t,   f_B = -f_A,
@@ -22,6 +22,18 @@ optional linear dashpot that never pulls, and a memoryless friction law, at the 
 with ``n`` the unit normal pointing from B towards A (A is pushed along ``+n``) and ``p`` the middle
 of the two witness points. Every contact point carries the pair's law. ``potential_energy`` is the
 laws' elastic energy; the dashpots', the rate laws' and friction's power is ``nonconservative_power``.
+
+Friction: memoryless laws (``coulomb``, ``stribeck``) act against the slip alone; ``bristle``
+(seed 004, eqs. 3.40-3.49, ``viz3d.contact.friction.Bristle``) also on the bristles' deflection
+from a stick anchor, a point of B kept per contact in the simulation state (``StickAnchors`` in
+``State.element_memory``, fixed during a step). Contacts are found afresh at every evaluation, so
+each gets its identity from the last accepted step: a contact of the same two shapes whose point
+at that step, carried along as a point of A or as a point of B, lies within half the merge
+distance of it (contacts of one pair are farther apart than that distance; of several candidates
+the nearest is taken first, each anchor once). A contact without a match has its anchor where it touches
+(no deflection). After each accepted step (``memory_after_step``) a matched contact keeps its
+anchor, moved by eq. 3.49 when its bristles carry more than ``mu_s F_n``; a new contact plants
+one at its point; a contact that ended loses its own.
 
 Triangle meshes are triangle soups: a shape overlapping several facets gets one contact per facet.
 Of a pair's contacts we keep the deepest, drop those whose normals differ from it by more than
@@ -195,7 +207,8 @@ class PairLaw:
     damping : float
         Linear dashpot added to the law [N s/m] (never pulls).
     friction : FrictionLaw or None
-        Memoryless tangential law (``viz3d.contact.friction``).
+        Tangential law (``viz3d.contact.friction``); a stateful one (``bristle``) keeps stick
+        anchors (``StickAnchors``).
     hertz_modulus : float
         ``E*`` [Pa] when the stiffness comes from the shapes' radii; NaN otherwise.
     """
@@ -235,6 +248,32 @@ class Touches:
     @property
     def m(self) -> int:
         return len(self.depth)
+
+
+@dataclass(frozen=True)
+class StickAnchors:
+    """The stick anchors of the contacts whose pair law has a stateful friction law (``bristle``): the
+    memory ``Collisions`` keeps in ``State.element_memory`` (n contacts, at the last accepted step).
+
+    Attributes
+    ----------
+    shape : ndarray of int, shape (n, 2)
+        Shapes A and B of each contact.
+    anchor : ndarray, shape (n, 3)
+        Where the bristles are planted: a point of B in B's axes from its frame origin (ground:
+        world) [m].
+    mark : ndarray, shape (n, 2, 3)
+        The contact point as a point of A and as a point of B, each in its body's axes from its frame
+        origin [m]: the contact's identity at the next evaluations.
+    """
+
+    shape: IntArray
+    anchor: FloatArray
+    mark: FloatArray
+
+    @property
+    def n(self) -> int:
+        return len(self.shape)
 
 
 def _world_box(s: Shape) -> tuple[FloatArray, FloatArray]:
@@ -314,6 +353,7 @@ class Collisions(ForceElement):
     scalar_names: ClassVar[tuple[str, ...]] = ("collision/contacts", "collision/max_depth", "collision/normal_force")
     #: The live viewer's plot of this element: (title, frame scalar).
     live_plot: ClassVar[tuple[str, str]] = ("Shape contacts: normal force [N]", "collision/normal_force")
+    smooth: ClassVar[bool] = False
     shapes: tuple[Shape, ...]
     groups: tuple[str, ...]
     pair_law: IntArray
@@ -574,9 +614,10 @@ class Collisions(ForceElement):
 
         return hertz_stiffness(pl.hertz_modulus, 1.0 / self._world()["curvature"][tc.shape[mask]].sum(axis=1))
 
-    def evaluate(self, cfg: Configuration, touches: Touches | None = None):
+    def evaluate(self, cfg: Configuration, touches: Touches | None = None, memory: StickAnchors | None = None):
         """``(touches, alpha_dot (m,), F (m,), F_el (m,), f (m, 3), v_t (m, 3))``: indentation rates, normal
-        forces, their elastic parts, the total force on A and the slip velocities."""
+        forces, their elastic parts, the total force on A and the slip velocities; ``memory``: the stick
+        anchors of bristle friction (None: every contact without deflection)."""
         tc = self.detect(cfg) if touches is None else touches
         m = tc.m
         alpha_dot, F, F_el = np.zeros(m), np.zeros(m), np.zeros(m)
@@ -590,13 +631,18 @@ class Collisions(ForceElement):
         alpha_dot = -v_n
         v_t = v_rel - v_n[:, None] * tc.n
         f_t = np.zeros((m, 3))
+        s = None  # the bristles' deflections, when some law needs them
         for k in np.unique(tc.law):
             on = tc.law == k
             pl = self.laws[k]
             scale = self._stiffness_scale(tc, on, k)
             F_el[on] = scale * pl.law.force(tc.depth[on], np.zeros(on.sum()), None)
             F[on] = np.maximum(scale * pl.law.force(tc.depth[on], alpha_dot[on], None) + pl.damping * alpha_dot[on], 0.0)
-            if pl.friction is not None:
+            if pl.friction is not None and pl.friction.stateful:
+                s = self.deflection(cfg, tc, memory) if s is None else s
+                for i in np.flatnonzero(on & (F > 0.0)):
+                    f_t[i] = pl.friction.vector(v_t[i], s[i], F[i])
+            elif pl.friction is not None:
                 speed = np.linalg.norm(v_t[on], axis=1)
                 moving = speed > 0.0
                 unit = np.divide(v_t[on], speed[:, None], out=np.zeros_like(v_t[on]), where=moving[:, None])
@@ -604,8 +650,8 @@ class Collisions(ForceElement):
         f = F[:, None] * tc.n + f_t
         return tc, alpha_dot, F, F_el, f, v_t
 
-    def wrench(self, cfg):
-        tc, _, _, _, f, _ = self.evaluate(cfg)
+    def wrench(self, cfg, memory: StickAnchors | None = None):
+        tc, _, _, _, f, _ = self.evaluate(cfg, memory=memory)
         rows = cfg.pose.W_r.shape[0]
         W_F, W_tau = np.zeros((rows, 3)), np.zeros((rows, 3))
         if tc.m:
@@ -617,7 +663,8 @@ class Collisions(ForceElement):
         return W_F, W_tau, None
 
     def potential_energy(self, cfg):
-        """Elastic energy of the laws at the current depths [J]."""
+        """Elastic energy of the laws at the current depths [J] (not the bristles': their work is in
+        ``nonconservative_power``)."""
         tc = self.detect(cfg)
         U = 0.0
         for k in np.unique(tc.law):
@@ -629,19 +676,84 @@ class Collisions(ForceElement):
     def conservative(self) -> bool:
         return all(not pl.law.dissipative and pl.damping == 0.0 and pl.friction is None for pl in self.laws)
 
-    def nonconservative_power(self, cfg):
-        """Power of the dashpots, the rate laws' damping and friction on the bodies [W] (<= 0)."""
-        tc, alpha_dot, F, F_el, f, v_t = self.evaluate(cfg)
+    def nonconservative_power(self, cfg, memory: StickAnchors | None = None):
+        """Power of the dashpots, the rate laws' damping and friction on the bodies [W] (<= 0 but for
+        the bristles' springs giving back what they stored)."""
+        tc, alpha_dot, F, F_el, f, v_t = self.evaluate(cfg, memory=memory)
         if not tc.m:
             return 0.0
         f_t = f - F[:, None] * tc.n
         return float(-np.sum((F - F_el) * alpha_dot) + np.sum(np.einsum("ki,ki->k", f_t, v_t)))
 
-    def contacts(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
+    def contacts(self, cfg: Configuration, memory: StickAnchors | None = None) -> tuple[FloatArray, FloatArray]:
         """Contact points (m, 3) that carry a force, and the force on A there (m, 3), for display."""
-        tc, _, F, _, f, _ = self.evaluate(cfg)
+        tc, _, F, _, f, _ = self.evaluate(cfg, memory=memory)
         on = F > 0.0
         return tc.point[on], f[on]
+
+    # ------------------------------------------------------------------ stick anchors (bristle friction)
+
+    @property
+    def has_memory(self) -> bool:
+        """Some pair law's friction keeps stick anchors (``bristle``)."""
+        return any(pl.friction is not None and pl.friction.stateful for pl in self.laws)
+
+    def match(self, cfg: Configuration, tc: Touches, memory: StickAnchors | None) -> IntArray:
+        """Each contact's entry in ``memory`` (m,), -1 for a new contact: one of the same two shapes whose
+        marks, carried by A and by B to ``cfg``, come within half the pair's merge distance of the
+        contact point (nearest pairs first, each entry used once)."""
+        out = -np.ones(tc.m, int)
+        if memory is None or not memory.n or not tc.m:
+            return out
+        i, j = np.nonzero(np.all(tc.shape[:, None, :] == memory.shape[None, :, :], axis=2))
+        if not len(i):
+            return out
+        w = self._world()
+        body = w["body"][memory.shape[j]]  # (k, 2): A and B
+        marks = cfg.pose.W_r[body] + np.einsum("kaij,kaj->kai", cfg.pose.R_WB[body], memory.mark[j])
+        d = np.linalg.norm(tc.point[i][:, None, :] - marks, axis=2).min(axis=1)
+        radius = w["radius"][tc.shape[i]].min(axis=1)
+        near = d <= 0.5 * (self.merge_distance or 0.1 * radius)
+        i, j, d = i[near], j[near], d[near]
+        taken = np.zeros(memory.n, bool)
+        for k in np.argsort(d, kind="stable"):
+            if out[i[k]] < 0 and not taken[j[k]]:
+                out[i[k]], taken[j[k]] = j[k], True
+        return out
+
+    def deflection(self, cfg: Configuration, tc: Touches, memory: StickAnchors | None,
+                   match: IntArray | None = None) -> FloatArray:
+        """The bristles' deflection of each contact, world [m], shape (m, 3): the contact point minus its
+        anchor (fixed in B), without its normal part; zero for a contact without one (``match``)."""
+        s = np.zeros((tc.m, 3))
+        match = self.match(cfg, tc, memory) if match is None else match
+        on = match >= 0
+        if on.any():
+            b = tc.body[on, 1]
+            d = tc.point[on] - cfg.pose.W_r[b] - np.einsum("kij,kj->ki", cfg.pose.R_WB[b], memory.anchor[match[on]])
+            n = tc.n[on]
+            s[on] = d - np.einsum("ki,ki->k", d, n)[:, None] * n
+        return s
+
+    def memory_after_step(self, cfg: Configuration, memory: StickAnchors | None) -> StickAnchors:
+        """The stick anchors after an accepted step ending at ``cfg``, from those of the step (None: the
+        start of a run). A contact that goes on keeps its anchor, moved when its bristles carry more
+        than ``mu_s F_n`` so that they carry ``alpha_stick mu_s F_n`` (``Bristle.anchor_update``, eq.
+        3.49); a new contact plants one where it touches; one that ended is dropped."""
+        tc, _, F, _, _, _ = self.evaluate(cfg)  # (normal forces: the same with any memory)
+        laws = [self.laws[k].friction for k in tc.law]
+        keep = np.array([law is not None and law.stateful for law in laws], bool)
+        match = self.match(cfg, tc, memory)
+        s = self.deflection(cfg, tc, memory, match)
+        W_r, R = cfg.pose.W_r, cfg.pose.R_WB
+        a, b = tc.body[:, 0], tc.body[:, 1]
+        anchor = np.einsum("kji,kj->ki", R[b], tc.point - W_r[b])  # new contacts: planted at their point
+        for i in np.flatnonzero(keep & (match >= 0)):
+            s_i = s[i]
+            kept = laws[i].anchor_update(s_i, F[i])
+            anchor[i] = memory.anchor[match[i]] if kept is s_i else R[b[i]].T @ (tc.point[i] - kept - W_r[b[i]])
+        mark = np.stack([np.einsum("kji,kj->ki", R[c], tc.point - W_r[c]) for c in (a, b)], axis=1)
+        return StickAnchors(tc.shape[keep], anchor[keep], mark[keep])
 
     def scalars(self, cfg: Configuration) -> dict[str, float]:
         """Frame scalars: number of contacts, deepest penetration [m], total normal force [N]."""

@@ -14,7 +14,8 @@ speed set by ``slip_speed`` (the regularisation) instead of sticking; ``creep_sp
 
 ``bristle`` (seed 004, eqs. 3.40-3.49, after Dopico et al. 2011 and Gonthier et al. 2004) has a
 state: each contact's stick anchor, a point of B where the bristles were planted, kept in the
-contact's phase (``viz3d.contact.contacts.ContactPhase.anchor``). With ``s`` the bristles'
+contact's phase for sphere contacts (``viz3d.contact.contacts.ContactPhase.anchor``) and in the
+element's memory for shape contacts (``viz3d.contact.collision.StickAnchors``). With ``s`` the bristles'
 tangential deflection (contact point minus anchor, without its normal part) and ``v_t`` the slip,
 
     F_t = beta F_stick + (1 - beta) F_slide - c_v v_t,   beta = exp(-|v_t|^2 / v_stick^2),

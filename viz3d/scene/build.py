@@ -22,7 +22,7 @@ from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
-from viz3d.geometry import MeshError, load_mesh, mesh_properties, primitive_properties
+from viz3d.geometry import MeshError, mesh_properties, primitive_properties, shape_mesh
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
 from viz3d.joints import JOINTS, BallJoint, JointDrive
@@ -162,38 +162,56 @@ def body_mass_properties(scene: Scene, i: int) -> MassProperties:
 
 
 def build_water(scene: Scene, bodies: Bodies) -> tuple:
-    """The ``Water`` element of a scene's ``[water]`` table (none without one, or when disabled)."""
+    """The ``Water`` element of a scene's ``[water]`` table (none without one, or when disabled).
+
+    Its bodies: those ``water.bodies`` names (rigid, with a shape; a mesh one closed and outward), or
+    every rigid body with a primitive shape or a closed, outward mesh (open meshes, collision surfaces
+    given their inertia, stay dry). A mesh body's cells are cut in its frame: the mesh shifted by its
+    centroid, unless its inertia is given (``body_mass_properties``, ``shape_centers``)."""
     from viz3d.water import Water, volume_cells
 
     spec, src = scene.data.get("water"), scene.source()
     if spec is None or not spec["enabled"]:
         return ()
     specs = scene.data["bodies"]
-    primitive = ("sphere", "capsule", "box", "cylinder")
+
+    def unit(i: int):  # unit mass properties of body i's shape; SceneError if shapeless or an open mesh
+        if not bodies.is_rigid[i] or "shape" not in specs[i]:
+            raise SceneError(src, "water.bodies", f"rigid bodies with a shape (body {specs[i]['name']!r})",
+                             specs[i]["name"])
+        return shape_unit_properties(scene, specs[i]["shape"], f"bodies[{i}].shape")
+
+    def closed(i: int):  # the default's test: None for an open mesh
+        try:
+            return unit(i)
+        except SceneError:
+            return None
+
+    def cells(i: int, u) -> tuple:  # centres (m, 3) in body axes [m], volumes (m,) [m^3], cell size [m]
+        shape, mesh = specs[i]["shape"], None
+        if shape["type"] == "mesh":
+            m = shape_mesh(shape, scene.base_dir)
+            center = u.center if "inertia" not in specs[i] else np.zeros(3)
+            mesh = (np.asarray(m.vertices, float) - center, np.asarray(m.faces, int))
+        try:
+            return volume_cells(shape, u.volume, spec["cells"], mesh)
+        except ValueError as exc:
+            raise SceneError(src, "water.cells", f"cells enough to fill body {specs[i]['name']!r} ({exc})",
+                             spec["cells"]) from None
+
     if spec["bodies"]:
-        chosen = bodies_matching(src, "water.bodies", spec["bodies"], specs)
+        chosen = [(i, unit(i)) for i in bodies_matching(src, "water.bodies", spec["bodies"], specs)]
     else:
-        chosen = [i for i, b in enumerate(specs) if bodies.is_rigid[i] and b.get("shape", {}).get("type") in primitive]
-    body, cells, weights, size, area = [], [], [], [], []
-    for i in chosen:
-        b = specs[i]
-        if not bodies.is_rigid[i] or b.get("shape", {}).get("type") not in primitive:
-            raise SceneError(src, "water.bodies", f"rigid bodies with a {', '.join(primitive)} shape (body {b['name']!r})",
-                             b["name"])
-        V = primitive_properties(b["shape"]).volume
-        X, w, c = volume_cells(b["shape"], V, spec["cells"])
-        body.append(i)
-        cells.append(X)
-        weights.append(w)
-        size.append(c)
-        area.append(np.pi * (3 * V / (4 * np.pi)) ** (2 / 3))
-    if not body:
+        chosen = [(i, u) for i in range(len(specs)) if bodies.is_rigid[i] and "shape" in specs[i] and (u := closed(i))]
+    if not chosen:
         return ()
+    X, w, c = zip(*(cells(i, u) for i, u in chosen))
+    V = np.array([u.volume for _, u in chosen])
     g = np.asarray(scene.data["sim"]["gravity"], float)
     normal = np.asarray(spec["normal"], float) if "normal" in spec else -g
     if not np.linalg.norm(normal) > 0.0:
         raise SceneError(src, "water.normal", "a normal, or a sim.gravity that gives one", spec.get("normal"))
-    return (Water(np.array(body, int), tuple(cells), tuple(weights), np.array(size), np.array(area),
+    return (Water(np.array([i for i, _ in chosen], int), X, w, np.array(c), np.pi * (3 * V / (4 * np.pi)) ** (2 / 3),
                   float(spec["level"]), normal / np.linalg.norm(normal), float(spec["density"]),
                   float(np.linalg.norm(g)), float(spec["drag_coefficient"])),)
 
@@ -212,7 +230,7 @@ def shape_unit_properties(scene: Scene, shape: dict, where: str):
     if shape["type"] != "mesh":
         return primitive_properties(shape)
     try:
-        return mesh_properties(load_mesh(scene.base_dir / shape["file"], shape["scale"]))
+        return mesh_properties(shape_mesh(shape, scene.base_dir))
     except MeshError as exc:
         raise SceneError(scene.source(), f"{where}.file", f"a watertight, outward-oriented mesh file ({exc})") from None
 

@@ -14,7 +14,7 @@ import numpy as np
 from viz3d.contact import laws as L
 from viz3d.contact.collision import Collisions, PairLaw, Shape, convex_hull, support_points
 from viz3d.contact.parameters import effective_modulus
-from viz3d.geometry import MeshError, load_mesh
+from viz3d.geometry import MeshError, shape_mesh
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.contacts import DEFAULT_MATERIAL, RIGID, contact_law, friction_law
 from viz3d.scene.schema import SceneError
@@ -103,7 +103,7 @@ def _group_index(src: str, names: list[str], g: str, where: str) -> int:
 
 def _mesh(scene, shape: dict, where: str):
     try:
-        return load_mesh(scene.base_dir / shape["file"], shape["scale"])
+        return shape_mesh(shape, scene.base_dir)
     except MeshError as exc:
         raise SceneError(scene.source(), f"{where}.file", f"a readable mesh file ({exc})") from None
 
@@ -169,4 +169,5 @@ def _pair_law(src: str, entry: dict, where: str, shapes: list[Shape], name1: str
         values["stiffness"] = 1.0  # replaced per pair of shapes by Hertz's constant
     _, law, _ = contact_law(values, (mats[0], mats[1]), src, where)
     dashpot = 0.0 if cls is L.Linear else entry["damping"]
-    return PairLaw(law, dashpot, friction_law(src, entry, where, "law", False), modulus)
+    # shape contacts keep their stick anchors without located events (viz3d.contact.collision)
+    return PairLaw(law, dashpot, friction_law(src, {**entry, "events": True}, where, "law", False), modulus)

@@ -18,7 +18,8 @@ import numpy as np
 
 from viz3d.geometry import contact_spheres
 from viz3d.rotations import euler_from_matrix, frame_with_z
-from viz3d.scene import shorthand, spec
+from viz3d.scene import ship, shorthand, spec
+from viz3d.scene.chainpath import normal_to, path_nodes
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
 from viz3d.scene.schema import Invalid, SceneError, validate
 
@@ -148,17 +149,30 @@ def _source(path: Path, texts: tuple[str, ...]) -> str:
 
 
 def _check_mesh_files(data: dict, path: Path, allowed: tuple[Path, ...], source: str) -> None:
-    """Mesh files must lie in the scene's folder tree or in a folder the user allowed."""
+    """Every mesh shape names a file or a generator (not both); files lie in the scene's folder tree
+    or in a folder the user allowed; generators exist and take the parameters given."""
+    from viz3d.anchoring import generated_mesh
+
     roots = [path.parent.resolve(), *(d.resolve() for d in allowed)]
-    for i, body in enumerate(data["bodies"]):
-        shape = body.get("shape", {})
+    shapes = [(f"bodies[{i}].shape", b.get("shape", {})) for i, b in enumerate(data["bodies"])]
+    shapes += [(f"collision.ground[{k}]", g) for k, g in enumerate(data.get("collision", {}).get("ground", []))]
+    for where, shape in shapes:
         if shape.get("type") != "mesh":
+            continue
+        if ("file" in shape) == ("generator" in shape):
+            raise SceneError(source, f"{where}.file", "a mesh file or a generator (exactly one of the two)")
+        if "generator" in shape:
+            try:
+                generated_mesh(shape["generator"], shape.get("params", {}))
+            except ValueError as exc:
+                raise SceneError(source, f"{where}.params", f"parameters its generator takes ({exc})",
+                                 shape.get("params", {})) from None
             continue
         target = (path.parent / shape["file"]).resolve()
         if not any(target.is_relative_to(root) for root in roots):
-            where = " or ".join(str(r) for r in roots)
-            raise SceneError(source, f"bodies[{i}].shape.file",
-                             f"a mesh file inside {where} (allow another folder explicitly with --mesh-dir DIR)",
+            where_ = " or ".join(str(r) for r in roots)
+            raise SceneError(source, f"{where}.file",
+                             f"a mesh file inside {where_} (allow another folder explicitly with --mesh-dir DIR)",
                              shape["file"])
 
 
@@ -234,6 +248,8 @@ def expand_generators(raw: dict, source: str) -> dict:
     ``[incline]`` tilts ``sim.gravity`` about y by ``angle_deg`` and gives its ``mu`` to the contacts
     with friction that have none."""
     shaped = any(isinstance(c, dict) and c.get("geometry") == "body_shape" for c in raw.get("contacts", []) or [])
+    if "ship" in raw:  # writes a [chain] among the rest
+        raw = ship.expand(raw, validate(raw["ship"], spec.SHIP, source, "ship"), source)
     if "chain" not in raw and "incline" not in raw and not shaped:
         return raw
     raw = copy.deepcopy(raw)
@@ -293,10 +309,12 @@ def chain_elements(chain: dict, gravity=(0.0, 0.0, -9.81), source: str = "<scene
         if np.any(omega):
             raise SceneError(source, "chain.omega", "no initial rotation for a chain between two anchors", chain["omega"])
         nodes, normal = _arc_nodes(anchor, np.asarray(chain["end"], float), n, L, np.asarray(gravity, float), source)
+    elif chain["path"]:
+        nodes, normal = path_nodes(np.vstack([anchor, chain["path"]]), n, L, source)
     else:
         d = np.asarray(chain["direction"], float)
         d /= np.linalg.norm(d)
-        nodes, normal = anchor + np.arange(n + 1)[:, None] * L * d, _normal_to(d)
+        nodes, normal = anchor + np.arange(n + 1)[:, None] * L * d, normal_to(d)
     mass = {"mass": chain["mass"]} if "mass" in chain else {"density": chain["density"]}
     p = chain["prefix"]
     bodies, joints, forces = [], [], []
@@ -310,8 +328,9 @@ def chain_elements(chain: dict, gravity=(0.0, 0.0, -9.81), source: str = "<scene
         })
         joint = {"name": f"{p}_j{i}", "type": "ball", "body1": f"{p}{i}",
                  "body2": chain["attach"] if i == 0 else f"{p}{i - 1}", "point": nodes[i].tolist()}
-        if i > 0 and chain["joint"] == "universal":
-            before = (nodes[i] - nodes[i - 1]) / L
+        held = i > 0 or chain["attach"] != "ground"  # a wildcat or a shackle holds the first link: no twist
+        if held and chain["joint"] == "universal":
+            before = (nodes[i] - nodes[i - 1]) / L if i > 0 else d
             joint.update(type="universal", axis1=normal.tolist(), axis2=np.cross(before, normal).tolist())
             if chain["joint_damping"] > 0.0:
                 forces += [{"type": "joint_motor", "name": f"{p}_damper{i}_{k}", "joint": joint["name"], "coordinate": k,
@@ -321,13 +340,6 @@ def chain_elements(chain: dict, gravity=(0.0, 0.0, -9.81), source: str = "<scene
         joints.append({"name": f"{p}_j{n}", "type": "ball", "body1": f"{p}{n - 1}", "body2": "ground",
                        "point": nodes[n].tolist()})
     return bodies, joints, forces
-
-
-def _normal_to(d: np.ndarray) -> np.ndarray:
-    """A unit vector normal to ``d``."""
-    e = np.eye(3)[int(np.argmin(np.abs(d)))]
-    w = np.cross(d, e)
-    return w / np.linalg.norm(w)
 
 
 def _arc_nodes(A: np.ndarray, E: np.ndarray, n: int, L: float, gravity: np.ndarray, source: str):
@@ -343,7 +355,7 @@ def _arc_nodes(A: np.ndarray, E: np.ndarray, n: int, L: float, gravity: np.ndarr
     u = (E - A) / S
     down = gravity - (gravity @ u) * u
     if np.linalg.norm(down) < 1e-12 * max(np.linalg.norm(gravity), 1.0):
-        down = _normal_to(u)  # a vertical chord (or no gravity): sag sideways
+        down = normal_to(u)  # a vertical chord (or no gravity): sag sideways
     down /= np.linalg.norm(down)
     beta = brentq(lambda b: np.sin(n * b) / np.sin(b) - S / L, 1e-12 / n, np.pi / n * (1 - 1e-12), xtol=1e-15)
     R = L / (2 * np.sin(beta))

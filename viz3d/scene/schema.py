@@ -201,6 +201,13 @@ def numbers(x):
     return [float(e) for e in x]
 
 
+def dict_of_numbers(x):
+    if not (isinstance(x, dict) and all(isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+                                        for k, v in x.items())):
+        raise Invalid("a table of numbers")
+    return {k: float(v) if isinstance(v, float) else v for k, v in x.items()}
+
+
 def vec3(x):
     if not (isinstance(x, list) and len(x) == 3):
         raise Invalid("a list of 3 numbers")
@@ -208,6 +215,15 @@ def vec3(x):
         return [number(e) for e in x]
     except Invalid:
         raise Invalid("a list of 3 numbers") from None
+
+
+def vec3_list(x):
+    if not isinstance(x, list):
+        raise Invalid("a list of points [[x, y, z], ...]")
+    try:
+        return [vec3(p) for p in x]
+    except Invalid:
+        raise Invalid("a list of points [[x, y, z], ...]") from None
 
 
 def nonzero_vec3(x):

@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from viz3d.contact.contacts import HYPOTHESES
 from viz3d.contact.friction import FRICTION_LAWS
 from viz3d.contact.laws import NORMAL_LAWS
@@ -15,6 +17,7 @@ from viz3d.flexible.fe import ELEMENT_TYPES
 from viz3d.formulation import FORMULATIONS
 from viz3d.integrators import INTEGRATORS
 from viz3d.scene.budget import LIMITS
+from viz3d.scene.ship import SHIP
 from viz3d.scene.schema import (
     OPTIONAL,
     ArrayOf,
@@ -23,6 +26,7 @@ from viz3d.scene.schema import (
     Table,
     boolean,
     color,
+    dict_of_numbers,
     mat3_or_diag,
     name,
     nonnegative,
@@ -37,6 +41,7 @@ from viz3d.scene.schema import (
     unit_fraction,
     unit_interval,
     vec3,
+    vec3_list,
 )
 from viz3d.timefunctions import PROFILE_KINDS, TIME_FUNCTIONS
 
@@ -85,7 +90,10 @@ SHAPES = {
     "capsule": Table({"radius": Field(positive, doc="[m]"),
                       "height": Field(positive, doc="of the cylindrical part, along body z [m]")}, "capsule along body z"),
     "mesh": Table({
-        "file": Field(string, doc="STL, OBJ, GLB or PLY path, relative to the scene file"),
+        "file": Field(string, OPTIONAL, "STL, OBJ, GLB or PLY path, relative to the scene file (or a generator)"),
+        "generator": Field(string, OPTIONAL, "a parametric mesh instead of a file: one of viz3d.anchoring.MESHES "
+                           "(hull_shell, anchor_pocket, hawse_pipe, anchor_shank, anchor_flukes, anchor_shackle)"),
+        "params": Field(dict_of_numbers, OPTIONAL, "the generator's parameters (its keyword arguments) [m, deg, kg]"),
         "scale": Field(positive, 1.0, "multiplies the vertex coordinates (e.g. 0.001 for mm)"),
     }, "triangle mesh; with `density` its centre of mass becomes the body origin"),
 }
@@ -364,12 +372,18 @@ COLLISION_PAIR = Table({
     "damping_factor": Field(positive, OPTIONAL, "rate laws: c [s/m] in F = K alpha^n (1 + c alpha_dot)"),
     "material1": Field(MATERIAL, OPTIONAL, "first group's E, nu (default steel; ground rigid)"),
     "material2": Field(MATERIAL, OPTIONAL, "second group's E, nu (default steel; ground rigid)"),
-    "friction": Field(one_of("none", "coulomb", "stribeck"), "none", "tangential law (memoryless)"),
+    "friction": Field(one_of("none", *FRICTION_LAWS), "none", f"tangential law: none or one of {list(FRICTION_LAWS)} "
+                      "(bristle: each contact keeps a stick anchor from step to step)"),
     "mu": Field(nonnegative, OPTIONAL, "friction coefficient (stribeck: the dynamic one)"),
-    "mu_static": Field(nonnegative, OPTIONAL, "stribeck: static coefficient (default mu)"),
+    "mu_static": Field(nonnegative, OPTIONAL, "stribeck, bristle: static coefficient (default mu)"),
     "slip_speed": Field(positive, 1e-4, "regularisation: F_t = mu F_n tanh(s / slip_speed) [m/s]"),
     "stribeck_speed": Field(positive, 1e-2, "stribeck: decay speed from mu_static to mu [m/s]"),
-    "viscous": Field(nonnegative, 0.0, "stribeck: viscous friction coefficient [N s/m]"),
+    "viscous": Field(nonnegative, 0.0, "stribeck, bristle: viscous friction coefficient [N s/m]"),
+    "stick_speed": Field(positive, 1e-3, "bristle: v_stick, slip speed of the stick-slip transition [m/s]"),
+    "stick_stiffness": Field(positive, OPTIONAL, "bristle: k_stick per contact point [N/m] (required with "
+                             "friction = 'bristle')"),
+    "stick_damping": Field(nonnegative, 0.0, "bristle: c_stick per contact point [N s/m]"),
+    "stick_alpha": Field(positive, 1.0, "bristle: alpha_stick, the deflection kept when the anchor moves (eq. 3.49)"),
 }, "what acts where two collision groups touch")
 
 COLLISION = Table({
@@ -394,10 +408,12 @@ WATER = Table({
     "density": Field(positive, 1025.0, "[kg/m^3] (sea water)"),
     "drag_coefficient": Field(nonnegative, 0.0, "C_d of quadratic drag on the frontal area of the sphere of the body's "
                               "volume (0: no drag)"),
-    "bodies": Field(names, [], "bodies in the water, names or fnmatch patterns (default: every rigid body with a "
-                    "sphere, capsule, box or cylinder shape)"),
+    "bodies": Field(names, [], "bodies in the water, names or fnmatch patterns, each rigid with a shape (default: "
+                    "every rigid body with a sphere, capsule, box or cylinder shape, or a closed, outward mesh; open "
+                    "meshes stay dry)"),
     "cells": Field(positive_int, 512, "cells per body for the buoyancy (the wet fraction of each is linear in its "
-                   "depth across one cell size)"),
+                   "depth across one cell size): a grid of about this many over a primitive's bounding box, or of "
+                   "cell volume V / cells over a mesh's, centres inside kept"),
 }, "still water: buoyancy and quadratic drag on submerged parts (viz3d.water)")
 
 GAUGE = Table({
@@ -420,6 +436,8 @@ CHAIN = Table({
     "density": Field(positive, 1000.0, "[kg/m^3], used when mass is not given"),
     "anchor": Field(vec3, ZERO3, "world point of the first ball joint (to ground) [m]"),
     "direction": Field(nonzero_vec3, [1.0, 0.0, 0.0], "initial direction of the chain, world"),
+    "path": Field(vec3_list, [], "points the chain runs through from the anchor (a polyline in one plane; "
+                  "the links' joints lie on it, and past its end the chain goes straight on)"),
     "omega": Field(vec3, ZERO3, "initial rigid rotation of the whole chain about the anchor [rad/s]"),
     "color": Field(color, [200, 120, 40], "display colour"),
     "prefix": Field(name, "link", "body names are <prefix><index>"),
@@ -427,7 +445,8 @@ CHAIN = Table({
     "end": Field(vec3, OPTIONAL, "second anchor: the chain hangs between anchor and end (ball joints to ground at "
                  "both), starting as a circular arc below their chord (needs n * link_length > the span)"),
     "joint": Field(one_of("ball", "universal"), "ball", "joints between links: ball, or universal (two relative "
-                   "rotations, as seed 004's links: in the hanging plane and out of it)"),
+                   "rotations, as seed 004's links: in the hanging plane and out of it; with attach a body, the first "
+                   "link's joint too: no twist)"),
     "joint_damping": Field(nonnegative, 0.0, "universal joints: a damper on both angles [N m s/rad] (a joint_motor "
                            "with kp = 0): lets a hanging chain settle"),
 }, "generator: an N-link spatial chain of capsules, hanging from the anchor (or between anchor and end)")
@@ -469,6 +488,36 @@ DRIVE = Table({
                       "stops with a diagnosis at the first output frame that needs more"),
 }, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
 
+def _matrices(x):
+    if not (isinstance(x, list) and all(isinstance(m, list) and len(m) == 3 for m in x)):
+        raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
+    out = [[vec3(r) for r in m] for m in x]
+    for m in out:
+        if not np.allclose(np.asarray(m) @ np.asarray(m).T, np.eye(3), atol=1e-9):
+            raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
+    return out
+
+
+def _table(x):
+    if not isinstance(x, dict):
+        raise Invalid("a table")
+    return x
+
+
+STOWAGE = Table({
+    "bodies": Field(names, doc="the bodies that must reach their stowed poses (the anchor's shank and flukes)"),
+    "position": Field(vec3_list, doc="their stowed centres of mass, world [m]"),
+    "axes": Field(_matrices, doc="their stowed orientations (world from body, 3x3 each)"),
+    "drive": Field(string, doc="the drive that hauls them (its effort is the hauling force; its capacity the jam "
+                   "limit)"),
+    "tolerance": Field(positive, 0.1, "seated: every body within this of its stowed position [m]"),
+    "angle_tolerance": Field(positive, 5.0, "seated: every body within this of its stowed orientation [deg]"),
+    "stall_time": Field(positive, 2.0, "jammed: the bodies move less than stall_distance over this time while the "
+                        "drive hauls [s]"),
+    "stall_distance": Field(positive, 0.02, "[m]"),
+    "report": Field(_table, OPTIONAL, "what the generator chose (simulated links, haul length), shown in the summary"),
+}, "the goal of a haul: the verdict seated / jammed / not reached at the end of the run")
+
 SCENE_FILE = Table({
     "scene": Field(SCENE, dict, "about the scene"),
     "sim": Field(SIM, dict, "integration settings"),
@@ -483,6 +532,8 @@ SCENE_FILE = Table({
     "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),
     "incline": Field(INCLINE, OPTIONAL, "incline generator (gravity tilt and friction coefficient)"),
+    "ship": Field(SHIP, OPTIONAL, "anchor-hoist generator (hull, pipe, pocket, anchor, chain, windlass)"),
+    "stowage": Field(STOWAGE, OPTIONAL, "the stowed poses a haul is judged by"),
     "checks": Field(CHECKS, dict, "headless test checks"),
     "limits": Field(LIMITS, dict, "size limits checked before building"),
 })

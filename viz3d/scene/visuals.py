@@ -54,7 +54,8 @@ def scene_visuals(scene: Scene, system: System) -> SceneVisuals:
     thickness = float(np.median([_thickness(b) for b in bodies if b.vertices.size] or [_bar_depth(system)]))
     lo, hi = (positions - radii[:, None]).min(axis=0), (positions + radii[:, None]).max(axis=0)
     length_scale = float(np.median(radii))
-    statics = _posts(_spring_ground_points(system), min(0.0, lo[2]), thickness) + _planes(system, PLANE_SIZE * length_scale)
+    statics = (_posts(_spring_ground_points(system), min(0.0, lo[2]), thickness) + _planes(system, PLANE_SIZE * length_scale)
+               + _collision_grounds(system, PLANE_SIZE * length_scale))
     for st in statics:
         lo, hi = np.minimum(lo, st.vertices.min(axis=0)), np.maximum(hi, st.vertices.max(axis=0))
     frame_dt = scene.data["display"].get("frame_dt")
@@ -75,7 +76,24 @@ def _plots(system: System) -> tuple[tuple[str, str], ...]:
         plots.append(("Contact force [N]", "contact"))
     if system.outputs:
         plots.append(("Gauge strain [-]", "strain"))
+    if any(getattr(js, "rheonomic", False) for js in system.joints.joints):
+        plots.append(("Drive effort [N or N m]", "drive"))
+    for e in system.forces:  # shape contacts, water, joint stops: the element's own series
+        for title, key in live_plots(e):
+            plots.append((title, key.rsplit("/", 1)[0] if key.startswith("joint/") else key))
     return tuple(plots)
+
+
+def live_plots(element) -> tuple[tuple[str, str], ...]:
+    """``(title, frame scalar)`` of each series a force element shows: its ``live_plot`` (shape
+    contacts' normal force, water's buoyancy), or a joint stop's coordinates (the anchor's flukes)."""
+    from viz3d.forces import JointStop
+
+    if isinstance(element, JointStop):
+        return tuple((f"{name}: {js.names[j]} {js.FREE[c][0]} [rad or m]", f"joint/{js.names[j]}/{js.FREE[c][0]}")
+                     for name, js, j, c in zip(element.names, element.joints, element.index, element.free))
+    plot = getattr(element, "live_plot", None)
+    return (plot,) if plot else ()
 
 
 def _bar_depth(system: System) -> float:
@@ -163,6 +181,32 @@ def _planes(system: System, size: float) -> tuple[StaticVisual, ...]:
         return ()
     mesh = trimesh.util.concatenate(parts)
     return (StaticVisual("planes", np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.int32), PLANE_COLOR),)
+
+
+def _collision_grounds(system: System, size: float) -> tuple[StaticVisual, ...]:
+    """The ground shapes of shape contacts (``[[collision.ground]]``), one mesh each, in world
+    coordinates; a plane as a square plate of side ``size`` [m]."""
+    import trimesh
+
+    from viz3d.contact.collision import Collisions
+
+    out = []
+    for element in (e for e in system.forces if isinstance(e, Collisions)):
+        for s in (s for s in element.shapes if s.body == system.n_bodies):
+            if s.kind == "plane":
+                mesh = trimesh.creation.box(extents=(size, size, 0.005 * size))
+                mesh.apply_translation((0.0, 0.0, -0.0025 * size))
+                mesh.apply_transform(trimesh.geometry.align_vectors((0.0, 0.0, 1.0), s.normal))
+            elif len(s.faces):
+                mesh = trimesh.Trimesh(s.vertices, s.faces, process=False)
+            else:
+                keys = {"sphere": ("radius",), "capsule": ("radius", "height"), "cylinder": ("radius", "height"),
+                        "box": ("extents",)}[s.kind]
+                mesh = display_mesh({"type": s.kind, **dict(zip(keys, [list(s.size)] if s.kind == "box" else s.size))},
+                                    None, np.zeros(3))
+            V = np.asarray(mesh.vertices) @ s.B_R.T + s.B_r
+            out.append(StaticVisual(s.name, V.astype(np.float32), np.asarray(mesh.faces, np.int32), PLANE_COLOR))
+    return tuple(out)
 
 
 def _spring_ground_points(system: System) -> np.ndarray:

@@ -1,0 +1,144 @@
+"""The verdict of a haul (``[stowage]``, written by the ``[ship]`` generator; issue 11): did the
+hauled bodies reach their stowed poses?
+
+* **seated**: at the end of the run every body is within ``tolerance`` [m] of its stowed centre of
+  mass and ``angle_tolerance`` [deg] of its stowed orientation (the angle of ``R_stowed^T R``); the
+  time given is when they entered that tolerance for good;
+* **jammed**: the drive needed more than its capacity (the run stops there with a diagnosis), or
+  the bodies moved less than ``stall_distance`` over the last ``stall_time`` of a run that ended
+  short of seated while the drive was still hauling;
+* **not reached**: anything else (the haul ended short of the stowed pose, still moving).
+
+The peak hauling force is the largest ``|effort|`` of the drive over the run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+OUTCOMES = ("seated", "jammed", "not reached")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Outcome of a haul.
+
+    Attributes
+    ----------
+    outcome : str
+        One of ``OUTCOMES``.
+    time : float
+        When it was decided [s]: seated since, jammed at; the last frame for not reached.
+    peak_force : float
+        Largest |effort| of the drive [N].
+    position_error : float
+        Largest distance of a body from its stowed centre of mass at the end [m].
+    angle_error : float
+        Largest angle of a body from its stowed orientation at the end [deg].
+    reason : str
+        One line a user reads.
+    """
+
+    outcome: str
+    time: float
+    peak_force: float
+    position_error: float
+    angle_error: float
+    reason: str
+
+    def line(self) -> str:
+        return (f"{self.outcome} at t = {self.time:.3f} s ({self.reason}); peak hauling force "
+                f"{self.peak_force / 1e3:.1f} kN; at the end {self.position_error:.3f} m and {self.angle_error:.2f} deg "
+                f"from stowed")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def pose_errors(spec: dict, t_position: np.ndarray, t_rotation: np.ndarray, index: list[int]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the largest distance [m] and angle [deg] of the bodies ``index`` from their stowed
+    poses, shapes (n_t,), from positions (n_t, nb, 3) and rotations (n_t, nb, 3, 3)."""
+    P = np.asarray(spec["position"], float)             # (k, 3)
+    A = np.asarray(spec["axes"], float)                 # (k, 3, 3)
+    dist = np.linalg.norm(t_position[:, index] - P[None], axis=-1)
+    rel = np.einsum("kji,tkjl->tkil", A, t_rotation[:, index])   # R_stowed^T R
+    sin = 0.5 * np.linalg.norm(np.stack([rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0],
+                                         rel[..., 1, 0] - rel[..., 0, 1]], axis=-1), axis=-1)
+    cos = 0.5 * (np.trace(rel, axis1=-2, axis2=-1) - 1.0)
+    return dist.max(axis=1), np.degrees(np.arctan2(sin, cos)).max(axis=1)
+
+
+def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarray, body_names, effort: np.ndarray,
+            capacity: float | None, hauling: np.ndarray) -> Verdict:
+    """The ``Verdict`` of a run from its frames: times ``t`` (n_t,), body positions (n_t, nb, 3) and
+    rotations (n_t, nb, 3, 3), the drive's effort (n_t,) [N], its capacity [N] (None: unlimited)
+    and whether it hauls at each frame (n_t,) (its prescribed speed is not zero)."""
+    names = list(body_names)
+    index = [names.index(b) for b in spec["bodies"]]
+    dist, angle = pose_errors(spec, position, rotation, index)
+    peak = float(np.max(np.abs(effort))) if effort.size else 0.0
+    args = (peak, float(dist[-1]), float(angle[-1]))
+    if capacity is not None and peak > capacity:
+        i = int(np.argmax(np.abs(effort) > capacity))
+        return Verdict("jammed", float(t[i]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
+                       f"capacity {capacity / 1e3:.1f} kN")
+    inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
+    if inside[-1]:
+        since = len(inside) - int(np.argmin(inside[::-1])) if not inside.all() else 0
+        return Verdict("seated", float(t[since]), *args, f"within {spec['tolerance']:g} m and "
+                       f"{spec['angle_tolerance']:g} deg of the stowed pose")
+    window = t >= t[-1] - spec["stall_time"]
+    if t[-1] - t[0] >= spec["stall_time"] and hauling[-1]:
+        moved = np.linalg.norm(position[window][:, index] - position[window][-1:, index], axis=-1).max()
+        if moved < spec["stall_distance"]:
+            return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
+                           f"{spec['stall_time']:g} s while the drive hauled")
+    return Verdict("not reached", float(t[-1]), *args, "the haul ended short of the stowed pose")
+
+
+def run_verdict(data: dict, cols, body_names) -> Verdict | None:
+    """The ``Verdict`` of a run of the scene ``data`` from its frame columns (``viz3d.columns``); None
+    without a ``[stowage]`` table."""
+    spec = data.get("stowage")
+    if spec is None or not len(cols):
+        return None
+    drive = next(d for d in data["drives"] if d["name"] == spec["drive"])
+    coordinate = drive.get("coordinate")
+    joint = next(j for j in data["joints"] if j["name"] == drive["joint"])
+    rate_key = next((k for k in cols.scalars if k.startswith(f"joint/{joint['name']}/") and k.endswith("_rate")
+                     and (coordinate is None or k == f"joint/{joint['name']}/{coordinate}_rate")), None)
+    hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
+    effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
+    return verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling)
+
+
+def run_events(data: dict, cols) -> list[tuple[float, str]]:
+    """Milestones of a run from its frame columns, as ``(t, text)``: the first shape contact, and
+    each joint stop reached for the first time."""
+    out = []
+    touching = np.flatnonzero(np.asarray(cols.scalars.get("collision/contacts", ()), float) > 0)
+    if touching.size:
+        out.append((float(cols.t[touching[0]]), "first shape contact (collision)"))
+    for f in (f for f in data["forces"] if f["type"] == "joint_stop"):
+        key = next((k for k in cols.scalars if k.startswith(f"joint/{f['joint']}/")
+                    and not k.endswith("_rate") and (f.get("coordinate") is None or k.endswith(f["coordinate"]))), None)
+        if key is None:
+            continue
+        q = np.asarray(cols.scalars[key], float)
+        beyond = (q < f.get("lower", -np.inf)) | (q > f.get("upper", np.inf))
+        if beyond.any():
+            out.append((float(cols.t[np.argmax(beyond)]), f"{f.get('name', 'joint stop')} reached ({f['joint']})"))
+    return sorted(out)
+
+
+def verdict_fields(v: Verdict, spec: dict) -> dict:
+    """Trajectory fields of a verdict (docs/trajectory.md): ``stowage_verdict`` (one of
+    ``OUTCOMES``), ``stowage_time`` [s], ``stowage_peak_force`` [N], ``stowage_position_error`` [m],
+    ``stowage_angle_error`` [deg], ``stowage_reason``, and the generator's report as ``stowage_<key>``."""
+    out = {f"stowage_{k}": val for k, val in v.as_dict().items() if k != "outcome"}
+    out["stowage_verdict"] = v.outcome
+    out.update({f"stowage_{k}": val for k, val in spec.get("report", {}).items()})
+    return out
