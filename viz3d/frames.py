@@ -102,6 +102,8 @@ class SceneVisuals:
         (title, entity prefix under /plots) of the time-series panels recorders lay out.
     display_dt : float
         Simulated time between drawn frames in recordings [s].
+    plot_dt : float
+        Simulated time between plot samples in recordings [s] (0: every frame).
     statics : tuple of StaticVisual
         Fixed world geometry (posts under the ground ends of springs).
     reach : ndarray, shape (k, 4)
@@ -122,6 +124,7 @@ class SceneVisuals:
     plots: tuple[tuple[str, str], ...] = (("Energy [J]", "energy"), ("Constraint violation [m]", "constraint_violation"),
                                           ("Joint reaction force [N]", "reaction_force"))
     display_dt: float = 1.0 / 30.0
+    plot_dt: float = 0.0
     statics: tuple[StaticVisual, ...] = ()
     reach: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 

@@ -42,7 +42,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.stabilization import ProjectionError
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
-from viz3d.stowage import run_events, run_verdict, verdict_fields
+from viz3d.stowage import hawse_tension, run_events, run_verdict, verdict_fields
 from viz3d.sink import Sink
 
 #: Output interval when the scene gives none [s].
@@ -601,7 +601,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     if joints := {**joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
         extras = {**(extras or {}), **joints}
     if verdict is not None:
-        extras = {**(extras or {}), **verdict_fields(verdict, scene.data["stowage"])}
+        tension = hawse_tension(scene.data["stowage"], cols, sim.system.bodies.names, sim.system.joint_names)
+        extras = {**(extras or {}), **verdict_fields(verdict, scene.data["stowage"], tension)}
     return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)
 

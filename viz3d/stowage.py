@@ -134,11 +134,32 @@ def run_events(data: dict, cols) -> list[tuple[float, str]]:
     return sorted(out)
 
 
-def verdict_fields(v: Verdict, spec: dict) -> dict:
+def verdict_fields(v: Verdict, spec: dict, tension: np.ndarray | None = None) -> dict:
     """Trajectory fields of a verdict (docs/trajectory.md): ``stowage_verdict`` (one of
     ``OUTCOMES``), ``stowage_time`` [s], ``stowage_peak_force`` [N], ``stowage_position_error`` [m],
-    ``stowage_angle_error`` [deg], ``stowage_reason``, and the generator's report as ``stowage_<key>``."""
+    ``stowage_angle_error`` [deg], ``stowage_reason``, the chain's tension at the hawse
+    ``stowage_hawse_tension`` (n,) [N], and the generator's report as ``stowage_<key>``."""
     out = {f"stowage_{k}": val for k, val in v.as_dict().items() if k != "outcome"}
+    if tension is not None:
+        out["stowage_hawse_tension"] = tension
     out["stowage_verdict"] = v.outcome
     out.update({f"stowage_{k}": val for k, val in spec.get("report", {}).items()})
     return out
+
+
+def hawse_tension(spec: dict, cols, body_names, joint_names) -> np.ndarray | None:
+    """The chain's tension where it enters the hull (n,) [N]: the reaction force of the chain's joint
+    nearest to ``spec["hawse"]`` at each frame (a link's joint ``<chain>_j<i>`` is its upper end, half
+    a link from its centre along its axis); None without a hawse point."""
+    if "hawse" not in spec or not len(cols):
+        return None
+    names, joints = list(body_names), list(joint_names)
+    links = [(names.index(f"{spec['chain']}{i}"), joints.index(f"{spec['chain']}_j{i}"))
+             for i in range(len(names)) if f"{spec['chain']}{i}" in names and f"{spec['chain']}_j{i}" in joints]
+    if len(links) < 2:
+        return None
+    b, j = np.array(links).T
+    half = 0.5 * np.linalg.norm(cols.W_r[0, b[1]] - cols.W_r[0, b[0]])       # links are one length apart
+    ends = cols.W_r[:, b] - half * cols.R_WB[:, b][..., 2]                      # (n, k, 3)
+    nearest = np.argmin(np.linalg.norm(ends - np.asarray(spec["hawse"], float), axis=-1), axis=1)
+    return np.linalg.norm(cols.reaction_force[np.arange(len(cols)), j[nearest]], axis=-1)

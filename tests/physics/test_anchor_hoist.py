@@ -92,3 +92,23 @@ def test_a_pocket_narrower_than_the_flukes_jams():
     x = traj.extras
     assert x["stowage_verdict"] == "jammed", (traj.status, x["stowage_reason"])
     assert "over its capacity" in traj.status
+
+
+def test_the_chain_tension_at_the_hawse_is_the_windlass_force_less_the_chain_above_it(early):
+    """The saved tension where the chain enters the hull (the joint nearest the hawse) differs from
+    the windlass's force by the weight of the links above that joint and of the windlass head, along
+    the pipe (the same one-second means and 3 per cent of the force as the haul)."""
+    traj, d = early, early.scene["scene"]
+    names, joints = list(traj.body_names), list(traj.joint_names)
+    m = dict(zip(names, traj.mass))
+    tension, effort = traj.extras["stowage_hawse_tension"], traj.extras["drive_effort"][:, 0]
+    w = np.flatnonzero((traj.t >= 0.5) & (traj.t <= 1.5))
+    a = np.array(next(j for j in d["joints"] if j["name"] == "windlass_guide")["axis"])
+    gap = []
+    for k in w:
+        ends = np.array([traj.position[k, names.index(f"link{i}")] - 0.5 * d["chain"]["link_length"]
+                         * traj.rotation[k, names.index(f"link{i}")][:, 2] for i in range(d["chain"]["n"])])
+        above = int(np.argmin(np.linalg.norm(ends, axis=1)))          # links 0 .. above-1 are above it
+        gap.append(G * float(a[2]) * (m["windlass"] + sum(m[f"link{i}"] for i in range(above))))
+    assert np.all(tension[w] < effort[w])
+    assert (effort[w] - tension[w]).mean() == pytest.approx(np.mean(gap), abs=0.03 * effort[w].mean())

@@ -152,3 +152,17 @@ def test_shape_contacts_are_recorded_as_arrows_and_plots(tmp_path):
     assert batches and all(1 <= len(b) <= traj.extras["collision_contacts"].max() for b in batches)
     assert all(np.all(np.isfinite(b)) for b in batches)
 
+
+
+def test_plot_dt_thins_the_plot_samples_and_keeps_the_last(tmp_path):
+    """``[display] plot_dt``: plot samples at most every plot_dt (of a dt = 5e-4 run, every 20th
+    step for 0.01 s) on the trajectory's timeline, the last state always among them."""
+    path = tmp_path / "dp_thin.rrd"
+    traj = viz3d.simulate(SCENES / "double_pendulum.toml", ["sim.output_dt=5e-4", "display.plot_dt=0.01"], t_end=0.3,
+                          sinks=[RerunRecorder(path)])
+    t, E = read_scalars(path, "/plots/energy/total")
+    assert len(t) == 31 and np.allclose(np.diff(t), 0.01, atol=1e-9) and t[-1] == pytest.approx(0.3)
+    k = np.searchsorted(traj.t, t - 1e-9)
+    np.testing.assert_allclose(traj.t[k], t, atol=1e-9)
+    scale = np.max(np.abs(traj.energy_kinetic) + np.abs(traj.energy_potential))
+    np.testing.assert_allclose(E[:, 0], traj.energy_total[k], rtol=0, atol=16 * np.finfo(float).eps * scale)

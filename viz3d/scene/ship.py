@@ -233,7 +233,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     if p["water"]:
         out["water"] = {"level": -p["hawse_height"], "drag_coefficient": 1.0, **raw.get("water", {})}
     out["stowage"] = {
-        "bodies": ["shank", "flukes"], "drive": "windlass",
+        "bodies": ["shank", "flukes"], "drive": "windlass", "hawse": [0.0, 0.0, 0.0], "chain": "link",
         "position": [(crown_stowed + R_shank_stowed @ c_shank).tolist(),
                      (crown_stowed + R_flukes_stowed @ c_flukes).tolist()],
         "axes": [R_shank_stowed.tolist(), R_flukes_stowed.tolist()],

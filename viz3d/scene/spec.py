@@ -425,6 +425,8 @@ GAUGE = Table({
 DISPLAY = Table({
     "amplification": Field(positive, 1.0, "deformation of flexible bodies drawn this many times larger"),
     "frame_dt": Field(positive, OPTIONAL, "simulated time between drawn frames in recordings [s]"),
+    "plot_dt": Field(positive, OPTIONAL, "simulated time between plot samples in recordings [s] (default: every "
+                     "step; long runs of many joints: a recording's size)"),
     "speed": Field(positive, 1.0, "live viewer: simulated seconds per wall-clock second"),
 }, "how the run is drawn")
 
@@ -515,6 +517,9 @@ STOWAGE = Table({
     "stall_time": Field(positive, 2.0, "jammed: the bodies move less than stall_distance over this time while the "
                         "drive hauls [s]"),
     "stall_distance": Field(positive, 0.02, "[m]"),
+    "hawse": Field(vec3, OPTIONAL, "where the chain enters the hull, world [m]: the chain's tension there is saved "
+                   "(stowage_hawse_tension)"),
+    "chain": Field(string, "link", "the chain's body-name prefix (its joints are <prefix>_j<i>)"),
     "report": Field(_table, OPTIONAL, "what the generator chose (simulated links, haul length), shown in the summary"),
 }, "the goal of a haul: the verdict seated / jammed / not reached at the end of the run")
 

@@ -60,6 +60,8 @@ def scene_visuals(scene: Scene, system: System) -> SceneVisuals:
         lo, hi = np.minimum(lo, st.vertices.min(axis=0)), np.maximum(hi, st.vertices.max(axis=0))
     frame_dt = scene.data["display"].get("frame_dt")
     extra = {"display_dt": float(frame_dt)} if frame_dt else {}
+    if plot_dt := scene.data["display"].get("plot_dt"):
+        extra["plot_dt"] = float(plot_dt)
     return SceneVisuals(
         name=scene.name, bodies=bodies, joint_names=system.joint_names, spring_names=springs,
         length_scale=length_scale, thickness=thickness, force_scale=weight if weight > 0 else 1.0,

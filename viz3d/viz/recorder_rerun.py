@@ -57,10 +57,11 @@ class RerunRecorder:
         self.display_dt = display_dt  # None: the scene's (visuals.display_dt)
         self.recording_id = recording_id
         self.rec = None
-        self._next_pose_t = -np.inf
+        self._next_pose_t = self._next_plot_t = -np.inf
         self._buffer: list[Frame] = []
         self._last: Frame | None = None      # the last frame logged
         self._posed_t = -np.inf              # time of the last pose logged [s]
+        self._plotted_t = -np.inf            # time of the last plot sample logged [s]
 
     # ------------------------------------------------------------------ Sink protocol
 
@@ -78,7 +79,9 @@ class RerunRecorder:
         self._log_static(visuals)
 
     def log(self, frame: Frame) -> None:
-        self._buffer.append(frame)
+        if frame.t >= self._next_plot_t - 1e-12:  # plot samples every ``visuals.plot_dt`` (0: every frame)
+            self._buffer.append(frame)
+            self._next_plot_t, self._plotted_t = frame.t + self.visuals.plot_dt, frame.t
         self._last = frame
         if frame.t >= self._next_pose_t - 1e-12:
             self._log_pose(frame)
@@ -99,6 +102,8 @@ class RerunRecorder:
         try:
             if self._last is not None and self._last.t > self._posed_t:
                 self._log_pose(self._last)  # the last computed state is always on the timeline
+            if self._last is not None and self._last.t > self._plotted_t:
+                self._buffer.append(self._last)
             self._flush_scalars()
             self.rec.flush()
         finally:
