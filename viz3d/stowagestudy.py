@@ -55,10 +55,16 @@ class StowageReport:
 
 
 def _one(args) -> StowageRun:
+    """One grid point's run; a scene error (a value the scene refuses) is a ``failed`` row, so the
+    other points' runs are kept."""
     path, overrides, values = args
     import viz3d
+    from viz3d.scene.schema import SceneError
 
-    traj = viz3d.simulate(viz3d.load_scene(path, overrides))
+    try:
+        traj = viz3d.simulate(viz3d.load_scene(path, overrides))
+    except SceneError as exc:
+        return StowageRun(values, "failed", np.nan, np.nan, np.nan, np.nan, str(exc), 0.0)
     x = traj.extras
     if "stowage_verdict" not in x:
         return StowageRun(values, "failed", float(traj.t[-1]), np.nan, np.nan, np.nan, traj.status, traj.wall_time)
