@@ -124,3 +124,35 @@ def _world(ship):
     from viz3d.scene.ship import rotation_x, rotation_y
 
     return rotation_y(math.radians(ship["trim"])) @ rotation_x(math.radians(ship["heel"]))
+
+
+def test_a_slanted_rim_edge_is_cleared_by_the_link_radius_along_both_stretches():
+    """With heel or trim the rim's edge is not normal to the chain's plane: the distance between the
+    edge's line and each stretch's line (not the vertex's) is at least the radius, and the radius for
+    the nearer one (the chain touches the edge, without overlapping it)."""
+    C, e = np.array([0.0, -1.2, -1.4]), np.array([0.995, 0.0, 0.0998])
+    e /= np.linalg.norm(e)
+    a = np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0])
+    down, r = np.array([0.0, 0.0, -1.0]), 0.15
+    Tp, V, m = bend_over(C, 4.0 * a, a, down, r, 0.336, e)
+    dist = []
+    for d in ((V - Tp) / np.linalg.norm(V - Tp), down):
+        n = np.cross(d, e)
+        dist.append(abs((V - C) @ n) / np.linalg.norm(n))
+    assert min(dist) == pytest.approx(r, rel=1e-9) and max(dist) >= r
+    assert np.linalg.norm(V - Tp) == pytest.approx(m * 0.336, rel=1e-12)
+
+
+@pytest.mark.parametrize("heel, trim", [(0.0, 0.0), (-5.0, 3.0), (5.0, -3.0), (5.0, 3.0)])
+def test_the_generated_ship_starts_without_contact(heel, trim, tmp_path):
+    """Nothing overlaps in the initial configuration at any heel and trim: the run starts at rest, not
+    with a contact the law cannot resolve (the chain only touches the rim once it sags)."""
+    from viz3d.contact.collision import Collisions
+    from viz3d.dynamics import body_state
+    from viz3d.scene.build import build
+
+    path = tmp_path / "hoist.toml"
+    path.write_text("[ship]\n")
+    system, state = build(load_scene(path, [f"ship.heel={heel}", f"ship.trim={trim}"]))
+    col = next(e for e in system.forces if isinstance(e, Collisions))
+    assert col.detect(body_state(system, state.q, state.v, state.chart, 0.0)).m == 0

@@ -143,7 +143,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     down = np.array([0.0, 0.0, -1.0])
     r_link = 1.8 * p["chain_diameter"]
     C = S @ np.array([0.0, -p["pocket_bottom"], p["pocket_depth"]])
-    T, V, m = bend_over(C, T, a, down, r_link * (1 + 1e-3), ell)
+    T, V, m = bend_over(C, T, a, down, r_link * (1 + 1e-3), ell, f)
     n_links = m + max(1, int(math.ceil(p["hang"] / ell)))
     chain_len = n_links * ell
     path = [V, V + 4 * (chain_len + ell) * down]
@@ -260,27 +260,35 @@ def _check(p: dict, source: str) -> None:
                              f"{r:.3g} and {long:.3g} m, lies in the pocket)", p[key])
 
 
-def bend_over(C: np.ndarray, T: np.ndarray, a: np.ndarray, down: np.ndarray, r: float, ell: float
-              ) -> tuple[np.ndarray, np.ndarray, int]:
+def bend_over(C: np.ndarray, T: np.ndarray, a: np.ndarray, down: np.ndarray, r: float, ell: float,
+              edge: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """Where a chain from a point ``T' = T + delta a`` (0 <= delta < ell, on the windlass's line) to
-    ``V``, then along ``down``, passes a convex edge ``C`` at distance ``r`` from both stretches
-    (tangent to it) with ``|V - T'|`` a whole number ``m`` of links ``ell``: ``(T', V, m)`` [m]."""
-    V = C.copy()
-    Tp = T
-    for _ in range(50):
+    ``V``, then along ``down``, passes a convex edge through ``C`` (along the unit ``edge``; None: a
+    point) at distance ``r`` from both stretches (tangent to it; with a heeled or trimmed ship the
+    edge is not normal to the chain's plane) with ``|V - T'|`` a whole number ``m`` of links ``ell``:
+    ``(T', V, m)`` [m]."""
+    V, Tp, reach = C.copy(), T, r
+    for _ in range(200):
         d1 = (V - Tp) / np.linalg.norm(V - Tp)
         turn = down - d1
         half = 0.5 * math.acos(float(np.clip(d1 @ down, -1.0, 1.0)))
-        V_new = C - r / math.cos(half) * turn / np.linalg.norm(turn)
+        V_new = C - reach / math.cos(half) * turn / np.linalg.norm(turn)
         m = int(math.ceil(np.linalg.norm(V_new - T) / ell))
         # T' on T's line a whole number of links from V
         w = V_new - T
         delta = (w @ a) + math.sqrt(max((w @ a) ** 2 - (w @ w) + (m * ell) ** 2, 0.0))
         Tp_new = T + delta * a
-        if np.linalg.norm(V_new - V) + np.linalg.norm(Tp_new - Tp) < 1e-12:
+        clearance = r if edge is None else min(_line_distance(V_new, d, C, edge) for d in (d1, down))
+        if np.linalg.norm(V_new - V) + np.linalg.norm(Tp_new - Tp) < 1e-12 and abs(clearance - r) < 1e-12:
             break
-        V, Tp = V_new, Tp_new
+        V, Tp, reach = V_new, Tp_new, reach * r / clearance
     return Tp, V, m
+
+
+def _line_distance(p: np.ndarray, d: np.ndarray, q: np.ndarray, e: np.ndarray) -> float:
+    """Distance between the lines ``p + s d`` and ``q + s e`` [m]."""
+    n = np.cross(d, e)
+    return float(abs((p - q) @ n) / np.linalg.norm(n))
 
 
 def _haul_length(T: np.ndarray, shackle_top_stowed: np.ndarray, chain_len: float) -> float:
