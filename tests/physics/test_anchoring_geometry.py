@@ -121,9 +121,10 @@ def test_the_stowed_anchor_lies_on_the_pocket_floor_with_its_shank_on_the_pipe_a
 
 
 def _world(ship):
-    from viz3d.scene.ship import rotation_x, rotation_y
+    """World from ship axes, from scipy: intrinsic y (trim) then x (heel)."""
+    from scipy.spatial.transform import Rotation
 
-    return rotation_y(math.radians(ship["trim"])) @ rotation_x(math.radians(ship["heel"]))
+    return Rotation.from_euler("YX", [ship["trim"], ship["heel"]], degrees=True).as_matrix()
 
 
 def test_a_slanted_rim_edge_is_cleared_by_the_link_radius_along_both_stretches():

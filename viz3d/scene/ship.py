@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from viz3d import anchoring
-from viz3d.rotations import euler_from_matrix, frame_with_z
+from viz3d.rotations import euler_from_matrix, frame_with_z, matrix_from_rotation_vector
 from viz3d.scene.chainpath import path_nodes
 from viz3d.scene.schema import OPTIONAL, Field, SceneError, Table, boolean, nonnegative, number, positive, positive_int
 
@@ -83,14 +83,10 @@ SHIP = Table({
 }, "generator: a ship's anchor hoisted by its windlass into the hawse pipe and pocket (seed 004)")
 
 
-def rotation_x(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rotation_y(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+def ship_rotation(heel_deg: float, trim_deg: float) -> np.ndarray:
+    """World from ship axes: ``Ry(trim) Rx(heel)`` (starboard down, then bow down)."""
+    heel, trim = math.radians(heel_deg), math.radians(trim_deg)
+    return matrix_from_rotation_vector(np.array([0.0, trim, 0.0])) @ matrix_from_rotation_vector(np.array([heel, 0.0, 0.0]))
 
 
 def shell_axes(flare_deg: float) -> np.ndarray:
@@ -126,7 +122,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     of the validated ``ship`` table added (entries the file gives itself are kept)."""
     p = ship
     _check(p, source)
-    R_world = rotation_y(math.radians(p["trim"])) @ rotation_x(math.radians(p["heel"]))
+    R_world = ship_rotation(p["heel"], p["trim"])
     S = R_world @ shell_axes(p["flare"])            # world <- shell
     f, u, n = S.T
     gamma = math.radians(p["pipe_angle"])
@@ -156,7 +152,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     y_a = np.cross(z_a, x_a)
     R_anchor = np.column_stack([x_a, y_a, z_a])
     phi0 = math.radians(p["stop_angle"])             # flukes resting on their outer stop
-    R_flukes = R_anchor @ rotation_y(phi0)
+    R_flukes = R_anchor @ matrix_from_rotation_vector(np.array([0.0, phi0, 0.0]))
     V_shank, c_shank = _mesh_volume("anchor_shank", p["anchor_mass"])
     V_flukes, c_flukes = _mesh_volume("anchor_flukes", p["anchor_mass"])
     V_shackle, c_shackle = _mesh_volume("anchor_shackle", p["anchor_mass"])
@@ -165,7 +161,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     h = 0.5 * anchoring.FLUKE_THICKNESS[0] * s
     crown_stowed = -h / math.tan(gamma) * u + h * n
     R_shank_stowed = np.column_stack([e2, np.cross(a, e2), a])
-    R_flukes_stowed = R_shank_stowed @ rotation_y(gamma)
+    R_flukes_stowed = R_shank_stowed @ matrix_from_rotation_vector(np.array([0.0, gamma, 0.0]))
     capacity = p.get("capacity", 1.5 * 42.5 * (p["chain_diameter"] * 1e3) ** 2)
     travel = _haul_length(T, crown_stowed + eye * a + shackle_len * a, chain_len)
     v, t_r = p["hauling_speed"], p["ramp_time"]
