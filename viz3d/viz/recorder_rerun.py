@@ -62,6 +62,7 @@ class RerunRecorder:
         self._last: Frame | None = None      # the last frame logged
         self._posed_t = -np.inf              # time of the last pose logged [s]
         self._plotted_t = -np.inf            # time of the last plot sample logged [s]
+        self._poses: list = []               # (t, W_r, xyzw) not yet sent
 
     # ------------------------------------------------------------------ Sink protocol
 
@@ -150,10 +151,9 @@ class RerunRecorder:
 
         rec, vis = self.rec, self.visuals
         rec.set_time("sim_time", duration=frame.t)
-        quats = xyzw_from_wxyz(quat_from_matrix(frame.R_WB))
-        for b, r, q in zip(vis.bodies, frame.W_r, quats):
-            if b.vertices.size:
-                rec.log(f"/world/bodies/{b.name}", rr.Transform3D(translation=r, quaternion=rr.Quaternion(xyzw=q)))
+        # body poses are sent as columns at each flush (one chunk per body, not one per pose: a
+        # chunk costs ~1.5 kB, which made 20 of the 27 MB of a 30-s, 23-body recording)
+        self._poses.append((frame.t, np.array(frame.W_r, float), xyzw_from_wxyz(quat_from_matrix(frame.R_WB))))
         for d in vis.deformables:
             rec.log(f"/world/{d.name}", rr.Mesh3D(vertex_positions=frame.deformed[d.name], triangle_indices=d.faces,
                                                   albedo_factor=[*d.color.tolist(), 255]))
@@ -176,9 +176,23 @@ class RerunRecorder:
         self._peak_force = max(getattr(self, "_peak_force", 0.0), peak)
         return 3.0 * self.visuals.length_scale / self._peak_force if self._peak_force > 0 else 0.0
 
+    def _flush_poses(self) -> None:
+        import rerun as rr
+
+        if not self._poses:
+            return
+        poses, self._poses = self._poses, []
+        t = rr.TimeColumn("sim_time", duration=np.array([p[0] for p in poses]))
+        W_r, quats = np.array([p[1] for p in poses]), np.array([p[2] for p in poses])
+        for i, b in enumerate(self.visuals.bodies):
+            if b.vertices.size:
+                self.rec.send_columns(f"/world/bodies/{b.name}", indexes=[t],
+                                      columns=rr.Transform3D.columns(translation=W_r[:, i], quaternion=quats[:, i]))
+
     def _flush_scalars(self) -> None:
         import rerun as rr
 
+        self._flush_poses()
         if not self._buffer:
             return
         frames, self._buffer = self._buffer, []
