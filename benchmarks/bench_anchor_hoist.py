@@ -41,7 +41,7 @@ def detection_share(scene) -> float:
     from viz3d.scene.build import build, make_formulation
 
     system, state = build(scene)
-    formulation = make_formulation(scene)
+    formulation = make_formulation(scene.data["sim"])
     col = next(e for e in system.forces if isinstance(e, Collisions))
     cfg = body_state(system, state.q, state.v, state.chart, 0.0)
 
@@ -70,8 +70,9 @@ def main() -> None:
         wall = time.perf_counter() - t0
         sim = float(traj.t[-1])
         effort = traj.extras["drive_effort"][:, 0]
-        rows.append((name, len(traj.body_names), traj.n_steps, wall / sim, sim / wall,
-                     float(effort[traj.t >= 0.5].mean()) / 1e3, detection_share(scene), traj.status))
+        late = effort[traj.t >= 0.5]
+        rows.append((name, len(traj.body_names), traj.n_steps, wall / sim if sim > 0 else np.inf, sim / wall,
+                     float(late.mean()) / 1e3 if late.size else np.nan, detection_share(scene), traj.status))
     print("| variant | bodies | steps | wall per simulated s [s] | real-time factor | mean hauling force [kN] "
           "| detect / evaluation | status |")
     print("|---|---|---|---|---|---|---|---|")
