@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_collision import best_of  # (benchmarks/ is the script's folder: on sys.path)
 
 import viz3d
 
@@ -45,16 +46,8 @@ def detection_share(scene) -> float:
     col = next(e for e in system.forces if isinstance(e, Collisions))
     cfg = body_state(system, state.q, state.v, state.chart, 0.0)
 
-    def best(f, n=30):
-        out = np.inf
-        for _ in range(n):
-            t0 = time.perf_counter()
-            f()
-            out = min(out, time.perf_counter() - t0)
-        return out
-
-    whole = best(lambda: accelerations(system, formulation, 0.0, state.q, state.v, state.chart))
-    return best(lambda: col.detect(cfg)) / whole
+    whole = best_of(lambda: accelerations(system, formulation, 0.0, state.q, state.v, state.chart), 30)
+    return best_of(lambda: col.detect(cfg), 30) / whole
 
 
 def main() -> None:

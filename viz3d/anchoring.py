@@ -120,10 +120,15 @@ def _rect_hit(theta: FloatArray, corners: FloatArray) -> FloatArray:
     return np.column_stack([t * c, t * s, np.zeros_like(t)])
 
 
+def opening(pipe_radius: float, pipe_angle_deg: float) -> tuple[float, float]:
+    """Semi-axes (along f, along u) of the ellipse the pipe cuts in the floor [m]."""
+    return pipe_radius, pipe_radius / float(np.sin(np.radians(pipe_angle_deg)))
+
+
 def _check_hawse(pipe_radius, pipe_angle_deg, pocket_width, pocket_top, pocket_bottom) -> None:
     if not 0.0 < pipe_angle_deg < 90.0:
         raise ValueError(f"pipe_angle_deg must lie in (0, 90), got {pipe_angle_deg}")
-    long = pipe_radius / np.sin(np.radians(pipe_angle_deg))
+    _, long = opening(pipe_radius, pipe_angle_deg)
     if pocket_width / 2 <= pipe_radius or min(pocket_top, pocket_bottom) <= long:
         raise ValueError(f"the pocket (width {pocket_width:g}, top {pocket_top:g}, bottom {pocket_bottom:g} m) must "
                          f"contain the pipe's opening (semi-axes {pipe_radius:g} and {long:.3g} m)")

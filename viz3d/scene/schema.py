@@ -217,6 +217,22 @@ def vec3(x):
         raise Invalid("a list of 3 numbers") from None
 
 
+def rotation_matrices(x):
+    if not (isinstance(x, list) and all(isinstance(m, list) and len(m) == 3 for m in x)):
+        raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
+    out = [[vec3(r) for r in m] for m in x]
+    for m in out:
+        if not np.allclose(np.asarray(m) @ np.asarray(m).T, np.eye(3), atol=1e-9):
+            raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
+    return out
+
+
+def any_table(x):
+    if not isinstance(x, dict):
+        raise Invalid("a table")
+    return x
+
+
 def vec3_list(x):
     if not isinstance(x, list):
         raise Invalid("a list of points [[x, y, z], ...]")

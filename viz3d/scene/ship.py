@@ -35,7 +35,6 @@ from viz3d.rotations import euler_from_matrix, frame_with_z, matrix_from_rotatio
 from viz3d.scene.chainpath import path_nodes
 from viz3d.scene.schema import OPTIONAL, Field, SceneError, Table, boolean, nonnegative, number, positive, positive_int
 
-G = 9.81
 STEEL_E, STEEL_NU, STEEL_RHO = 2.1e11, 0.3, 7850.0
 
 SHIP = Table({
@@ -249,7 +248,7 @@ def _check(p: dict, source: str) -> None:
     if p["pipe_angle"] >= 90.0 or p["pipe_angle"] > p["stop_angle"]:
         raise SceneError(source, "ship.pipe_angle", f"below 90 and at most ship.stop_angle = {p['stop_angle']:g} deg (the "
                          "stowed flukes lie on the floor turned pipe_angle from the shank)", p["pipe_angle"])
-    r, long = p["pipe_diameter"] / 2, p["pipe_diameter"] / 2 / math.sin(math.radians(p["pipe_angle"]))
+    r, long = anchoring.opening(p["pipe_diameter"] / 2, p["pipe_angle"])
     for key, need in (("pocket_width", 2 * r), ("pocket_top", long), ("pocket_bottom", long)):
         if p[key] <= need:
             raise SceneError(source, f"ship.{key}", f"more than {need:.3g} m (the pipe's opening, an ellipse of semi-axes "

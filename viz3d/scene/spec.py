@@ -5,8 +5,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from viz3d.contact.contacts import HYPOTHESES
 from viz3d.contact.friction import FRICTION_LAWS
 from viz3d.contact.laws import NORMAL_LAWS
@@ -26,6 +24,7 @@ from viz3d.scene.schema import (
     Table,
     boolean,
     color,
+    any_table,
     dict_of_numbers,
     mat3_or_diag,
     name,
@@ -37,6 +36,7 @@ from viz3d.scene.schema import (
     poisson_ratio,
     positive,
     positive_int,
+    rotation_matrices,
     string,
     unit_fraction,
     unit_interval,
@@ -490,26 +490,10 @@ DRIVE = Table({
                       "stops with a diagnosis at the first output frame that needs more"),
 }, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
 
-def _matrices(x):
-    if not (isinstance(x, list) and all(isinstance(m, list) and len(m) == 3 for m in x)):
-        raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
-    out = [[vec3(r) for r in m] for m in x]
-    for m in out:
-        if not np.allclose(np.asarray(m) @ np.asarray(m).T, np.eye(3), atol=1e-9):
-            raise Invalid("a list of 3x3 rotation matrices (columns: the body's axes in world)")
-    return out
-
-
-def _table(x):
-    if not isinstance(x, dict):
-        raise Invalid("a table")
-    return x
-
-
 STOWAGE = Table({
     "bodies": Field(names, doc="the bodies that must reach their stowed poses (the anchor's shank and flukes)"),
     "position": Field(vec3_list, doc="their stowed centres of mass, world [m]"),
-    "axes": Field(_matrices, doc="their stowed orientations (world from body, 3x3 each)"),
+    "axes": Field(rotation_matrices, doc="their stowed orientations (world from body, 3x3 each)"),
     "drive": Field(string, doc="the drive that hauls them (its effort is the hauling force; its capacity the jam "
                    "limit)"),
     "tolerance": Field(positive, 0.1, "seated: every body within this of its stowed position [m]"),
@@ -520,7 +504,7 @@ STOWAGE = Table({
     "hawse": Field(vec3, OPTIONAL, "where the chain enters the hull, world [m]: the chain's tension there is saved "
                    "(stowage_hawse_tension)"),
     "chain": Field(string, "link", "the chain's body-name prefix (its joints are <prefix>_j<i>)"),
-    "report": Field(_table, OPTIONAL, "what the generator chose (simulated links, haul length), shown in the summary"),
+    "report": Field(any_table, OPTIONAL, "what the generator chose (simulated links, haul length), shown in the summary"),
 }, "the goal of a haul: the verdict seated / jammed / not reached at the end of the run")
 
 SCENE_FILE = Table({
