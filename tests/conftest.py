@@ -22,3 +22,10 @@ def write_scene(tmp_path):
         return path
 
     return write
+
+
+def scene_files(kind: str = "multibody") -> list[Path]:
+    """The shipped scene files of one kind (``viz3d.scene.load.Scene.kind``): "multibody" or "hydro"."""
+    from viz3d.scene.load import kind_of_file
+
+    return [p for p in sorted(SCENES.glob("*.toml")) if kind_of_file(p) == kind]

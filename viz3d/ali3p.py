@@ -33,7 +33,7 @@ together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any le
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,7 +42,7 @@ from scipy.sparse.linalg import splu
 
 from viz3d._typing import FloatArray
 from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
-from viz3d.dynamics import accelerations, body_state, flat_velocity, generalized_forces, retract
+from viz3d.dynamics import accelerations, aux_rates, body_state, drive_power, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
 from viz3d.mass import dense_mass_matrix, sparse_mass_matrix
@@ -84,6 +84,9 @@ class ALI3PMemory:
     plan : tuple
         ``viz3d.sparsity.sparse_fd_plan`` of the system: which columns one evaluation differences
         together for the tangents.
+    w_dot : ndarray, shape (n_aux,)
+        Rates of the energy ledger's work integrals at the current state [W] (``aux_rates``): the
+        step integrates them by the trapezoidal rule, like the motion.
     """
 
     v_dot: FloatArray
@@ -92,6 +95,7 @@ class ALI3PMemory:
     D: FloatArray | None
     n_evals: int = 0
     plan: tuple = ()
+    w_dot: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass(frozen=True)
@@ -111,7 +115,15 @@ def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
     """Initial accelerations and multipliers from ``formulation.start`` (the penalty method)."""
     acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart,
                         elements=state.element_memory)
-    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system))
+    w_dot = _work_rates(system, state, accelerations(system, formulation, state.t, state.q, state.v, state.chart,
+                                                      elements=state.element_memory)) if system.n_aux else np.zeros(0)
+    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system), w_dot)
+
+
+def _work_rates(system: System, state: State, acc) -> FloatArray:
+    """The ledger's work rates at ``state`` (n_aux,) [W] from its accelerations and index-1 multipliers
+    ``acc`` (``viz3d.dynamics.Accelerations``)."""
+    return aux_rates(system, acc.cfg, state.memory, state.element_memory, drive_power(acc.lam, acc.rows.C_t))
 
 
 def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory, halvings: int = 0
@@ -173,7 +185,7 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
             small = (step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
                      or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
             if small and np.max(np.abs(p.C), initial=0.0) <= tol:
-                return _finish(system, state, p, W, alpha, h, t1, lam, memory, evals), evals
+                return _finish(system, formulation, state, p, W, h, t1, lam, memory, evals), evals
         prev = step
         residual = _residual(p, alpha, lam, h)
         if lu is None:
@@ -204,20 +216,30 @@ def _evaluate(system, state, a0, dx, h, t1) -> _Point:
     return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
 
 
-def _finish(system, state, p: _Point, W, alpha, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
+def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
     """Project velocities (eq. 3.27, with the drives' explicit rate ``C_t``: ``C_v v = -C_t``) and
     accelerations (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged
     positions. A step that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent
     for the next."""
+    alpha = formulation.alpha
     T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
     C_t = constraint_rows(system.joints, body_state(system, p.q, p.v, state.chart, t1)).C_t
     v = T.solve(W @ p.v if C_t is None else W @ p.v - 0.25 * h * h * alpha * (p.Cv.T @ C_t))
-    gamma = constraint_rows(system.joints, body_state(system, p.q, v, state.chart, t1)).gamma
+    cfg = body_state(system, p.q, v, state.chart, t1)
+    gamma = constraint_rows(system.joints, cfg).gamma
     a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
     keep = evals <= REFRESH_ITER
     new = State(t1, p.q, v, state.chart, element_memory=state.element_memory)  # (renewed by the simulation)
+    w_dot = np.zeros(0)
+    if system.n_aux:  # the ledger's work integrals by the trapezoidal rule; the drives' power from the
+        # index-1 multipliers at the new state (those the frames report), not lam*
+        new = new.replace(memory=state.memory)
+        acc = accelerations(system, formulation, t1, new.q, new.v, new.chart, new.memory, cfg,
+                            new.element_memory)
+        w_dot = _work_rates(system, new, acc)
+        new = new.replace(w=state.w + 0.5 * h * (memory.w_dot + w_dot))
     return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
-                        n_evals=memory.n_evals + evals + 1)
+                        n_evals=memory.n_evals + evals + 1 + (1 if w_dot.size else 0), w_dot=w_dot)
 
 
 class _DenseLU:

@@ -26,6 +26,8 @@ import sys
 import tempfile
 import threading
 import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from viz3d.scene.schema import SceneError
@@ -309,11 +311,18 @@ def cmd_stowage(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from viz3d.scene.load import load_scene, with_sim
+    from viz3d.scene.load import load_scene
+
+    scene = load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs)
+    return SCENE_KINDS[scene.kind].run(scene, args)
+
+
+def _run_multibody(scene, args) -> int:
     from viz3d.interrupts import InterruptGuard
+    from viz3d.scene.load import with_sim
     from viz3d.simulate import check_methods, simulate
 
-    scene = with_sim(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), t_end=args.t_end, dt=args.dt)
+    scene = with_sim(scene, t_end=args.t_end, dt=args.dt)
     if args.view:
         return _view(scene, args)
     record = _writable_file(args.record, ".rrd") if args.record else None
@@ -356,19 +365,30 @@ def _recorder(path: Path):
 def cmd_view(args) -> int:
     from viz3d.scene.load import load_scene
 
-    return _view(load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs), args)
+    scene = load_scene(args.scene, args.overrides, mesh_dirs=args.mesh_dirs)
+    return SCENE_KINDS[scene.kind].view(scene, args)
+
+
+def _address_refused(args) -> bool:
+    """True (the error printed, naming the flag) if the viewer cannot serve on ``--host``/``--port``:
+    refused before anything starts."""
+    from viz3d.viz.viewer_viser import ServeError, check_address
+
+    try:
+        check_address(args.host, args.port)
+    except ServeError as exc:
+        print(f"error: argument {exc.flag}: {exc}", file=sys.stderr)
+        return True
+    return False
 
 
 def _view(scene, args) -> int:
     """Serve ``scene`` live; the run starts when the first browser connects. An address that
     cannot be served is refused before anything starts (exit code 2, nothing left running)."""
     from viz3d.realtime import SimRunner
-    from viz3d.viz.viewer_viser import ServeError, Viewer, check_address
+    from viz3d.viz.viewer_viser import ServeError, Viewer
 
-    try:
-        check_address(args.host, args.port)
-    except ServeError as exc:
-        print(f"error: argument {exc.flag}: {exc}", file=sys.stderr)
+    if _address_refused(args):
         return 2
     record = _writable_file(args.record, ".rrd") if args.record else None
     runner = SimRunner(scene, speed=args.speed, playing=not args.paused, sinks=[_recorder(record)] if record else [])
@@ -526,6 +546,15 @@ def contact_lines(traj) -> list[str]:
 
 
 def _energy_line(traj, meta) -> str:
+    import numpy as np
+
+    x = traj.extras
+    if "energy_balance_error" in x and traj.t.size:  # the ledger of a driven scene
+        work, lost = float(x["energy_work_in"][-1]), float(x["energy_dissipated"][-1])
+        balance = float(np.max(np.abs(x["energy_balance_error"])))
+        scale = max(abs(work), lost, float(np.max(np.abs(traj.energy_total - traj.energy_total[0]))))
+        return (f"energy      work in {work:.4g} J, dissipated {lost:.4g} J; balance error {balance:.3g} J "
+                f"({balance / scale if scale else 0.0:.2g} of the work in or the change)")
     if meta.get("conservative", True):
         return f"energy      drift max |E - E0| = {traj.energy_drift:.3e} J ({traj.energy_drift_rel:.3e} of max kinetic)"
     return (f"energy      change max |E - E0| = {traj.energy_drift:.3e} J (not conserved: the scene has dampers, "
@@ -533,7 +562,6 @@ def _energy_line(traj, meta) -> str:
 
 
 def cmd_check(args) -> int:
-    from viz3d.scene.build import build
     from viz3d.scene.load import load_scene
 
     bad = 0
@@ -542,7 +570,7 @@ def cmd_check(args) -> int:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 scene = load_scene(path, args.overrides, mesh_dirs=args.mesh_dirs)
-                what = _check_built(scene)
+                what = SCENE_KINDS[scene.kind].check(scene)
             extra = "".join(f"\n  warning: {w.message}" for w in caught)
             print(f"ok     {path}: {what}{extra}")
         except SceneError as exc:
@@ -610,3 +638,114 @@ def _description(path: Path) -> str:
         return tomllib.loads(path.read_text()).get("scene", {}).get("description", "")
     except (tomllib.TOMLDecodeError, OSError) as exc:
         return f"(unreadable: {exc})"
+
+
+# ---------------------------------------------------------------- hydrodynamics scenes ([reservoir])
+
+
+def _run_hydro(scene, args) -> int:
+    """``viz3d run`` of a dam-reservoir study: arrays (.npz), charts, summary, optional recording."""
+    from viz3d import hydrostudy
+    from viz3d.interrupts import InterruptGuard
+
+    _refuse_flags(scene, args, {"t_end": "--t-end", "dt": "--dt"})
+    if args.view:
+        return _view_hydro(scene, args)
+    record = _writable_file(args.record, ".rrd") if args.record else None
+    print(f"running     {scene.name}: dam-reservoir hydrodynamics (viz3d.hydro)", flush=True)
+    result = hydrostudy.run(scene)
+    with InterruptGuard() as guard, guard.held():  # the computed study is written whole, then interrupted
+        paths = _save_hydro(result, args.out or Path("out") / f"{scene.name}.npz")
+        if record:
+            paths.append(_record_hydro(result, record))
+        print(hydrostudy.summary(result, paths))
+    return 0 if result.status == "ok" else 1
+
+
+def _refuse_flags(scene, args, flags: dict) -> None:
+    """A multibody flag given to a scene that has no use for it: ``SceneError`` naming the flag."""
+    for key, flag in flags.items():
+        if getattr(args, key, None) is not None:
+            raise SceneError(scene.source(), flag, f"no {flag} for a {scene.kind} scene (it has no time steps; "
+                             "see docs/hydro.md for its keys)", getattr(args, key))
+
+
+def _save_hydro(result, out: Path) -> list[Path]:
+    """Save the study; if ``out`` cannot be written, into a temporary folder (never lose a computed study)."""
+    from viz3d import hydrostudy
+
+    try:
+        return hydrostudy.save(result, out)
+    except OSError as exc:
+        fallback = Path(tempfile.mkdtemp(prefix=f"viz3d-{result.model.name}-")) / out.name
+        print(f"error: cannot write {out} ({exc}); writing into {fallback.parent} instead", file=sys.stderr)
+        return hydrostudy.save(result, fallback)
+
+
+def _record_hydro(result, path: Path) -> Path:
+    """The recording of a study: the earthquake with a dam and a record, else the harmonic cycle at view.omega."""
+    from viz3d import hydrostudy
+    from viz3d.viz.hydro_recorder import write_recording
+
+    model = result.model
+    frames = (hydrostudy.earthquake_frames(model) if model.dam is not None and model.record is not None
+              else hydrostudy.harmonic_frames(model, model.view.omega))
+    return write_recording(path, result, frames)
+
+
+def _view_hydro(scene, args) -> int:
+    """``viz3d view`` of a dam-reservoir study (the reservoir section animated live)."""
+    from viz3d import hydrostudy
+    from viz3d.viz.hydro_viewer import HydroViewer
+    from viz3d.viz.viewer_viser import ServeError
+
+    if _address_refused(args):
+        return 2
+    record = _writable_file(args.record, ".rrd") if args.record else None
+    result = hydrostudy.run(scene)
+    if record:
+        print(f"recorded {_record_hydro(result, record)}  (replay: viz3d replay {record})")
+    try:
+        viewer = HydroViewer(result, host=args.host, port=args.port, speed=args.speed or 1.0, playing=not args.paused)
+    except ServeError as exc:
+        print(f"error: argument {exc.flag}: {exc}", file=sys.stderr)
+        return 2
+    url = viewer.start()
+    print(f"viz3d viewer: open {url} in a browser  (scene {scene.name}, dam-reservoir hydrodynamics; Ctrl-C to stop)",
+          flush=True)
+    try:
+        viewer.wait(args.duration)
+    finally:
+        viewer.stop()
+    return 0
+
+
+def _check_hydro(scene) -> str:
+    """What ``viz3d check`` reports of a dam-reservoir study (its models built, nothing computed)."""
+    from viz3d.scene.hydro import hydro_model
+
+    model = hydro_model(scene)
+    water = model.reservoir
+    what = (f"reservoir h = {water.depth:g} m, "
+            + (f"c = {water.sound_speed:g} m/s" if water.compressible else "incompressible")
+            + ("" if water.rigid_bottom else f", alpha = {water.reflection:g}"))
+    if model.dam is not None:
+        what += f"; dam {model.dam.height:g} m, {model.dam.n_modes} modes (omega_1 empty {model.dam.omega.min():.4g} rad/s)"
+    if model.record is not None:
+        what += f"; record {Path(model.record.name).name} ({model.record.acceleration.size} samples)"
+    return what
+
+
+@dataclass(frozen=True)
+class SceneKind:
+    """What ``run``, ``view`` and ``check`` do with a scene of one kind (``Scene.kind``)."""
+
+    run: Callable
+    view: Callable
+    check: Callable
+
+
+SCENE_KINDS = {
+    "multibody": SceneKind(_run_multibody, _view, _check_built),
+    "hydro": SceneKind(_run_hydro, _view_hydro, _check_hydro),
+}

@@ -186,7 +186,10 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))
     scalars.update(drive_efforts(system.joints.joints, system.joints.row_slices(), s.lam))
     if system.contacts:
-        V = V + _contact_columns(sim, stepper.data, states, s, T, s.V, strain, scalars)
+        U = _contact_columns(sim, stepper.data, states, s, scalars)
+        V = V + U.sum(axis=1)
+    if system.has_ledger:
+        _ledger_columns(sim, states, T, s.V, strain, U if system.contacts else np.zeros((len(states), 0)), scalars)
     violation, reactions = _rows(system, s)
     return FrameColumns(ts, W_G, s.R[:, :nb], W_v, s.wW[:, :nb], T, V, violation, reactions, scalars)
 
@@ -225,12 +228,12 @@ def _rows(system: System, s) -> tuple[FloatArray, FloatArray]:
     return violation, np.concatenate(reactions, axis=1)
 
 
-def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, scalars: dict) -> FloatArray:
-    """The contacts' scalars (force, indentation per contact; the energy ledger) into ``scalars``;
-    returns the contacts' elastic energy (n,) [J]. A contact's law force and stored energy are
-    zero unless it overlaps or touches: only such states are evaluated one by one."""
+def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatArray:
+    """The contacts' scalars (force, indentation per contact) into ``scalars``; returns each contact's
+    elastic energy (n, k) [J]. A contact's law force and stored energy are zero unless it overlaps
+    or touches: only such states are evaluated one by one."""
     from viz3d.contact.contacts import Gap
-    from viz3d.events import contact_forces, impulse_loss, ledger_of, work_integrals
+    from viz3d.events import contact_forces
 
     system = sim.system
     n = len(states)
@@ -254,8 +257,16 @@ def _contact_columns(sim, data, states: list[State], s, T, V_forces, strain, sca
     for j, nm in enumerate(names):
         scalars[f"contact/{nm}/force"] = F[:, j]
         scalars[f"contact/{nm}/indentation"] = np.maximum(alpha[:, j], 0.0)
-    W = np.array([work_integrals(system, st) for st in states])
-    losses = np.array([impulse_loss(system, st) for st in states])
+    return U
+
+
+def _ledger_columns(sim, states: list[State], T, V_forces, strain, U, scalars: dict) -> None:
+    """The energy ledger's scalars (``viz3d.frames.ledger_scalars``) into ``scalars``: kinetic ``T``,
+    the force elements' potentials ``V_forces`` (n, 2) (signed, others), ``strain`` (n,) and the
+    contacts' stored energies ``U`` (n, k) [J]."""
+    from viz3d.events import impulse_loss, ledger_of, work_integrals
+
+    W = np.array([work_integrals(sim.system, st) for st in states])
+    losses = np.array([impulse_loss(sim.system, st) for st in states])
     led = ledger_of(T, V_forces[:, 0] + V_forces[:, 1], V_forces[:, 0], strain, U, W, losses)
-    scalars.update(ledger_scalars(led, sim.contacts.E0 if sim.contacts is not None else None))
-    return led.contact_elastic
+    scalars.update(ledger_scalars(led, sim.reference_energy))

@@ -193,18 +193,26 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
     return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi), eta)
 
 
-def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple = ()) -> FloatArray:
+def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple = (),
+              drives: float = 0.0) -> FloatArray:
     """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
-    contact ``F alpha_dot``, the damping power of the flexible bodies, the power of the force
-    elements' non-conservative forces (``ForceElement.nonconservative_power``) [W]."""
+    contact ``F alpha_dot``, the damping power of the flexible bodies, the work in: the power of the
+    force elements' non-conservative forces (``ForceElement.nonconservative_power``) plus ``drives``,
+    the drives' power (``drive_power``) [W]."""
     parts = [c.power(cfg, memory[k] if memory else c.initial_phases()) for k, c in enumerate(system.contacts)]
-    # (called only when the system keeps a ledger: some contact set is located)
+    # (called only when the system keeps a ledger: some contact set is located, or a drive works)
     damping = 0.0
     for i, fb in enumerate(system.bodies.flexible):
         damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
     power_in = sum(element.nonconservative_power(cfg) if not elements or elements[i] is None
                    else element.nonconservative_power(cfg, elements[i]) for i, element in enumerate(system.forces))
-    return np.concatenate(parts + [[damping, power_in]])
+    return np.concatenate(parts + [[damping, power_in + drives]])
+
+
+def drive_power(lam: FloatArray, C_t: FloatArray | None) -> float:
+    """Power of the drives on the bodies, ``lam . C_t`` [W]: a drive row's force ``-C_v^T lam`` does
+    ``-lam C_v v`` and a drive holds ``C_v v = -C_t`` (0 without drives, ``C_t`` None)."""
+    return 0.0 if C_t is None else float(lam @ C_t)
 
 
 def element_memory(system: System, state: State) -> tuple:
@@ -244,7 +252,7 @@ class VectorField:
         acc = accelerations(self.system, self.formulation, t, q, v, self.chart, self.memory, elements=self.elements)
         parts = [kinematic_rates(self.system, q, v), acc.v_dot]
         if self.system.n_aux:
-            parts.append(aux_rates(self.system, acc.cfg, self.memory, self.elements))
+            parts.append(aux_rates(self.system, acc.cfg, self.memory, self.elements, drive_power(acc.lam, acc.rows.C_t)))
         return np.concatenate(parts)
 
     def retract(self, q: FloatArray, w: FloatArray) -> FloatArray:

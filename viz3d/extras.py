@@ -40,9 +40,15 @@ def run_extras(sim, scene, frames) -> dict:
                                            for fb in system.bodies.flexible) or "rigid bodies"),
     }
     if any(c.located for c in system.contacts):
-        out.update({f"energy_{k}": _series(frames, [f"energy/{k}"])[:, 0] for k in LEDGER})
         out.update(_contact_fields(sim, scene, frames, names))
     return out
+
+
+def ledger_fields(system, frames) -> dict:
+    """The energy ledger as trajectory fields ``energy_strain``, ``energy_contact_elastic``,
+    ``energy_dissipated``, ``energy_work_in``, ``energy_balance_error`` (n,) [J], when the state carries
+    work integrals (``System.n_aux``: located contacts or drives); else none."""
+    return {f"energy_{k}": _series(frames, [f"energy/{k}"])[:, 0] for k in LEDGER} if system.n_aux else {}
 
 
 def joint_fields(system, frames) -> dict:

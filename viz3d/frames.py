@@ -232,7 +232,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         gaps = tuple(c.gap(cfg) for c in system.contacts)
     else:
         cfg, gaps = kinematics
-    if system.contacts:
+    if system.has_ledger:
         from viz3d.events import ledger
 
         led = ledger(system, state, cfg, gaps)
@@ -270,6 +270,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     scalars.update({k: float(x) for k, x in joint_values.items()})
     if system.contacts:
         contacts += _contact_display(system, state, gaps, lam, scalars)
+    if system.has_ledger:
         scalars.update(ledger_scalars(led, reference_energy))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(

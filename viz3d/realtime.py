@@ -52,7 +52,8 @@ class Driver:
     dt, formulation, for fixed-step runs; an adaptive run with contact events keeps its own).
 
     What it plots comes from the system, never from a kind of scene: energies, then the contact
-    forces and the energy ledger when there are contacts, else the constraint violation."""
+    forces when there are contacts, else the constraint violation, and the energy ledger with contacts
+    or drives."""
 
     def __init__(self, scene: Scene, sinks=()):
         self.scene, self.sinks = scene, list(sinks)
@@ -131,12 +132,13 @@ def plot_series(system) -> tuple[tuple, tuple]:
     if names:
         plots.append(("Contact force [N]", tuple(names)))
         series += [lambda f, n=n: f.scalars[f"contact/{n}/force"] for n in names]
-        ledger = ("strain", "dissipated", "work_in")
-        plots.append(("Energy ledger [J]", ledger))
-        series += [lambda f, k=k: f.scalars[f"energy/{k}"] for k in ledger]
     else:
         plots.append(("Constraint violation [m]", ("max |C|",)))
         series.append(lambda f: f.constraint_violation)
+    if system.has_ledger:
+        ledger = ("strain", "dissipated", "work_in")
+        plots.append(("Energy ledger [J]", ledger))
+        series += [lambda f, k=k: f.scalars[f"energy/{k}"] for k in ledger]
     drives = [n for js in system.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
     if drives:  # the windlass's hauling force, a crank's torque
         plots.append(("Drive effort [N or N m]", tuple(drives)))

@@ -28,7 +28,7 @@ from viz3d.diagnosis import (
     redundant_joints,
 )
 from viz3d.dynamics import VectorField, body_state, element_memory
-from viz3d.extras import element_fields, joint_fields, run_extras
+from viz3d.extras import element_fields, joint_fields, ledger_fields, run_extras
 from viz3d.columns import FrameColumns, StateLog
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
@@ -128,8 +128,15 @@ class Simulation:
         self._fired = None      # the event handled last: its contact's events start at a root next step
         #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
         self.event_states: list[State] = []
+        self._E0 = None         # the ledger's initial total [J] (drives without contacts)
         if system.contacts:
             self._start_contacts(state)
+        elif system.n_aux:
+            if state.w.size != system.n_aux:
+                self.state = self._inner = state = state.replace(w=np.zeros(system.n_aux))
+            from viz3d.events import ledger
+
+            self._E0 = ledger(system, state).total
 
     def _start_contacts(self, state: State) -> None:
         from viz3d.events import ContactStepping
@@ -159,12 +166,17 @@ class Simulation:
     def frame(self, state: State, drawings: tuple = ()) -> Frame:
         """The output frame of ``state`` (``viz3d.frames.frame_from_state``), with the multipliers,
         configuration and gaps from the compiled kernel when the run has one."""
-        contacts = self._contacts
         kinematics = None
         if self._kernel is not None:
             kinematics = self._kernel.configuration(state.t, state.y, state.chart)
-        return frame_from_state(self.system, self.formulation, state, drawings,
-                                contacts.E0 if contacts is not None else None, self.solved_rows(state), kinematics)
+        return frame_from_state(self.system, self.formulation, state, drawings, self.reference_energy,
+                                self.solved_rows(state), kinematics)
+
+    @property
+    def reference_energy(self) -> float | None:
+        """The energy ledger's initial total [J] (None without a ledger, or before the contacts'
+        start has set it)."""
+        return self._contacts.E0 if self._contacts is not None else self._E0
 
     @property
     def contacts(self):
@@ -245,7 +257,7 @@ class Simulation:
         y, chart, _, ok = self._kernel_run(1)
         if not ok:
             return None
-        return State(target, y[: self.system.n_q], y[self.system.n_q:], chart)
+        return _state_at(self.system, target, y, self.state.replace(chart=chart))
 
     def _kernel_steps(self, n: int) -> None:
         """Up to ``n`` kernel steps in one call; on a failure at step k, the k - 1 good steps are
@@ -255,7 +267,7 @@ class Simulation:
         if not ok:
             y, chart, done, _ = self._kernel_run(done)
         self.n_samples += done
-        self.state = State(self.t0 + self.n_samples * self.dt, y[: self.system.n_q], y[self.system.n_q:], chart)
+        self.state = _state_at(self.system, self.t0 + self.n_samples * self.dt, y, self.state.replace(chart=chart))
 
     def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Up to ``n`` kernel steps from the current state: ``(y, chart, good steps, ok)``. The
@@ -598,7 +610,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                 emitter.close(status)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
-    if joints := {**joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
+    if joints := {**ledger_fields(sim.system, cols), **joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
         extras = {**(extras or {}), **joints}
     if verdict is not None:
         tension = hawse_tension(scene.data["stowage"], cols, sim.system.bodies.names, sim.system.joint_names)

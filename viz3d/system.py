@@ -123,14 +123,24 @@ class System:
         """True when the total energy is a constant of the motion: every force element and contact
         conservative and no drive (a rheonomic constraint works on the bodies)."""
         return (all(e.conservative for e in self.forces) and all(c.conservative for c in self.contacts)
-                and not any(getattr(js, "rheonomic", False) for js in self.joints.joints))
+                and not self.driven)
+
+    @property
+    def driven(self) -> bool:
+        """True when some joint is a drive (a rheonomic constraint that works on the bodies)."""
+        return any(getattr(js, "rheonomic", False) for js in self.joints.joints)
+
+    @property
+    def has_ledger(self) -> bool:
+        """True when frames carry the energy ledger (``viz3d.events.Ledger``): with contacts or drives."""
+        return bool(self.contacts) or self.driven
 
     @property
     def n_aux(self) -> int:
-        """Work integrals carried in the state (``State.w``; ``viz3d.events``): with located contacts,
-        one per contact, one for the damping of flexible bodies and one for the work of
-        non-conservative force elements; none otherwise (no energy ledger)."""
-        if not any(c.located for c in self.contacts):
+        """Work integrals carried in the state (``State.w``; ``viz3d.events``): with located contacts or
+        drives, one per contact, one for the damping of flexible bodies and one for the work in (the
+        drives' and the non-conservative force elements'); none otherwise (no energy ledger)."""
+        if not (self.driven or any(c.located for c in self.contacts)):
             return 0
         return sum(c.k for c in self.contacts) + 2
 
@@ -189,7 +199,7 @@ class State:
     chart : ndarray, shape (nf, 3, 3)
         Reference rotation of each floating frame's orientation coordinates.
     w : ndarray, shape (n_aux,)
-        Work integrals of the energy ledger [J] (``System.n_aux``; empty without contacts).
+        Work integrals of the energy ledger [J] (``System.n_aux``; empty without located contacts or drives).
     memory : tuple
         Per contact set of ``System.contacts``, the tuple of its contacts' ``ContactPhase``.
     element_memory : tuple

@@ -12,7 +12,7 @@ from viz3d.frames import frame_from_state
 from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
 from viz3d.simulate import Simulation
 
-from conftest import SCENES
+from conftest import SCENES, scene_files
 
 #: As in test_kernel: the two evaluate the same formulas in another order; their difference is
 #: bounded by the computation's round-off, measured as the reference's change when the state is
@@ -51,8 +51,7 @@ def _touching(sim, state) -> bool:
 
 
 def _reference(sim, states) -> FrameColumns:
-    E0 = sim.contacts.E0 if sim.contacts is not None else None
-    frames = [frame_from_state(sim.system, sim.formulation, s, (), E0) for s in states]
+    frames = [frame_from_state(sim.system, sim.formulation, s, (), sim.reference_energy) for s in states]
     return FrameColumns.from_frames(frames, sim.system.n_bodies, len(sim.system.joint_names))
 
 
@@ -63,7 +62,7 @@ def _perturbed(state, rng):
     return state.replace(q=y[:n_q], v=y[n_q:n_q + n_v], w=y[n_q + n_v:])
 
 
-SCENE_PATHS = sorted(SCENES.glob("*.toml"))
+SCENE_PATHS = scene_files()  # multibody scenes
 
 
 @pytest.mark.parametrize("path", SCENE_PATHS, ids=lambda p: p.stem)

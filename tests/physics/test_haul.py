@@ -21,11 +21,11 @@ N, ELL, R_LINK, RHO = 10, 0.1, 0.01, 7800.0
 V_HAUL, FREQ = 0.1, 2.5
 
 
-def _scene(tmp_path, water: bool, method: str = ""):
-    path = tmp_path / f"haul{water}{method}.toml"
-    text = _scene_text(water)
+def _scene(tmp_path, water: bool, method: str = "", dt: str = "4e-4", t_end: float = 0.2):
+    path = tmp_path / f"haul{water}{method}{dt}.toml"
+    text = _scene_text(water).replace("dt = 4e-4", f"dt = {dt}").replace("t_end = 0.2", f"t_end = {t_end}")
     if method == "ali3p":  # its own trapezoidal steps; positions solved to projection_tol at t_{n+1}
-        text = text.replace("dt = 4e-4", 'dt = 4e-4\nformulation = "ali3p"\nintegrator = "trapezoidal"')
+        text = text.replace(f"dt = {dt}", f'dt = {dt}\nformulation = "ali3p"\nintegrator = "trapezoidal"')
     path.write_text(text)
     traj = viz3d.simulate(viz3d.load_scene(path))
     assert traj.status == "ok", traj.status
@@ -72,6 +72,36 @@ def test_the_windlass_force_is_the_submerged_weight_plus_inertia_plus_drag(tmp_p
     # the state is RK4's (truncation ~ (w dt)^4 of the motion: 1e-10 here); the force follows it exactly
     np.testing.assert_allclose(effort, F, rtol=1e-8)
     np.testing.assert_allclose(traj.position[:, 0, 2], V_HAUL * (t - np.sin(w * t) / w), atol=1e-9)
+    if method != "ali3p":  # (ALI3-P's ledger: test_the_ledger_of_ali3p_converges_at_second_order)
+        # the work in (drive and drag) integrated with the motion, RK4's error ~ (w dt)^4 again
+        np.testing.assert_allclose(traj.extras["energy_work_in"], _work_in(t, water), rtol=1e-8, atol=1e-12)
+        assert np.abs(traj.extras["energy_balance_error"]).max() <= 1e-8 * _work_in(t, water)[-1]
+
+
+def _work_in(t, water: bool):
+    """Work in [J] of drive and drag up to ``t`` (n,), from Newton's law: the hanging system translates
+    as one body, so their forces' sum is M (g + a) minus the buoyancy, and its work is
+    (M g - B) z + M v^2 / 2 (the drag's work, paid by the drive, cancels)."""
+    V = _volumes()
+    M = 2.0 + RHO * V[1:].sum()
+    B = RHO_W * G * V.sum() if water else 0.0
+    w = 2 * np.pi * FREQ
+    v, z = V_HAUL * (1 - np.cos(w * t)), V_HAUL * (t - np.sin(w * t) / w)
+    return (M * G - B) * z + 0.5 * M * v**2
+
+
+def test_the_ledger_of_ali3p_converges_at_second_order(tmp_path):
+    """ALI3-P integrates the work in by the trapezoidal rule from the drive's power at the states it
+    reaches (index-1 multipliers, lam . C_t): second order, like the motion. The error is taken
+    against the closed-form work, at dt and dt / 2: order 2 divides it by 4 (3 allowed: the next
+    term is relatively O(h^2) = (w dt)^2 = 1e-4 here). Over the first 0.1 s (a quarter of the speed's
+    period, the power growing from 0)."""
+    errors = []
+    for dt in ("8e-4", "4e-4"):
+        traj = _scene(tmp_path, False, "ali3p", dt, t_end=0.1)
+        errors.append(np.abs(traj.extras["energy_work_in"] - _work_in(traj.t, False)).max())
+        assert np.abs(traj.extras["energy_balance_error"]).max() <= 2 * errors[-1]
+    assert errors[1] < errors[0] / 3, errors
 
 
 def test_a_windlass_over_its_capacity_stops_the_run_with_a_diagnosis(tmp_path):

@@ -7,9 +7,9 @@ import pytest
 
 import viz3d
 
-from conftest import SCENES
+from conftest import scene_files
 
-SCENE_FILES = sorted(SCENES.glob("*.toml"))
+SCENE_FILES = scene_files()  # multibody scenes (hydro: tests/hydro/test_hydro_scenes.py)
 CONTACTS = [p for p in SCENE_FILES if any(c["events"] for c in viz3d.load_scene(p).data["contacts"])]
 
 

@@ -7,7 +7,7 @@ import pytest
 
 import viz3d
 
-from conftest import SCENES
+from conftest import SCENES, scene_files
 
 PENDULUM = """
 [sim]
@@ -27,7 +27,7 @@ point = [0.0, 0.0, 0.0]
 """
 
 
-@pytest.mark.parametrize("path", sorted(SCENES.glob("*.toml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", scene_files(), ids=lambda p: p.stem)
 def test_shipped_scenes_validate(path):
     scene = viz3d.load_scene(path)
     assert scene.data["bodies"] and "impactor" not in scene.data  # the shorthand is expanded to bodies

@@ -378,7 +378,7 @@ class Collisions(ForceElement):
         """Coal geometries and requests, the bounding radii of moving shapes and the world boxes of
         ground shapes, built once."""
         w = self._cache
-        if w:
+        if "geometry" in w:
             return w
         coal = _coal()
         w["geometry"] = [None if GEOMETRIES[s.kind] is None else GEOMETRIES[s.kind](s) for s in self.shapes]
@@ -428,9 +428,19 @@ class Collisions(ForceElement):
     # ------------------------------------------------------------------ detection
 
     def detect(self, cfg: Configuration) -> Touches:
-        """Every contact between shapes of colliding groups at this configuration (``Touches``)."""
+        """Every contact between shapes of colliding groups at this configuration (``Touches``). The
+        last configuration's answer is kept (by identity: a ``Configuration`` is never changed in
+        place), so the forces, the ledger's power and the frame scalars of one evaluation detect once."""
         if not self.shapes:
             return _no_touches()
+        last = self._cache.get("last")
+        if last is not None and last[0] is cfg:
+            return last[1]
+        touches = self._detect(cfg)
+        self._cache["last"] = (cfg, touches)
+        return touches
+
+    def _detect(self, cfg: Configuration) -> Touches:
         w = self._world()
         r, R = self.shape_poses(cfg)
         found: dict[tuple[int, int], list] = {}

@@ -36,7 +36,7 @@ from scipy.optimize import brentq
 from viz3d._typing import FloatArray
 from viz3d.flexible import BarModel, Material, Section, analytic_modes
 from viz3d.hydro.records import GroundMotion
-from viz3d.hydro.reservoir import DEFAULT_RTOL, Reservoir, added_mass
+from viz3d.hydro.reservoir import DEFAULT_RTOL, Reservoir, SeriesResult, added_mass, pressure
 from viz3d.hydro.shapes import SmoothShapes
 
 #: Mass concrete of Pine Flat dam as Chopra and co-workers model it: E = 3.25e6 psi = 22.4 GPa,
@@ -162,6 +162,10 @@ class FrequencyResponse:
         Total crest acceleration per unit a_g [-] (1 at omega = 0 is the rigid motion).
     hydrodynamic_force : ndarray, shape (w,)
         Force of the water on the dam, total over ``width``, positive downstream (-x), per unit a_g [kg].
+    base_shear : ndarray, shape (w,)
+        Force of the foundation on the dam, positive towards the reservoir (+x), per unit a_g [kg]:
+        ``int m a_total dy + hydrodynamic_force = mass - omega^2 L q + hydrodynamic_force`` (its
+        static value, omega = 0, is the dam's mass plus the water's rigid-wall added mass).
     n_terms : int
         Series terms of the reservoir (0 for an empty reservoir).
     """
@@ -171,6 +175,7 @@ class FrequencyResponse:
     crest_displacement: np.ndarray
     crest_acceleration: np.ndarray
     hydrodynamic_force: np.ndarray
+    base_shear: np.ndarray
     n_terms: int
 
 
@@ -203,7 +208,8 @@ def frequency_response(dam: Dam, reservoir: Reservoir | None, omega, *, rtol: fl
     if reservoir is not None:  # width int p dy, p = p_0 a_g + sum_j p_j q_dd_j: pushes the dam downstream
         force = A_00 - omega**2 * np.einsum("wj,wj->w", A_q0, q)
     crest = q @ dam.bar.displacement([dam.height])[0]
-    return FrequencyResponse(omega, q, crest, 1.0 - omega**2 * crest, force, n_terms)
+    shear = dam.bar.mass - omega**2 * (q @ dam.participation) + force
+    return FrequencyResponse(omega, q, crest, 1.0 - omega**2 * crest, force, shear, n_terms)
 
 
 def fundamental_frequency(dam: Dam, reservoir: Reservoir | None = None, *, rtol: float = DEFAULT_RTOL) -> float:
@@ -246,6 +252,10 @@ class TimeResponse:
         Relative to the ground [m].
     crest_acceleration : ndarray, shape (n,)
         Total [m/s^2].
+    hydrodynamic_force : ndarray, shape (n,)
+        Force of the water on the dam, positive downstream [N] (``FrequencyResponse``).
+    base_shear : ndarray, shape (n,)
+        Force of the foundation on the dam, positive towards the reservoir [N].
     n_fft : int
         Padded length of the transform.
     n_terms : int
@@ -256,6 +266,8 @@ class TimeResponse:
     ground_acceleration: FloatArray
     crest_displacement: FloatArray
     crest_acceleration: FloatArray
+    hydrodynamic_force: FloatArray
+    base_shear: FloatArray
     n_fft: int
     n_terms: int
 
@@ -266,6 +278,47 @@ def padding(dam: Dam) -> float:
     if dam.damping_ratio == 0:
         return 0.0
     return float(np.log(1.0 / PAD_DECAY) / (dam.damping_ratio * dam.omega.min()))
+
+
+@dataclass(frozen=True)
+class WindowedSpectrum:
+    """A record's exponentially windowed transform (``windowed_spectrum``), and its way back.
+
+    Attributes
+    ----------
+    omega : ndarray, shape (m,)
+        omega_k - j eta, k = 0..n_fft/2 [rad/s].
+    transform : ndarray, shape (m,)
+        rfft of a_g(t) exp(-eta t), zero padded to n_fft [m/s].
+    window : ndarray, shape (n,)
+        exp(-eta t) at the record's samples.
+    n_fft : int
+    """
+
+    omega: np.ndarray
+    transform: np.ndarray
+    window: FloatArray
+    n_fft: int
+
+    def response(self, transfer: np.ndarray) -> FloatArray:
+        """Time history of the response whose transfer functions (per unit a_g) are ``transfer``:
+        shape (m, ...) -> (n, ...), the record's samples [the transfer's unit times m/s^2]."""
+        shaped = self.transform.reshape((-1,) + (1,) * (transfer.ndim - 1))
+        out = irfft(transfer * shaped, self.n_fft, axis=0)[: self.window.size]
+        return out / self.window.reshape((-1,) + (1,) * (transfer.ndim - 1))
+
+
+def windowed_spectrum(dam: Dam, record: GroundMotion, pad: float | None = None) -> WindowedSpectrum:
+    """Zero pad ``record`` by ``pad`` seconds (default ``padding``, at least the record's length) to n_fft
+    samples, period T = n_fft dt, and transform it with the exponential window eta T = ln(1 / PAD_DECAY)
+    (``time_response`` says why)."""
+    a, dt = record.acceleration, record.dt
+    pad = max(padding(dam), record.duration) if pad is None else float(pad)
+    n_fft = next_fast_len(a.size + int(np.ceil(pad / dt)), real=True)
+    eta = np.log(1.0 / PAD_DECAY) / (n_fft * dt)
+    window = np.exp(-eta * record.t)
+    omega = 2.0 * np.pi * rfftfreq(n_fft, dt) - 1j * eta
+    return WindowedSpectrum(omega, rfft(a * window, n_fft), window, n_fft)
 
 
 def time_response(dam: Dam, reservoir: Reservoir | None, record: GroundMotion, *, rtol: float = DEFAULT_RTOL,
@@ -281,14 +334,38 @@ def time_response(dam: Dam, reservoir: Reservoir | None, record: GroundMotion, *
     only algebraically (square-root branch points at the cut-off frequencies). Multiplying back by
     exp(eta t) amplifies round-off by at most 1 / PAD_DECAY.
     """
-    a, dt = record.acceleration, record.dt
-    pad = max(padding(dam), record.duration) if pad is None else float(pad)
-    n_fft = next_fast_len(a.size + int(np.ceil(pad / dt)), real=True)
-    eta = np.log(1.0 / PAD_DECAY) / (n_fft * dt)
-    window = np.exp(-eta * record.t)
-    omega = 2.0 * np.pi * rfftfreq(n_fft, dt) - 1j * eta
+    spectrum = windowed_spectrum(dam, record, pad)
+    r = frequency_response(dam, reservoir, spectrum.omega, rtol=rtol)
+    u, acc, force, shear = spectrum.response(np.stack([r.crest_displacement, r.crest_acceleration,
+                                                       r.hydrodynamic_force, r.base_shear], axis=1)).T
+    return TimeResponse(record.t, record.acceleration, u, acc, force, shear, spectrum.n_fft, r.n_terms)
+
+
+def dam_pressure(dam: Dam, reservoir: Reservoir, omega, y, x=0.0, *, rtol: float = DEFAULT_RTOL) -> SeriesResult:
+    """Pressure in the reservoir per unit harmonic ground acceleration, the dam responding.
+
+    The face's acceleration is a_g + sum_j phi_j q_dd_j, so ``p = p_0 + sum_j p_j (-omega^2 q_j)`` with
+    p_j the ``pressure`` of shape j (p_0: the rigid wall) and q the ``frequency_response``'s modal
+    amplitudes: ``pressure`` of the ``wetted_shapes`` with that combination. Parameters as
+    ``pressure``; ``value`` (w, p) complex [Pa / (m/s^2)].
+    """
     response = frequency_response(dam, reservoir, omega, rtol=rtol)
-    A = rfft(a * window, n_fft)
-    u = irfft(response.crest_displacement * A, n_fft)[: a.size] / window
-    acc = irfft(response.crest_acceleration * A, n_fft)[: a.size] / window
-    return TimeResponse(record.t, a, u, acc, n_fft, response.n_terms)
+    omega = response.omega  # moved off the cut-offs as the response was
+    accelerations = np.column_stack([-(omega**2)[:, None] * response.modal, np.ones(omega.size)])  # (w, n + 1)
+    return pressure(reservoir, wetted_shapes(dam, reservoir.depth), omega, y, x, rtol=rtol, combination=accelerations)
+
+
+def pressure_history(dam: Dam, reservoir: Reservoir, record: GroundMotion, y, x=0.0, *, omega_max: float,
+                     rtol: float = DEFAULT_RTOL, pad: float | None = None) -> tuple[FloatArray, FloatArray, int]:
+    """Pressure p(x, y, t) during ``record`` [Pa], low-passed at ``omega_max`` [rad/s].
+
+    ``dam_pressure`` on the windowed spectrum (``windowed_spectrum``) up to ``omega_max``, zero above:
+    for drawing frames every pi / omega_max seconds, the low-pass is their anti-aliasing filter (and
+    keeps the cost to the frequencies drawn). Returns (t (n,) [s], p (n, len(y)) [Pa], series terms).
+    """
+    spectrum = windowed_spectrum(dam, record, pad)
+    kept = spectrum.omega.real <= omega_max
+    transfer = np.zeros((spectrum.omega.size, np.size(y)), dtype=complex)
+    field = dam_pressure(dam, reservoir, spectrum.omega[kept], y, x, rtol=rtol)
+    transfer[kept] = field.value
+    return record.t, spectrum.response(transfer), field.n_terms

@@ -383,14 +383,20 @@ def _terms(reservoir: Reservoir, shapes: WallShapes, omega: FloatArray, n_terms:
     return mu, kappa, moments, weight
 
 
-def pressure(reservoir: Reservoir, shape, omega, y, x=0.0, *, rtol: float = DEFAULT_RTOL) -> SeriesResult:
+def pressure(reservoir: Reservoir, shape, omega, y, x=0.0, *, rtol: float = DEFAULT_RTOL,
+             combination=None) -> SeriesResult:
     """Hydrodynamic pressure p(x, y, omega) per unit amplitude of wall acceleration.
 
     Parameters
     ----------
     reservoir : Reservoir
     shape : callable, (y, values) pair or wall shapes object
-        One wall-acceleration shape phi on [0, h] (``viz3d.hydro.shapes.as_shapes``).
+        One wall-acceleration shape phi on [0, h] (``viz3d.hydro.shapes.as_shapes``), or k shapes
+        with ``combination``.
+    combination : ndarray, shape (w, k), optional
+        Accelerations c_wj of k shapes: the wall moves as sum_j c_wj phi_j at frequency w (a dam's modes
+        responding), and the pressure is the same combination of the shapes' pressures, summed once.
+        ``bound`` is then max_w sum_j |c_wj| (bound of shape j).
     omega : float or ndarray, shape (w,)
         Circular frequencies [rad/s], either sign.
     y : ndarray, shape (p,)
@@ -407,17 +413,18 @@ def pressure(reservoir: Reservoir, shape, omega, y, x=0.0, *, rtol: float = DEFA
     """
     h = reservoir.depth
     shapes = as_shapes(shape, h)
-    if shapes.n_shapes != 1:
-        raise ValueError(f"pressure takes one shape, got {shapes.n_shapes}")
     omega = _omegas(omega)
+    c = _combination(combination, shapes.n_shapes, omega.size)
     x, y = np.broadcast_arrays(np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(y, float)))
     if x.ndim != 1 or np.any(x < 0) or np.any(y < 0) or np.any(y > h):
         raise ValueError(f"points need x >= 0 and 0 <= y <= {h} m (1-D arrays)")
-    n, bound = choose_terms(reservoir, shapes, float(np.abs(omega).max()), rtol, "pressure")
+    n, _ = choose_terms(reservoir, shapes, float(np.abs(omega).max()), rtol, "pressure")
+    constants = decay_constants(reservoir, shapes, float(np.abs(omega).max()))
+    bound = float((np.abs(c) @ tail_bound(reservoir, constants, float(np.abs(omega).max()), n, "pressure")).max())
     mu, kappa, moments, weight = _terms(reservoir, shapes, omega, n)
-    coef = weight * moments[..., 0]  # P_n, (w, N)
+    coef = weight * np.einsum("wnk,wk->wn", np.broadcast_to(moments, (omega.size,) + moments.shape[1:]), c)  # P_n
     lam = rigid_wavenumbers(h, n)
-    a = shapes.top[0]
+    a = (c @ shapes.top)[:, None]  # phi(h) of the combination, (w, 1)
     # closed form of a * (incompressible rigid-wall series) minus its first N terms
     kummer_partial = (2.0 / h) * (np.sin(np.outer(lam, h - y)) * np.exp(-np.outer(lam, x)) / lam[:, None] ** 2).sum(axis=0)
     if mu.shape[0] == 1 and not np.any(x):  # rigid bottom, on the face: one matrix product
@@ -432,6 +439,18 @@ def pressure(reservoir: Reservoir, shape, omega, y, x=0.0, *, rtol: float = DEFA
             value[b] = np.einsum("wn,wnp->wp", coef[b], depth_fn)
     value = value + reservoir.density * a * (rigid_wall_series(h, x, y) - kummer_partial)[None, :]
     return SeriesResult(value, n, bound, rtol)
+
+
+def _combination(combination, n_shapes: int, n_omega: int) -> np.ndarray:
+    """The (w, k) accelerations of ``pressure``'s shapes: ones for one shape without a combination."""
+    if combination is None:
+        if n_shapes != 1:
+            raise ValueError(f"pressure takes one shape, or k shapes with a combination; got {n_shapes} shapes")
+        return np.ones((n_omega, 1))
+    c = np.asarray(combination)
+    if c.shape != (n_omega, n_shapes):
+        raise ValueError(f"combination must have shape (frequencies, shapes) = {(n_omega, n_shapes)}, got {c.shape}")
+    return c
 
 
 def added_mass(reservoir: Reservoir, shapes, omega, *, rtol: float = DEFAULT_RTOL) -> SeriesResult:

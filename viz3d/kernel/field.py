@@ -322,8 +322,12 @@ def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
     generalized_forces(m, v, w)
     if not free_accelerations(m, v, w):
         return SINGULAR
-    if m.row_body.shape[0] > 0 and not constrain(m, v, w, t, rows):
-        return SINGULAR
+    if m.row_body.shape[0] > 0:
+        if not constrain(m, v, w, t, rows):
+            return SINGULAR
+        if m.n_aux > 0:  # the drives' power lam . C_t, into the work in (viz3d.dynamics.drive_power)
+            for r in range(m.row_body.shape[0]):
+                w.aux[w.aux.shape[0] - 1] += w.lam[r] * v.Ct[r]
     rates(m, v, w, y, ydot)
     return OK
 

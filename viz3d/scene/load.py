@@ -18,10 +18,10 @@ import numpy as np
 
 from viz3d.geometry import contact_spheres
 from viz3d.rotations import euler_from_matrix, frame_with_z
-from viz3d.scene import ship, shorthand, spec
-from viz3d.scene.chainpath import normal_to, path_nodes
+from viz3d.scene import hydro, ship, shorthand, spec
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
-from viz3d.scene.schema import Invalid, SceneError, validate
+from viz3d.scene.chainpath import normal_to, path_nodes
+from viz3d.scene.schema import Invalid, SceneError, allowed_path, validate
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,11 @@ class Scene:
         return self.data["scene"].get("name", self.path.stem)
 
     @property
+    def kind(self) -> str:
+        """What the scene computes: "multibody" (bodies in time) or "hydro" (a dam-reservoir study)."""
+        return kind_of(self.data)
+
+    @property
     def base_dir(self) -> Path:
         return self.path.parent
 
@@ -58,6 +63,20 @@ class Scene:
         if not self.overrides:
             return str(self.path)
         return f"{self.path} (with --set {' --set '.join(self.overrides)})"
+
+
+#: Tables that make a scene file another kind than "multibody" (each kind has its own schema).
+KIND_TABLES = {hydro.KIND_TABLE: "hydro"}
+
+
+def kind_of(tables: Mapping) -> str:
+    """The kind of a scene from its (raw or validated) top-level tables."""
+    return next((kind for table, kind in KIND_TABLES.items() if table in tables), "multibody")
+
+
+def kind_of_file(path: str | Path) -> str:
+    """The kind of the scene file at ``path`` (read, not validated)."""
+    return kind_of(_read_toml(Path(path)))
 
 
 def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | None = None, *,
@@ -88,6 +107,10 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
     for key, value in pairs:
         _set_path(raw, key, value, source)
     allowed = tuple(Path(d) for d in mesh_dirs)
+    if kind_of(raw) == "hydro":  # its own tables (viz3d.scene.hydro): no bodies, nothing to expand
+        data = validate(raw, hydro.HYDRO_FILE, source)
+        hydro.check_consistency(data, source)
+        return Scene(path, data, texts, allowed)
     if "impactor" in raw:  # the impact shorthand: validated as written, then expanded
         raw = shorthand.expand(validate(raw, shorthand.IMPACT_FILE, source), source)
     if "chain" in raw:
@@ -153,7 +176,6 @@ def _check_mesh_files(data: dict, path: Path, allowed: tuple[Path, ...], source:
     or in a folder the user allowed; generators exist and take the parameters given."""
     from viz3d.anchoring import generated_mesh
 
-    roots = [path.parent.resolve(), *(d.resolve() for d in allowed)]
     shapes = [(f"bodies[{i}].shape", b.get("shape", {})) for i, b in enumerate(data["bodies"])]
     shapes += [(f"collision.ground[{k}]", g) for k, g in enumerate(data.get("collision", {}).get("ground", []))]
     for where, shape in shapes:
@@ -168,12 +190,7 @@ def _check_mesh_files(data: dict, path: Path, allowed: tuple[Path, ...], source:
                 raise SceneError(source, f"{where}.params", f"parameters its generator takes ({exc})",
                                  shape.get("params", {})) from None
             continue
-        target = (path.parent / shape["file"]).resolve()
-        if not any(target.is_relative_to(root) for root in roots):
-            where_ = " or ".join(str(r) for r in roots)
-            raise SceneError(source, f"{where}.file",
-                             f"a mesh file inside {where_} (allow another folder explicitly with --mesh-dir DIR)",
-                             shape["file"])
+        allowed_path(path.parent, shape["file"], allowed, source, f"{where}.file")
 
 
 def _read_toml(path: Path) -> dict:

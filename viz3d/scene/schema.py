@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -104,6 +105,18 @@ def validate(value: Any, spec: Table | ArrayOf, source: str, path: str = "") -> 
         except Invalid as exc:
             raise SceneError(source, sub, exc.expected, value[key]) from None
     return out
+
+
+def allowed_path(base_dir: Path, name: str, allowed: tuple[Path, ...], source: str, key: str) -> Path:
+    """The file ``name`` (relative to the scene's folder ``base_dir``), if it lies below that folder or
+    below one of the ``allowed`` folders (``--mesh-dir``); else ``SceneError`` naming ``key``: a scene
+    only reads files its user put within reach."""
+    roots = [base_dir.resolve(), *(Path(d).resolve() for d in allowed)]
+    target = (base_dir / name).resolve()
+    if not any(target.is_relative_to(root) for root in roots):
+        where = " or ".join(str(r) for r in roots)
+        raise SceneError(source, key, f"a file inside {where} (allow another folder explicitly with --mesh-dir DIR)", name)
+    return target
 
 
 def _join(path: str, key: str) -> str:

@@ -305,12 +305,7 @@ class Viewer:
 
     def wait(self, timeout: float | None = None) -> None:
         """Block until ``timeout`` [s] has passed (None: forever), Ctrl-C, or ``stop`` from another thread."""
-        end = time.monotonic() + (math.inf if timeout is None else timeout)
-        try:
-            while not self._stop.is_set() and time.monotonic() < end:
-                time.sleep(min(0.2, max(0.0, end - time.monotonic())))
-        except KeyboardInterrupt:
-            pass
+        wait_until(self._stop, timeout)
 
     # ------------------------------------------------------------------ clients
 
@@ -340,7 +335,7 @@ class Viewer:
             self._stab = {STABILIZATION_LABELS.get(f, f): f for f in self.runner.options["formulation"]}
             label = {v: k for k, v in self._stab.items()}[settings["formulation"]]
             self.stabilization = gui.add_dropdown("Stabilization", tuple(self._stab), initial_value=label)
-            scenes = tuple(sorted(p.stem for p in self.scenes_dir.glob("*.toml")))
+            scenes = tuple(sorted(p.stem for p in self.scenes_dir.glob("*.toml") if _is_multibody(p)))
             current = self.runner.scene.path.stem
             self.scene = gui.add_dropdown("Scene", scenes if current in scenes else (current, *scenes), initial_value=current)
         with gui.add_folder("Show"):
@@ -443,6 +438,28 @@ class Viewer:
             handle.data = (h[:, 0] * t_scale, *(values[:, i] * scale for i in range(len(labels))))
             col += len(labels)
         self.status.content = _status(snap)
+
+
+def _is_multibody(path: Path) -> bool:
+    """Whether the scene picker offers ``path`` (this viewer runs multibody scenes; hydrodynamics
+    scenes have their own, ``viz3d.viz.hydro_viewer``; unreadable files stay listed and fail when picked)."""
+    from viz3d.scene.load import kind_of_file
+    from viz3d.scene.schema import SceneError
+
+    try:
+        return kind_of_file(path) == "multibody"
+    except SceneError:
+        return True
+
+
+def wait_until(stop: threading.Event, timeout: float | None = None) -> None:
+    """Block until ``timeout`` [s] has passed (None: forever), Ctrl-C, or ``stop`` is set."""
+    end = time.monotonic() + (math.inf if timeout is None else timeout)
+    try:
+        while not stop.is_set() and time.monotonic() < end:
+            time.sleep(min(0.2, max(0.0, end - time.monotonic())))
+    except KeyboardInterrupt:
+        pass
 
 
 def _status(snap: Snapshot) -> str:
