@@ -54,11 +54,13 @@ def flexible_bars(rng):
     return bars, (True, True, False)
 
 
-def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False, kinds=("ball",)):
+def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False, kinds=("ball",),
+                  framed_on_flexible=False):
     """A chain 0-1-...-(nb-1) hung from ground plus ``extra_pairs`` joints, random inertia; with
     ``flexible``, three flexible bars after the rigid bodies, joined to the chain (and to each other)
-    at random sections by ball joints. The joints between rigid bodies (and ground) cycle through the
-    joint types ``kinds`` (``viz3d.joints.JOINTS``), with random joint frames."""
+    at random sections by ball joints (by the types ``kinds`` too with ``framed_on_flexible``). The
+    joints between rigid bodies (and ground) cycle through the joint types ``kinds``
+    (``viz3d.joints.JOINTS``), with random joint frames."""
     rng = np.random.default_rng(seed)
     names = tuple(f"b{i}" for i in range(nb))
     mass, inertia, flex = rng.uniform(0.5, 2.0, nb), random_inertia(rng, nb), ()
@@ -74,7 +76,7 @@ def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=Fa
     pairs = [(0, n_all)] + [(i, i - 1) for i in range(1, nb)] + list(extra_pairs)
     if flexible:
         pairs += [(nb, nb - 1), (nb + 1, nb), (nb + 2, nb + 1), (nb + 1, 0)]
-    joints = _joints_of_kinds(rng, bodies, pairs, kinds, nb)
+    joints = _joints_of_kinds(rng, bodies, pairs, kinds, nb, framed_on_flexible)
     forces = [Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), flex, sum(fb.n for fb in flex))]
     if springs:
         sp = [[0, n_all], [nb - 1, 0], [1, 2 % nb]] + ([[nb, n_all], [nb + 2, 1]] if flexible else [])
@@ -104,13 +106,13 @@ def _joints(rng, bodies, pairs, kind="ball", first=0):
     return JOINTS[kind](names, pairs, B_s, B_A, sides)
 
 
-def _joints_of_kinds(rng, bodies, pairs, kinds, nb):
+def _joints_of_kinds(rng, bodies, pairs, kinds, nb, framed_on_flexible=False):
     """Joint sets for ``pairs``: pairs of rigid bodies (or ground) take the types ``kinds`` in turn,
-    pairs with a flexible body ball joints."""
+    pairs with a flexible body ball joints (or, ``framed_on_flexible``, the types ``kinds`` too)."""
     n_all = bodies.n_bodies
     kind_of = []
     for a, b in pairs:
-        rigid = all(x < nb or x == n_all for x in (a, b))
+        rigid = framed_on_flexible or all(x < nb or x == n_all for x in (a, b))
         kind_of.append(kinds[len(kind_of) % len(kinds)] if rigid else "ball")
     sets = []
     for kind in dict.fromkeys(kind_of):

@@ -23,7 +23,7 @@ ORDER = ("base", "physics", "numerics", "drivers", "view", "cli")
 
 LAYERS = {
     "base": ["viz3d._typing", "viz3d.rotations", "viz3d.compiled"],
-    "physics": ["viz3d.bodies", "viz3d.points", "viz3d.joints", "viz3d.forces", "viz3d.timefunctions",
+    "physics": ["viz3d.bodies", "viz3d.points", "viz3d.joint_axes", "viz3d.joints", "viz3d.forces", "viz3d.timefunctions",
                 "viz3d.geometry", "viz3d.mass", "viz3d.kinematics", "viz3d.coordinates", "viz3d.constraints",
                 "viz3d.system", "viz3d.dynamics", "viz3d.contact.*", "viz3d.flexible.*", "viz3d.hydro.*", "viz3d.water", "viz3d.anchoring"],
     "numerics": ["viz3d.integrators.*", "viz3d.formulation", "viz3d.stabilization", "viz3d.ali3p", "viz3d.methods",

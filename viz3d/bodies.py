@@ -58,6 +58,11 @@ class FlexibleBody:
         Orientation of the frame at t = 0; the fixed one.
     model_choice : str
         How its model was discretized and why (mode count, truncation estimate), for reports.
+    ked : bool
+        Kineto-elastodynamic (seed 003's model): the frame moves as the rigid body (its mass-matrix
+        block has no frame-elastic coupling, its frame forces and joint rows are those of the
+        undeformed body) and the elastic equations are driven by that motion without feedback
+        (``viz3d.dynamics``; docs/notation.md, "Flexible links"). False: the coupled floating frame.
     M_ee_inv : ndarray, shape (n, n)
         Inverse of the elastic mass matrix (derived; what a fixed frame's body needs).
     """
@@ -68,6 +73,7 @@ class FlexibleBody:
     W_r0: FloatArray
     R0: FloatArray
     model_choice: str = ""
+    ked: bool = False
     M_ee_inv: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -84,9 +90,14 @@ class FlexibleBody:
         return self.n + (6 if self.floating else 0)
 
     def mass_matrix(self, R_WB: FloatArray, eta: FloatArray) -> FloatArray:
-        """The body's mass-matrix block, shape (width, width)."""
+        """The body's mass-matrix block, shape (width, width); kineto-elastodynamic (``ked``): the
+        undeformed frame block and ``M_ee``, uncoupled."""
         if not self.floating:
             return self.bar.M_ee
+        if self.ked:
+            M = ffr.mass_matrix(self.bar, R_WB, np.zeros(self.n))
+            M[:6, 6:], M[6:, :6] = 0.0, 0.0
+            return M
         return ffr.mass_matrix(self.bar, R_WB, eta)
 
 

@@ -179,8 +179,9 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
         strain += 0.5 * np.einsum("ni,ij,nj->n", s.eta[:, sl], fb.bar.K, s.eta[:, sl])
     V = s.V[:, 0] + s.V[:, 1] + strain
     scalars: dict[str, FloatArray] = {}
+    violation, reactions = _rows(system, s)
     for out in system.outputs:
-        values = [out.values(cfg) for cfg in cfgs]
+        values = [out.values(cfg, r) for cfg, r in zip(cfgs, reactions)]
         for key in values[0] if values else ():
             scalars[key] = np.array([v[key] for v in values], float)
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))
@@ -190,7 +191,6 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
         V = V + U.sum(axis=1)
     if system.has_ledger:
         _ledger_columns(sim, states, T, s.V, strain, U if system.contacts else np.zeros((len(states), 0)), scalars)
-    violation, reactions = _rows(system, s)
     return FrameColumns(ts, W_G, s.R[:, :nb], W_v, s.wW[:, :nb], T, V, violation, reactions, scalars)
 
 

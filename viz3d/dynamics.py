@@ -11,6 +11,7 @@ and an elastic part (n_e,).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -148,11 +149,45 @@ def accelerations(system: System, formulation, t: float, q: FloatArray, v: Float
     elements' memory ``elements`` (the physics recipe); ``cfg``: the configuration at that point if
     the caller has it."""
     cfg = body_state(system, q, v, chart, t) if cfg is None else cfg
+    if any(fb.ked for fb in system.bodies.flexible):
+        return kineto_elastodynamic(system, formulation, cfg, memory, elements)
     mass = system_mass(system, cfg)
     Q = generalized_forces(system, cfg, memory, elements)
     rows = constraint_rows(system.joints, cfg, memory)
     (a, a_e), lam = formulation.solve(system, mass, Q, rows, cfg)
     return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
+
+
+def kineto_elastodynamic(system: System, formulation, cfg: Configuration, memory: tuple = (),
+                         elements: tuple = ()) -> Accelerations:
+    """``accelerations`` with the flexible bodies marked ``ked`` (seed 003's kineto-elastodynamics):
+    the mechanism moves as if they were rigid — their frame forces, mass blocks and joint rows are
+    those of the undeformed body (``undeformed``), without elastic columns — and their elastic
+    equations are driven by that motion, ``M_ee eta_ddot = Q_e - M_ef(eta) a_frame`` (no feedback)."""
+    rigid = undeformed(system, cfg)
+    Q, Q_e = generalized_forces(system, cfg, memory, elements)
+    Q_r, _ = generalized_forces(system, rigid, memory, elements)
+    ked = [(i, fb) for i, fb in enumerate(system.bodies.flexible) if fb.ked]
+    for _, fb in ked:
+        Q[fb.index] = Q_r[fb.index]
+    rows = constraint_rows(system.joints, rigid, memory)
+    Je = rows.Je.copy()
+    for i, _ in ked:
+        Je[:, :, elastic_slices(system)[i]] = 0.0
+    rows = dataclasses.replace(rows, Je=Je)
+    (a, a_e), lam = formulation.solve(system, system_mass(system, cfg), (Q, Q_e), rows, rigid)
+    for i, fb in ked:
+        if fb.floating:
+            M_ef = ffr.mass_matrix(fb.bar, cfg.pose.R_WB[fb.index], cfg.eta[i])[6:, :6]
+            a_e[elastic_slices(system)[i]] -= fb.M_ee_inv @ (M_ef @ a[fb.index])
+    return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
+
+
+def undeformed(system: System, cfg: Configuration) -> Configuration:
+    """``cfg`` with the kineto-elastodynamic bodies undeformed and at elastic rest (their rigid motion)."""
+    eta = tuple(np.zeros_like(e) if fb.ked else e for fb, e in zip(system.bodies.flexible, cfg.eta))
+    eta_dot = tuple(np.zeros_like(e) if fb.ked else e for fb, e in zip(system.bodies.flexible, cfg.eta_dot))
+    return dataclasses.replace(cfg, eta=eta, eta_dot=eta_dot)
 
 
 def flat_velocity(system: System, frame: FloatArray, elastic: FloatArray) -> FloatArray:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d.contact.report import contact_report, per_contact_restitution
+from viz3d.outputs import StrainGauges
 
 LEDGER = ("strain", "contact_elastic", "dissipated", "work_in", "balance_error")
 
@@ -28,7 +29,7 @@ def run_extras(sim, scene, frames) -> dict:
     its ``viz3d.columns.FrameColumns``."""
     system = sim.system
     names = [n for c in system.contacts for n in c.names]
-    gauges = [(n, float(x)) for g in system.outputs for n, x in zip(g.names, g.x)]
+    gauges = [(n, float(x)) for g in system.outputs if isinstance(g, StrainGauges) for n, x in zip(g.names, g.x)]
     out = {
         "contact_names": np.array(names, dtype=str),
         "contact_force": _series(frames, [f"contact/{n}/force" for n in names]),

@@ -260,12 +260,14 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     contacts = [e.contacts(cfg) if m is None else e.contacts(cfg, m)
                 for e, m in zip(system.forces, memories) if hasattr(e, "contacts")]
     scalars: dict[str, float] = {}
+    reaction_force = _stack(reactions, (0, 3))
     for out in system.outputs:
-        scalars.update(out.values(cfg))
+        scalars.update(out.values(cfg, reaction_force))
     for e in system.forces:
         if hasattr(e, "scalars"):
             scalars.update(e.scalars(cfg))
-    joint_values = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+    joint_values = relative_coordinates(system.joints.joints, cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega,
+                                        cfg)
     joint_values.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
     scalars.update({k: float(x) for k, x in joint_values.items()})
     if system.contacts:
@@ -275,7 +277,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
-        joint_points=_stack(points, (0, 3)), reaction_force=_stack(reactions, (0, 3)),
+        joint_points=_stack(points, (0, 3)), reaction_force=reaction_force,
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
         constraint_violation=violation, scalars=scalars,
         deformed={d.name: d.vertices(cfg) for d in drawings},

@@ -24,6 +24,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece, tmatvec3
+from viz3d.joint_axes import SideAxes, side_axes, unit
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, bias, rigid_points
 from viz3d.rotations import cross
@@ -214,8 +215,11 @@ class FramedJoint(RowsJoint):
       ``gamma = -((w1 x (w1 x a1_i)) . d + 2 (w1 x a1_i) . d_dot + a1_i . (b2 - b1))``,
       ``d = p2 - p1``, ``b`` the points' bias accelerations (``viz3d.points``).
 
-    Rows are ordered point, perpendicular, on-plane. The axes need a rigid body (or ground) on each
-    side: a flexible section's rotation is not a material point's (ball joints attach there).
+    Rows are ordered point, perpendicular, on-plane. A side may be a section of a flexible body: its
+    point is the section's material point and its axes turn with the section (``viz3d.joint_axes``:
+    ``a = R (A + theta x A)``, ``theta = P eta``), which adds elastic columns to every row and the
+    section's rotation rate to the axes' rates; the formulas above are the rigid case. The compiled
+    kernel takes rigid sides only (a system with a framed joint on a flexible section runs on NumPy).
 
     Attributes
     ----------
@@ -245,10 +249,6 @@ class FramedJoint(RowsJoint):
         if self.sides is None:
             sides = tuple(rigid_points(self.body[:, k], self.B_s[:, k]) for k in (0, 1))
             object.__setattr__(self, "sides", sides)
-        flexible = sorted({self.names[i] for s in self.sides for g in s.flex for i in g.which})
-        if flexible:
-            raise ValueError(f"{self.type_name} joints {flexible} need a rigid body or ground on each side: their "
-                             "axes turn with the body's frame (ball joints attach to sections of flexible bodies)")
 
     def points(self, cfg: Configuration) -> FloatArray:
         """World joint points of side 0 (on body 1), shape (nj, 3) [m]."""
@@ -259,11 +259,14 @@ class FramedJoint(RowsJoint):
         rotation ``R_WB`` (..., nb + 1, 3, 3) (leading axes: instants)."""
         return R_WB[..., self.body, :, :] @ self.B_A
 
+    def side_axes(self, cfg: Configuration) -> tuple[SideAxes, SideAxes]:
+        """Both sides' joint axes at ``cfg`` (``viz3d.joint_axes``: on flexible sections they turn with
+        the section)."""
+        return side_axes(self.sides[0], self.B_A[:, 0], cfg), side_axes(self.sides[1], self.B_A[:, 1], cfg)
+
     def rows(self, cfg):
         nj, ne = self.n_joints, self.sides[0].n_elastic
-        R = cfg.pose.R_WB[self.body]
-        a = self.axes(cfg.pose.R_WB)
-        w1, w2 = cfg.twist.W_omega[self.body[:, 0]], cfg.twist.W_omega[self.body[:, 1]]
+        ax = self.side_axes(cfg)
         x = [s.positions(cfg) for s in self.sides]
         bias_ = [s.bias(cfg) for s in self.sides]
         C, J, Je, g = [], [], [], []
@@ -274,31 +277,31 @@ class FramedJoint(RowsJoint):
             Je.append(Jpe)
             g.append(bias_[1] - bias_[0])
         for i, j in self.PERPENDICULAR:
-            A, B = a[:, 0, :, i], a[:, 1, :, j]
-            n = cross(A, B)
-            Jr = np.zeros((nj, 1, 2, 6))
-            Jr[:, 0, 0, 3:] = np.einsum("kji,kj->ki", R[:, 0], n)
-            Jr[:, 0, 1, 3:] = -np.einsum("kji,kj->ki", R[:, 1], n)
+            A, B = ax[0].a[:, :, i], ax[1].a[:, :, j]
+            Jr, Jre = np.zeros((nj, 1, 2, 6)), np.zeros((nj, 1, 2, ne))
+            (Jr[:, 0, 0], Jre[:, 0, 0]), (Jr[:, 0, 1], Jre[:, 0, 1]) = ax[0].jacobian(unit(i), B), ax[1].jacobian(unit(j), A)
             C.append(_dot(A, B)[:, None])
             J.append(Jr)
-            Je.append(np.zeros((nj, 1, 2, ne)))
-            g.append(-_dot(w1 - w2, cross(cross(w1, A), B) + cross(A, cross(w2, B)))[:, None])
+            Je.append(Jre)
+            g.append(-(_dot(ax[0].bias(unit(i)), B) + 2.0 * _dot(ax[0].rate(unit(i)), ax[1].rate(unit(j)))
+                       + _dot(A, ax[1].bias(unit(j))))[:, None])
         if self.ON_PLANE:
             d = x[1] - x[0]
             d_dot = self.sides[1].velocities(cfg) - self.sides[0].velocities(cfg)
             (Jf0, Je0), (Jf1, Je1) = (s.jacobian(cfg) for s in self.sides)
         for i in self.ON_PLANE:
-            A = a[:, 0, :, i]
-            Jr = np.zeros((nj, 1, 2, 6))
-            Jr[:, 0, 0] = -np.einsum("ki,kij->kj", A, Jf0)
-            Jr[:, 0, 0, 3:] += np.einsum("kji,kj->ki", R[:, 0], cross(A, d))
+            A = ax[0].a[:, :, i]
+            Jr, Jre = np.zeros((nj, 1, 2, 6)), np.zeros((nj, 1, 2, ne))
+            Jr[:, 0, 0], Jre[:, 0, 0] = ax[0].jacobian(unit(i), d)
+            Jr[:, 0, 0] -= np.einsum("ki,kij->kj", A, Jf0)
+            Jre[:, 0, 0] -= np.einsum("ki,kiq->kq", A, Je0)
             Jr[:, 0, 1] = np.einsum("ki,kij->kj", A, Jf1)
-            Jre = np.stack([-np.einsum("ki,kiq->kq", A, Je0), np.einsum("ki,kiq->kq", A, Je1)], axis=1)[:, None]
-            wA = cross(w1, A)
+            Jre[:, 0, 1] = np.einsum("ki,kiq->kq", A, Je1)
             C.append(_dot(A, d)[:, None])
             J.append(Jr)
             Je.append(Jre)
-            g.append(-(_dot(cross(w1, wA), d) + 2.0 * _dot(wA, d_dot) + _dot(A, bias_[1] - bias_[0]))[:, None])
+            g.append(-(_dot(ax[0].bias(unit(i)), d) + 2.0 * _dot(ax[0].rate(unit(i)), d_dot)
+                       + _dot(A, bias_[1] - bias_[0]))[:, None])
         return np.concatenate(C, axis=1), (np.concatenate(J, axis=1), np.concatenate(Je, axis=1)), np.concatenate(g, axis=1)
 
     @property
@@ -307,8 +310,22 @@ class FramedJoint(RowsJoint):
         return tuple(name for name, _ in self.FREE)
 
     def coordinates(self, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
-        """The relative coordinates ``coordinate_names`` and their rates at ``cfg``, shapes (nj, m)."""
-        return self.relative(cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+        """The relative coordinates ``coordinate_names`` and their rates at ``cfg``, shapes (nj, m); on
+        flexible sections from the section's axes and point (angle rates to first order in its rotation)."""
+        if not self.on_flexible:
+            return self.relative(cfg.pose.R_WB, cfg.pose.W_r, cfg.twist.W_v, cfg.twist.W_omega)
+        ax = self.side_axes(cfg)
+        e = self.sides[0].positions(cfg) - self.sides[1].positions(cfg)
+        e_dot = self.sides[0].velocities(cfg) - self.sides[1].velocities(cfg)
+        values, rates = [], []
+        for _, code in self.FREE:
+            q, u = coordinate(code, ax[0].a, ax[1].a, e)
+            values.append(q)
+            rates.append(_dot(u, e_dot) + _dot(ax[0].rate(unit(2)), e) if code == DISTANCE_Z
+                         else _dot(ax[0].w + ax[0].Omega - ax[1].w - ax[1].Omega, u))
+        shape = (self.n_joints, 0)
+        return (np.stack(values, axis=-1) if values else np.zeros(shape),
+                np.stack(rates, axis=-1) if rates else np.zeros(shape))
 
     def relative(self, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray
                  ) -> tuple[FloatArray, FloatArray]:
@@ -332,7 +349,14 @@ class FramedJoint(RowsJoint):
         return (np.stack(values, axis=-1) if values else np.zeros(shape),
                 np.stack(rates, axis=-1) if rates else np.zeros(shape))
 
+    @property
+    def on_flexible(self) -> bool:
+        """Some joint of the set has a side on a section of a flexible body."""
+        return any(s.flex for s in self.sides)
+
     def compiled(self, pack) -> Items:
+        if self.on_flexible:
+            raise pack.Unsupported(f"{self.type_name} joints on sections of flexible bodies")
         n = self.n_joints
         rows = pack.row_start(self) + self.n_eq * np.arange(n)
         code = np.zeros((n, 11), np.int64)
@@ -597,42 +621,15 @@ class JointDrive(RowsJoint):
     def _rows(self, cfg):
         k, ne = len(self.names), self.joints[0].sides[0].n_elastic if self.joints else 0
         C, J, Je, g, C_t = np.zeros((k, 1)), np.zeros((k, 1, 2, 6)), np.zeros((k, 1, 2, ne)), np.zeros((k, 1)), np.zeros((k, 1))
-        w_all = cfg.twist.W_omega
+        axes = {id(js): js.side_axes(cfg) for js in self.joints}  # once per joint set
         for i, ((r, r_d, r_dd), js, j, c) in enumerate(zip(self.profiles(cfg.t), self.joints, self.index, self.free)):
-            a = js.axes(cfg.pose.R_WB)[j]
-            R1, R2 = cfg.pose.R_WB[js.body[j, 0]], cfg.pose.R_WB[js.body[j, 1]]
-            w1, w2 = w_all[js.body[j, 0]], w_all[js.body[j, 1]]
+            ax = tuple(_joint_axes(a, j) for a in axes[id(js)])
             code = js.FREE[c][1]
             if code != DISTANCE_Z:
-                sa, i1, i2, sb, iu = ANGLE_DRIVES[code]
-                Ra, Rb = (R1, R2) if sa == 0 else (R2, R1)
-                wa, wb = (w1, w2) if sa == 0 else (w2, w1)
-                e1, e2, u = a[sa, :, i1], a[sa, :, i2], a[sb, :, iu]
-                w = np.cos(r) * e2 + np.sin(r) * e1
-                m = np.sin(r) * e2 - np.cos(r) * e1
-                N = np.cross(u, w)
-                C[i] = -u @ w
-                J[i, 0, sa, 3:], J[i, 0, sb, 3:] = Ra.T @ N, -(Rb.T @ N)
-                C_t[i] = r_d * (u @ m)
-                u_d, w_d, m_d = np.cross(wb, u), np.cross(wa, w) - r_d * m, np.cross(wa, m) + r_d * w
-                N_d = np.cross(u_d, w) + np.cross(u, w_d)
-                g[i] = -((wa - wb) @ N_d + r_dd * (u @ m) + r_d * (u_d @ m + u @ m_d))
+                C[i], (J[i, 0], Je[i, 0]), g[i], C_t[i] = _angle_row(ax, ANGLE_DRIVES[code], r, r_d, r_dd)
             else:
-                z1 = a[0, :, 2]
-                sides = [BodyPoints(js.sides[s].body[[j]], js.sides[s].B_s[[j]], (), js.sides[s].n_elastic) for s in (0, 1)]
-                p = [sd.positions(cfg)[0] for sd in sides]
-                v = [sd.velocities(cfg)[0] for sd in sides]
-                b = [sd.bias(cfg)[0] for sd in sides]
-                (J1, Je1), (J2, Je2) = (sd.jacobian(cfg) for sd in sides)
-                e, e_d = p[0] - p[1], v[0] - v[1]
-                C[i] = z1 @ e - r
-                J[i, 0, 0] = z1 @ J1[0]
-                J[i, 0, 0, 3:] += R1.T @ np.cross(z1, e)
-                J[i, 0, 1] = -(z1 @ J2[0])
-                Je[i, 0, 0], Je[i, 0, 1] = z1 @ Je1[0], -(z1 @ Je2[0])
-                C_t[i] = -r_d
-                wz = np.cross(w1, z1)
-                g[i] = r_dd - (np.cross(w1, wz) @ e + 2.0 * wz @ e_d + z1 @ (b[0] - b[1]))
+                sides = [js.sides[s].subset([j]) for s in (0, 1)]
+                C[i], (J[i, 0], Je[i, 0]), g[i], C_t[i] = _distance_row(ax[0], sides, cfg, r, r_d, r_dd)
         return C, (J, Je), g, C_t
 
     def effort(self, lam: FloatArray) -> FloatArray:
@@ -640,6 +637,8 @@ class JointDrive(RowsJoint):
         return -lam
 
     def compiled(self, pack) -> Items:
+        if any(js.on_flexible for js in self.joints):
+            raise pack.Unsupported("drives on joints at sections of flexible bodies")
         k = len(self.names)
         rows_i, rows_f = [], []
         for i, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
@@ -649,6 +648,43 @@ class JointDrive(RowsJoint):
             rows_i.append([pack.row_start(self) + i, pts[0], pts[1], code, self.kind[i], self.velocity[i], *angle])
             rows_f.append([*js.B_A[j].reshape(18), *self.table[i]])
         return items(DriveItems, rows_i, rows_f, k=k)
+
+
+def _joint_axes(ax: SideAxes, j: int) -> SideAxes:
+    """Joint ``j``'s axes of a side (a ``SideAxes`` of one joint)."""
+    return SideAxes(*(x[[j]] for x in (ax.a, ax.alpha, ax.R, ax.w, ax.Omega, ax.G)))
+
+
+def _angle_row(ax: tuple[SideAxes, SideAxes], drive: tuple, r: float, r_d: float, r_dd: float):
+    """``(C, (J (2, 6), Je (2, n_e)), gamma, C_t)`` of a drive on the angle ``-atan2(u . e2, u . e1)``
+    (``ANGLE_DRIVES`` row ``drive``): ``C = -u . w``, ``w = a_a c`` with ``c = cos(r) E_e2 + sin(r) E_e1``,
+    ``m = a_a c_m``, ``c_m = sin(r) E_e2 - cos(r) E_e1`` (``dc/dt = -r_d c_m``, ``dc_m/dt = r_d c``)."""
+    sa, i1, i2, sb, iu = drive
+    A, B = ax[sa], ax[sb]
+    c = np.cos(r) * unit(i2) + np.sin(r) * unit(i1)
+    c_m = np.sin(r) * unit(i2) - np.cos(r) * unit(i1)
+    u, w, m = B.vector(unit(iu))[0], A.vector(c)[0], A.vector(c_m)[0]
+    u_d, w_d = B.rate(unit(iu))[0], A.rate(c)[0] - r_d * m
+    w_bias = A.bias(c)[0] - 2.0 * r_d * A.rate(c_m)[0] - r_dd * m - r_d * r_d * w
+    J, Je = np.zeros((2, 6)), np.zeros((2, A.G.shape[2]))
+    (J[sa], Je[sa]), (J[sb], Je[sb]) = A.jacobian(c, -u[None]), B.jacobian(unit(iu), -w[None])
+    gamma = B.bias(unit(iu))[0] @ w + 2.0 * u_d @ w_d + u @ w_bias
+    return -u @ w, (J, Je), gamma, r_d * (u @ m)
+
+
+def _distance_row(ax: SideAxes, sides: list[BodyPoints], cfg: Configuration, r: float, r_d: float, r_dd: float):
+    """``(C, (J (2, 6), Je (2, n_e)), gamma, C_t)`` of a drive on the distance ``z1 . (p1 - p2)``
+    (``sides``: the joint's two points, ``ax`` side 1's axes)."""
+    z = ax.vector(unit(2))[0]
+    e = sides[0].positions(cfg)[0] - sides[1].positions(cfg)[0]
+    e_d = sides[0].velocities(cfg)[0] - sides[1].velocities(cfg)[0]
+    (J1, Je1), (J2, Je2) = (sd.jacobian(cfg) for sd in sides)
+    Jz, Jze = ax.jacobian(unit(2), e[None])
+    J = np.stack([z @ J1[0] + Jz[0], -(z @ J2[0])])
+    Je = np.stack([z @ Je1[0] + Jze[0], -(z @ Je2[0])])
+    b = sides[0].bias(cfg)[0] - sides[1].bias(cfg)[0]
+    gamma = r_dd - (ax.bias(unit(2))[0] @ e + 2.0 * ax.rate(unit(2))[0] @ e_d + z @ b)
+    return z @ e - r, (J, Je), gamma, -r_d
 
 
 class DriveItems(Items):
@@ -721,16 +757,20 @@ def _drive(d, t, v):
             v.gam[row] = r_dd - acc
 
 
-def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray
-                         ) -> dict[str, FloatArray]:
+def relative_coordinates(joints, R_WB: FloatArray, W_r: FloatArray, W_v: FloatArray, W_omega: FloatArray,
+                         cfg: Configuration | None = None) -> dict[str, FloatArray]:
     """Every joint's relative coordinates and rates as named values: ``joint/<name>/<coordinate>``
     [rad or m] and ``joint/<name>/<coordinate>_rate`` [rad/s or m/s], each of the leading shape of
-    the poses and twists (..., nb + 1, ...) (leading axes: instants), from ``joints`` (joint sets)."""
+    the poses and twists (..., nb + 1, ...) (leading axes: instants), from ``joints`` (joint sets).
+    Joints on flexible sections need the deformation: they are reported only when ``cfg`` (the
+    configuration of a single instant) is given."""
     out: dict[str, FloatArray] = {}
     for js in joints:
         if not getattr(js, "coordinate_names", ()):
             continue
-        values, rates = js.relative(R_WB, W_r, W_v, W_omega)
+        if js.on_flexible and cfg is None:
+            continue
+        values, rates = js.coordinates(cfg) if js.on_flexible else js.relative(R_WB, W_r, W_v, W_omega)
         for j, name in enumerate(js.names):
             for c, free in enumerate(js.coordinate_names):
                 out[f"joint/{name}/{free}"] = values[..., j, c]

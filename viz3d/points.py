@@ -133,6 +133,35 @@ class BodyPoints:
             a[g.which] += 2.0 * cross(w[g.which], u_dot)
         return a
 
+    def section_rotations(self, cfg: Configuration) -> FloatArray:
+        """Small rotation ``theta = P eta`` of each point's section relative to its body's frame, body
+        axes, shape (k, 3) [rad]; zero on rigid bodies and ground (``viz3d.flexible.floating_points``)."""
+        theta = np.zeros((self.k, 3))
+        for g in self.flex:
+            theta[g.which] = g.material.P @ cfg.eta[g.flex]
+        return theta
+
+    def section_jacobian(self, cfg: Configuration) -> FloatArray:
+        """``R P`` on the stacked elastic velocities, shape (k, 3, n_e): the world rate of the section
+        rotation relative to the frame, ``Omega = R P eta_dot``; zero on rigid bodies and ground."""
+        G = np.zeros((self.k, 3, self.n_elastic))
+        for g in self.flex:
+            G[g.which, :, g.offset:g.offset + g.n] = cfg.pose.R_WB[self.body[g.which]] @ g.material.P
+        return G
+
+    def subset(self, which: IntArray) -> "BodyPoints":
+        """The points ``which`` (m,) (indices into the k points, distinct) as a ``BodyPoints``."""
+        which = np.asarray(which, dtype=int)
+        groups = []
+        for g in self.flex:
+            mine = np.flatnonzero(np.isin(which, g.which))
+            if mine.size:
+                rows = np.searchsorted(g.which, which[mine])
+                m = g.material
+                material = fp.MaterialPoints(m.x[rows], m.c[rows], m.s0[rows], m.N[rows], m.P[rows])
+                groups.append(FlexPoints(mine, g.flex, g.offset, material))
+        return BodyPoints(self.body[which], self.B_s[which], tuple(groups), self.n_elastic)
+
     def wrench(self, cfg: Configuration, W_F: FloatArray, levers: FloatArray | None = None
                ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """World forces ``W_F`` (k, 3) [N] at the points as generalized forces: world forces at the

@@ -143,6 +143,12 @@ def plot_series(system) -> tuple[tuple, tuple]:
     if drives:  # the windlass's hauling force, a crank's torque
         plots.append(("Drive effort [N or N m]", tuple(drives)))
         series += [lambda f, n=n: f.scalars[f"drive/{n}/effort"] for n in drives]
+    panels: dict[str, list[str]] = {}  # output elements: gauges on several bars share one panel
+    for out in system.outputs:
+        panels.setdefault(out.plot[0], []).extend(out.keys)
+    for title, keys in panels.items():
+        plots.append((title, tuple(k.split("/")[-1].replace("_", " ") for k in keys)))
+        series += [lambda f, k=k: f.scalars[k] for k in keys]
     for e in system.forces:  # shape contacts, water, joint stops: the element's own plot
         for title, key in live_plots(e):
             plots.append((title, (key.split("/")[-1].replace("_", " "),)))

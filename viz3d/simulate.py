@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from viz3d.columns import FrameColumns, StateLog
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
     EnergyWatch,
@@ -29,21 +30,20 @@ from viz3d.diagnosis import (
 )
 from viz3d.dynamics import VectorField, body_state, element_memory
 from viz3d.extras import element_fields, joint_fields, ledger_fields, run_extras
-from viz3d.columns import FrameColumns, StateLog
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
-from viz3d.interrupts import InterruptGuard
 from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite
+from viz3d.interrupts import InterruptGuard
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
+from viz3d.sink import Sink
 from viz3d.stabilization import ProjectionError
+from viz3d.stowage import run_events, run_verdict, verdict_fields
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
-from viz3d.stowage import hawse_tension, run_events, run_verdict, verdict_fields
-from viz3d.sink import Sink
 
 #: Output interval when the scene gives none [s].
 DEFAULT_OUTPUT_DT = 0.01
@@ -613,7 +613,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     if joints := {**ledger_fields(sim.system, cols), **joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
         extras = {**(extras or {}), **joints}
     if verdict is not None:
-        tension = hawse_tension(scene.data["stowage"], cols, sim.system.bodies.names, sim.system.joint_names)
+        tension = cols.scalars.get("stowage/hawse_tension")
         extras = {**(extras or {}), **verdict_fields(verdict, scene.data["stowage"], tension)}
     return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)

@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from viz3d.outputs import HawseTension
+
 OUTCOMES = ("seated", "jammed", "not reached")
 
 
@@ -147,11 +149,12 @@ def verdict_fields(v: Verdict, spec: dict, tension: np.ndarray | None = None) ->
     return out
 
 
-def hawse_tension(spec: dict, cols, body_names, joint_names) -> np.ndarray | None:
-    """The chain's tension where it enters the hull (n,) [N]: the reaction force of the chain's joint
-    nearest to ``spec["hawse"]`` at each frame (a link's joint ``<chain>_j<i>`` is its upper end, half
-    a link from its centre along its axis); None without a hawse point."""
-    if "hawse" not in spec or not len(cols):
+def hawse_output(spec: dict, body_names, joint_names, W_r0) -> HawseTension | None:
+    """The output element of the chain's tension at ``spec["hawse"]`` (``viz3d.outputs.HawseTension``):
+    the links ``<chain><i>`` and their upper joints ``<chain>_j<i>``, half a link's pitch from the
+    initial positions ``W_r0`` (nb, 3) [m] (links are one pitch apart); None without a hawse point
+    or a chain of at least two links."""
+    if "hawse" not in spec:
         return None
     names, joints = list(body_names), list(joint_names)
     links = [(names.index(f"{spec['chain']}{i}"), joints.index(f"{spec['chain']}_j{i}"))
@@ -159,7 +162,5 @@ def hawse_tension(spec: dict, cols, body_names, joint_names) -> np.ndarray | Non
     if len(links) < 2:
         return None
     b, j = np.array(links).T
-    half = 0.5 * np.linalg.norm(cols.W_r[0, b[1]] - cols.W_r[0, b[0]])       # links are one length apart
-    ends = cols.W_r[:, b] - half * cols.R_WB[:, b][..., 2]                      # (n, k, 3)
-    nearest = np.argmin(np.linalg.norm(ends - np.asarray(spec["hawse"], float), axis=-1), axis=1)
-    return np.linalg.norm(cols.reaction_force[np.arange(len(cols)), j[nearest]], axis=-1)
+    half = 0.5 * float(np.linalg.norm(W_r0[b[1]] - W_r0[b[0]]))
+    return HawseTension(b, j, half, np.asarray(spec["hawse"], float))

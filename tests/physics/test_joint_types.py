@@ -206,14 +206,17 @@ def test_welded_rods_swing_as_one_body(tmp_path):
     np.testing.assert_allclose(rel, np.broadcast_to(rel[0], rel.shape), atol=1e-8)
 
 
-def test_framed_joint_on_a_flexible_body_is_refused(tmp_path):
+def test_stops_on_a_joint_at_a_flexible_section_are_refused(tmp_path):
+    """Framed joints attach to flexible sections (tests/flexible/test_flexible_joints.py); stops and
+    motors act through rigid frames' axes and refuse them, naming the key."""
     path = tmp_path / "flex.toml"
     path.write_text(
         '[sim]\nt_end = 0.01\ndt = 1e-4\n[[bodies]]\nname = "bar"\ntype = "flexible"\nlength = 1.0\n'
         'material = { E = 2e11, rho = 7800.0, nu = 0.3 }\nsection = { type = "circle", diameter = 0.02 }\n'
         'theory = "euler_bernoulli"\nmodes = 3\nposition = [0.0, 0.0, 0.0]\n'
-        '[[joints]]\nname = "pin"\ntype = "revolute"\nbody1 = "bar"\npoint = [0.0, 0.0, 0.0]\n')
-    with pytest.raises(SceneError, match=r"joints\[0\]\.body1.*rigid body or ground"):
+        '[[joints]]\nname = "pin"\ntype = "revolute"\nbody1 = "bar"\npoint = [0.0, 0.0, 0.0]\n'
+        '[[forces]]\ntype = "joint_stop"\njoint = "pin"\nupper = 1.0\nstiffness = 1e3\n')
+    with pytest.raises(SceneError, match=r"forces\[0\]\.joint.*rigid bodies or ground"):
         viz3d.build(viz3d.load_scene(path))
 
 

@@ -20,7 +20,8 @@ GAMMA_TOL = 1e-6
 
 #: How the tests build a system holding each registered joint type (also on sections of flexible
 #: bars). A new joint type must be added here, or ``test_every_registered_joint_type_is_covered`` fails.
-SYSTEMS = {kind: (lambda seed, flexible, kind=kind: random_system(nb=4, seed=seed, flexible=flexible, kinds=(kind,)))
+SYSTEMS = {kind: (lambda seed, flexible, kind=kind: random_system(nb=4, seed=seed, flexible=flexible, kinds=(kind,),
+                                                                  framed_on_flexible=flexible))
            for kind in ("ball", "revolute", "universal", "prismatic", "cylindrical", "fixed")}
 
 
@@ -84,24 +85,30 @@ def test_reaction_force_is_minus_lambda_for_ball_joints():
     np.testing.assert_allclose(js.reaction_force(J, lam), -lam)
 
 
-def _driven_system(seed):
+def _driven_system(seed, flexible=False):
+    """Drives on every coordinate kind; with ``flexible``, the driven joints have sides on sections of
+    flexible bars (``random_system(framed_on_flexible=True)``: its last joint of each set is one)."""
     from viz3d.constraints import build_layout
     from viz3d.system import System
 
-    base = random_system(nb=8, seed=seed, kinds=("revolute", "prismatic", "cylindrical", "universal"))
+    base = random_system(nb=8, seed=seed, kinds=("revolute", "prismatic", "cylindrical", "universal"),
+                         flexible=flexible, framed_on_flexible=flexible)
     drives = drive_set(base, seed)
     codes = {js.FREE[c][1] for js, c in zip(drives.joints, drives.free)}
     assert codes == {0, 1, 2, 3} and set(drives.velocity) == {0, 1}  # every coordinate kind, both profile modes
+    if flexible:
+        assert all(js.on_flexible for js in drives.joints)
     return System(base.bodies, build_layout(base.joints.joints + (drives,), base.bodies), base.forces, base.rotation)
 
 
+@pytest.mark.parametrize("flexible", [False, True])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_drive_rows_match_finite_differences_in_time_and_state(seed):
+def test_drive_rows_match_finite_differences_in_time_and_state(seed, flexible):
     """``C_dot = C_v v + C_t`` and ``d/dt (C_v v + C_t) = C_v a - gamma`` along a motion through time
     (the profiles move with it): central differences as the tests above. The drives are the last rows."""
-    system = _driven_system(seed)
+    system = _driven_system(seed, flexible)
     state = random_state(system, seed).replace(t=0.05 + 0.1 * seed)
-    acc = np.random.default_rng(30 + seed).normal(size=system.n_v)
+    acc = np.random.default_rng(30 + seed).normal(size=system.n_v) * _velocity_scales(system)
     rows = constraint_rows(system.joints, configuration(system, state))
     k = len(system.joints.joints[-1].names)
     assert rows.C_t is not None and np.all(rows.C_t[:-k] == 0) and np.any(rows.C_t[-k:] != 0)

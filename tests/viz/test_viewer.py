@@ -195,8 +195,9 @@ def test_impact_scene_runs_live_and_streams_the_deforming_bar():
     finally:
         viewer.stop()
     assert 5e-6 < snap.frame.t < 1e-4                          # about 2e-5 x 2 s of wall time
-    assert [title for title, _ in snap.plots] == ["Energy [J]", "Contact force [N]", "Energy ledger [J]"]
-    assert snap.history.shape[1] == 1 + 3 + 1 + 3              # t, 3 energies, the contact force, 3 ledger terms
+    gauges = [g["name"] for g in scene.data["gauges"]]
+    assert [title for title, _ in snap.plots] == ["Energy [J]", "Contact force [N]", "Energy ledger [J]", "Gauge strain [-]"]
+    assert snap.history.shape[1] == 1 + 3 + 1 + 3 + len(gauges)  # t, 3 energies, contact force, 3 ledger terms, gauges
     bars = [np.asarray(m["updates"]["vertices"]).reshape(-1, 3) for m in messages
             if m["type"] == "SceneNodeUpdateMessage" and m["name"] == "/deformables/bar" and "vertices" in m["updates"]]
     assert len(bars) >= 5 and np.abs(bars[-1] - bars[0]).max() > 1e-6  # the struck end moves (amplified)

@@ -260,6 +260,8 @@ def _check(system, formulation) -> None:
         raise Unsupported(f"formulation {formulation.name!r}")
     if type(system.rotation) not in (EulerSwitching, EulerZXZ):
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
+    if any(fb.ked for fb in system.bodies.flexible):
+        raise Unsupported("kineto-elastodynamic flexible bodies (coupling = 'ked')")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:

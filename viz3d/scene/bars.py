@@ -128,7 +128,7 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
         raise SceneError(src, where, _uncomputable(bar, exc)) from None
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
-    return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice), choice
+    return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice, bar["coupling"] == "ked"), choice
 
 
 def modal_time_resolution(fb: FlexibleBody) -> float:

@@ -82,7 +82,8 @@ def build(scene: Scene) -> tuple[System, State]:
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
     forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_collisions(
         scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies)) + build_water(scene, bodies)
-    system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, build_gauges(scene, bodies))
+    outputs = build_gauges(scene, bodies) + build_stowage_outputs(scene, bodies, joints, W_r0)
+    system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, outputs)
     frames = system.frame_body
     theta, chart = rotation.from_matrix(R0[frames])
     q = system.join_q(W_r0[frames], theta)
@@ -341,31 +342,63 @@ def _frame_axes(entry: dict) -> FloatArray:
 
 def _framed_joints(kind: str):
     """Builder of a ``FramedJoint`` set of type ``kind``: each side's point and axes in its body's axes,
-    the two frames coinciding in the initial pose ``pose0``."""
+    the two frames coinciding in the initial pose ``pose0``. A side on a flexible body is the section
+    ``x<side>`` (or the section nearest ``point``), its axes those of the undeformed section."""
 
     def make(entries: list[dict], bodies: Bodies, pose0, source: str, paths: list[str]):
         body = np.array([[bodies.index(j["body1"]), bodies.index(j["body2"])] for j in entries], dtype=int)
         nj = len(entries)
-        B_s, B_A = np.zeros((nj, 2, 3)), np.zeros((nj, 2, 3, 3))
+        B_A = np.zeros((nj, 2, 3, 3))
+        located = [{**entry, "point": _framed_point(bodies, pose0, int(body[k, 0]), entry)} for k, entry in enumerate(entries)]
+        sides = [_points(bodies, pose0, body[:, s], located, str(s + 1), "point", f"local{s + 1}") for s in (0, 1)]
         for k, (entry, path) in enumerate(zip(entries, paths)):
-            for side in (0, 1):
-                if body[k, side] < bodies.n_bodies and not bodies.is_rigid[body[k, side]]:
-                    raise SceneError(source, f"{path}.body{side + 1}", f"a rigid body or ground (a {kind} joint's axes "
-                                     "turn with the body's frame; ball joints attach to sections of flexible bodies)",
-                                     entry[f"body{side + 1}"])
-            point = np.asarray(entry["point"], float) if "point" in entry else pose0.W_r[body[k, 0]]
+            _check_coincident(bodies, pose0, sides, k, source, path, entry)
             try:
                 W_A = _frame_axes(entry)
             except ValueError as exc:
                 key, expected = exc.args
                 raise SceneError(source, f"{path}.{key}", expected, entry[key]) from None
             for side in (0, 1):
-                R = pose0.R_WB[body[k, side]]
-                B_s[k, side] = R.T @ (point - pose0.W_r[body[k, side]])
-                B_A[k, side] = R.T @ W_A
-        return JOINTS[kind](tuple(j["name"] for j in entries), body, B_s, B_A)
+                B_A[k, side] = pose0.R_WB[body[k, side]].T @ W_A
+        B_s = np.stack([sides[0][1].B_s, sides[1][1].B_s], axis=1)
+        return JOINTS[kind](tuple(j["name"] for j in entries), body, B_s, B_A, (sides[0][1], sides[1][1]))
 
     return make
+
+
+def _framed_point(bodies: Bodies, pose0, body1: int, entry: dict) -> FloatArray:
+    """The world joint point of a framed joint in the initial configuration: ``point``, else body 1's
+    section ``x1`` (flexible) or its centre of mass."""
+    if "point" in entry:
+        return np.asarray(entry["point"], float)
+    fb = next((f for f in bodies.flexible if f.index == body1), None)
+    if fb is None or "x1" not in entry:
+        return pose0.W_r[body1]
+    s = (float(entry["x1"]) - fb.bar.x_G) * np.array([1.0, 0.0, 0.0]) + np.asarray(entry.get("local1", np.zeros(3)), float)
+    return pose0.W_r[body1] + pose0.R_WB[body1] @ s
+
+
+#: Both sides of a framed joint given as sections must meet within this distance relative to the
+#: bodies' size (typed-in numbers; a mismatch is a wrong section, not round-off).
+COINCIDENCE_RTOL = 1e-9
+
+
+def _rest_configuration(bodies: Bodies, pose0) -> Configuration:
+    """The configuration at the pose ``pose0``, at rest and undeformed."""
+    zeros = tuple(np.zeros(fb.n) for fb in bodies.flexible)
+    rest = np.zeros_like(pose0.W_r[:-1])
+    return Configuration(0.0, pose0, twist_from(rest, rest, pose0), zeros, zeros)
+
+
+def _check_coincident(bodies: Bodies, pose0, sides, k: int, source: str, path: str, entry: dict) -> None:
+    """Both sides' points of joint ``k`` coincide in the initial configuration (they may be given as
+    sections ``x1``, ``x2`` of flexible bodies)."""
+    cfg0 = _rest_configuration(bodies, pose0)
+    p = [sd.subset([k]).positions(cfg0)[0] for _, sd in sides]
+    scale = 1.0 + float(np.abs(pose0.W_r).max())
+    if np.linalg.norm(p[0] - p[1]) > COINCIDENCE_RTOL * scale:
+        raise SceneError(source, f"{path}.x2", f"a section at the joint point {p[0].round(9).tolist()} (side 2 is at "
+                         f"{p[1].round(9).tolist()})", entry.get("x2"))
 
 
 #: Joint type (scene ``type``) -> builder of its joint set from the resolved scene entries.
@@ -434,6 +467,10 @@ def build_drives(scene: Scene, joints: tuple) -> tuple:
 
 def _joint_forces(kind: str, entries: list[dict], paths: list[str], joints: tuple, source: str):
     sets, index, free = _joint_coordinates(entries, paths, joints, source)
+    for js, entry, path in zip(sets, entries, paths):
+        if js.on_flexible:
+            raise SceneError(source, f"{path}.joint", f"a joint between rigid bodies or ground (a {kind} acts through "
+                             "the frames' axes; drives take joints on flexible sections)", entry["joint"])
     names = tuple(f["name"] for f in entries)
     if kind == "joint_stop":
         lower = np.array([f.get("lower", -np.inf) for f in entries], float)
@@ -455,8 +492,7 @@ def _springs(entries: list[dict], bodies: Bodies, pose0) -> SpringDamper:
     s1, p1 = _points(bodies, pose0, body[:, 0], entries, "1", "point1", "local1")
     s2, p2 = _points(bodies, pose0, body[:, 1], entries, "2", "point2", "local2")
     B_s = np.stack([s1, s2], axis=1)
-    cfg0 = Configuration(0.0, pose0, twist_from(np.zeros_like(pose0.W_r[:-1]), np.zeros_like(pose0.W_r[:-1]), pose0),
-                         tuple(np.zeros(fb.n) for fb in bodies.flexible), tuple(np.zeros(fb.n) for fb in bodies.flexible))
+    cfg0 = _rest_configuration(bodies, pose0)
     ends = np.stack([p1.positions(cfg0), p2.positions(cfg0)], axis=1)
     length0 = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
     rest = np.array([f.get("rest_length", length0[k]) for k, f in enumerate(entries)])
@@ -538,6 +574,18 @@ def build_gauges(scene: Scene, bodies: Bodies) -> tuple:
         by_body.setdefault(flex[0], []).append(g)
     return tuple(StrainGauges(tuple(g["name"] for g in gs), k, np.array([g["x"] for g in gs], float), bodies.flexible[k].bar)
                  for k, gs in by_body.items())
+
+
+def build_stowage_outputs(scene: Scene, bodies: Bodies, joints: tuple, W_r0: FloatArray) -> tuple:
+    """The chain's tension at the hawse of a ``[stowage]`` table (``viz3d.stowage.hawse_output``), if
+    it names one; ``joints``: the scene's joint sets (their names in ``System.joint_names`` order)."""
+    from viz3d.stowage import hawse_output
+
+    if "stowage" not in scene.data:
+        return ()
+    names = [n for js in joints if js.is_joint for n in js.names]
+    out = hawse_output(scene.data["stowage"], bodies.names, names, W_r0)
+    return (out,) if out is not None else ()
 
 
 # ---------------------------------------------------------------- initial conditions

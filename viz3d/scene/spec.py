@@ -170,6 +170,9 @@ BODY_TYPES = {
                               "contact's duration) [s]"),
         "resolve_x": Field(nonnegative, OPTIONAL, "with tolerance: the section whose flexibility matters [m]"),
         "damping": Field(nonnegative, 0.0, "modal damping ratio of every mode"),
+        "coupling": Field(one_of("coupled", "ked"), "coupled", "coupled: the floating frame and the deformation "
+                          "act on each other; ked: kineto-elastodynamic (seed 003), the frame moves as the rigid "
+                          "body and drives the deformation without feedback (joints at the undeformed sections)"),
         "point_masses": Field(ArrayOf(POINT_MASS), list, "rigid point masses on the axis"),
         "position": Field(vec3, doc="world position of the end x = 0 [m]"),
         "axis": Field(nonzero_vec3, [1.0, 0.0, 0.0], "world direction of the bar axis (x = 0 to x = L)"),
@@ -194,23 +197,30 @@ JOINT_TYPES = {
 _FRAME_POINT = Field(vec3, OPTIONAL, "joint point, world, in the initial configuration [m] (default: body 1's "
                      "centre of mass)")
 _AXIS = Field(nonzero_vec3, [0.0, 0.0, 1.0], "joint axis, world direction in the initial configuration")
+_FRAMED_SECTIONS = {
+    "x1": Field(nonnegative, OPTIONAL, "flexible body 1: the section of the joint (its frame turns with the "
+                "section) [m]; default: the section nearest `point`"),
+    "x2": Field(nonnegative, OPTIONAL, "flexible body 2: the section of the joint [m]; default: the section "
+                "nearest the joint point"),
+}
 #: Joints with a frame on each side (``viz3d.joints.FramedJoint``): both sides' frames coincide in the
-#: initial configuration, where every relative coordinate is zero. Rigid bodies or ground only.
+#: initial configuration, where every relative coordinate is zero. A side on a flexible body is a
+#: section, whose frame turns with the section's rotation.
 JOINT_TYPES.update({
-    "revolute": Table({"point": _FRAME_POINT, "axis": _AXIS},
+    "revolute": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
                       "revolute joint (hinge): turns about `axis` through `point`; coordinate `angle` [rad]"),
     "universal": Table({
-        "point": _FRAME_POINT,
+        "point": _FRAME_POINT, **_FRAMED_SECTIONS,
         "axis1": Field(nonzero_vec3, [1.0, 0.0, 0.0], "first axis, fixed in body 1, world direction in the "
                        "initial configuration"),
         "axis2": Field(nonzero_vec3, [0.0, 1.0, 0.0], "second axis, fixed in body 2 (made normal to axis1)"),
     }, "universal (Cardan) joint: two relative rotations, `angle1` about axis1 and `angle2` about axis2 [rad]"),
-    "prismatic": Table({"point": _FRAME_POINT, "axis": _AXIS},
+    "prismatic": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
                        "prismatic joint (slider) along `axis`; coordinate `distance` [m]"),
-    "cylindrical": Table({"point": _FRAME_POINT, "axis": _AXIS},
+    "cylindrical": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
                          "cylindrical joint: turns about and slides along `axis`; coordinates `angle` [rad], "
                          "`distance` [m]"),
-    "fixed": Table({"point": _FRAME_POINT}, "fixed joint (weld): no relative motion"),
+    "fixed": Table({"point": _FRAME_POINT, **_FRAMED_SECTIONS}, "fixed joint (weld): no relative motion"),
 })
 JOINT = Table({
     "name": Field(name, OPTIONAL, "default j<index>"),

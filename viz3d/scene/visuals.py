@@ -9,10 +9,9 @@ reach sphere, so a camera can keep all of its motion in view.
 from __future__ import annotations
 
 import json
+from functools import cache
 
 import numpy as np
-
-from functools import cache
 
 from viz3d.flexible.floating_points import material_points
 from viz3d.forces import SpringDamper
@@ -76,8 +75,7 @@ def _plots(system: System) -> tuple[tuple[str, str], ...]:
              ("Joint reaction force [N]", "reaction_force")]
     if system.contacts:
         plots.append(("Contact force [N]", "contact"))
-    if system.outputs:
-        plots.append(("Gauge strain [-]", "strain"))
+    plots += list(dict.fromkeys(out.plot for out in system.outputs))  # (gauges on several bars: one panel)
     if any(getattr(js, "rheonomic", False) for js in system.joints.joints):
         plots.append(("Drive effort [N or N m]", "drive"))
     for e in system.forces:  # shape contacts, water, joint stops: the element's own series
