@@ -47,6 +47,9 @@ class SideAxes:
         World rate of the section rotation relative to the frame, ``G eta_dot`` [rad/s].
     G : ndarray, shape (nj, 3, n_e)
         ``R P`` on the stacked elastic velocities (zero on rigid sides).
+    rigid : bool
+        A rigid body's or ground's side: ``a = alpha``, ``Omega = 0``, ``G = 0`` (the terms of the
+        section's rotation are skipped, not computed as zeros: the rigid joints' NumPy path).
     """
 
     a: FloatArray
@@ -55,31 +58,37 @@ class SideAxes:
     w: FloatArray
     Omega: FloatArray
     G: FloatArray
+    rigid: bool = False
 
     def vector(self, c: FloatArray) -> FloatArray:
         """``a c`` (nj, 3) for coefficients ``c`` (3,) or (nj, 3)."""
         return _combine(self.a, c)
 
-    def rate(self, c: FloatArray) -> FloatArray:
-        """``d(a c)/dt`` (nj, 3) at constant ``c`` [1/s]."""
-        return cross(self.w, _combine(self.a, c)) + cross(self.Omega, _combine(self.alpha, c))
+    def motion(self, c: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``d(a c)/dt`` [1/s] and the part of ``d2(a c)/dt2`` not proportional to ``v_dot`` [1/s^2],
+        each (nj, 3): ``w x (a c) + s`` and ``w x (w x (a c)) + 2 w x s``, ``s = Omega x (alpha c)``."""
+        rate = cross(self.w, _combine(self.a, c))
+        bias = cross(self.w, rate)
+        if not self.rigid:
+            s = cross(self.Omega, _combine(self.alpha, c))
+            rate, bias = rate + s, bias + 2.0 * cross(self.w, s)
+        return rate, bias
 
-    def bias(self, c: FloatArray) -> FloatArray:
-        """The part of ``d2(a c)/dt2`` not proportional to ``v_dot`` (nj, 3) [1/s^2]."""
-        ac = _combine(self.a, c)
-        return cross(self.w, cross(self.w, ac)) + 2.0 * cross(self.w, cross(self.Omega, _combine(self.alpha, c)))
-
-    def jacobian(self, c: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def jacobian(self, c: FloatArray, x: FloatArray, n: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
         """Velocity Jacobian of ``(a c) . x`` for world vectors ``x`` (nj, 3) held fixed: frame part
-        (nj, 6) on ``[W_v, B_omega]`` and elastic part (nj, n_e)."""
+        (nj, 6) on ``[W_v, B_omega]`` and elastic part (nj, n_e); ``n``: ``(a c) x x`` if the caller
+        has it (the two sides of a perpendicularity share it, with opposite signs)."""
         Jf = np.zeros((len(self.a), 6))
-        Jf[:, 3:] = np.einsum("kji,kj->ki", self.R, cross(_combine(self.a, c), x))
+        Jf[:, 3:] = np.einsum("kji,kj->ki", self.R, cross(_combine(self.a, c), x) if n is None else n)
+        if self.rigid:
+            return Jf, np.zeros((len(self.a), self.G.shape[2]))
         return Jf, np.einsum("kiq,ki->kq", self.G, cross(_combine(self.alpha, c), x))
 
 
 def _combine(axes: FloatArray, c: FloatArray) -> FloatArray:
+    """``axes c``: (nj, 3) from axes (nj, 3, 3) and coefficients (3,) or (nj, 3)."""
     c = np.asarray(c, dtype=float)
-    return np.einsum("kij,kj->ki", axes, np.broadcast_to(c, (axes.shape[0], 3)))
+    return axes @ c if c.ndim == 1 else np.einsum("kij,kj->ki", axes, c)
 
 
 def side_axes(points: BodyPoints, B_A: FloatArray, cfg: Configuration) -> SideAxes:
@@ -89,7 +98,7 @@ def side_axes(points: BodyPoints, B_A: FloatArray, cfg: Configuration) -> SideAx
     alpha = R @ B_A
     G = points.section_jacobian(cfg)
     if not points.flex:
-        return SideAxes(alpha, alpha, R, cfg.twist.W_omega[points.body], np.zeros((points.k, 3)), G)
+        return SideAxes(alpha, alpha, R, cfg.twist.W_omega[points.body], np.zeros((points.k, 3)), G, rigid=True)
     theta_W = np.einsum("kij,kj->ki", R, points.section_rotations(cfg))
     a = alpha + np.cross(theta_W[:, :, None], alpha, axis=1)
     Omega = np.einsum("kiq,q->ki", G, _stacked(cfg)) if G.shape[2] else np.zeros((points.k, 3))

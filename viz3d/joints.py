@@ -278,13 +278,15 @@ class FramedJoint(RowsJoint):
             g.append(bias_[1] - bias_[0])
         for i, j in self.PERPENDICULAR:
             A, B = ax[0].a[:, :, i], ax[1].a[:, :, j]
+            n = cross(A, B)
             Jr, Jre = np.zeros((nj, 1, 2, 6)), np.zeros((nj, 1, 2, ne))
-            (Jr[:, 0, 0], Jre[:, 0, 0]), (Jr[:, 0, 1], Jre[:, 0, 1]) = ax[0].jacobian(unit(i), B), ax[1].jacobian(unit(j), A)
+            Jr[:, 0, 0], Jre[:, 0, 0] = ax[0].jacobian(unit(i), B, n)
+            Jr[:, 0, 1], Jre[:, 0, 1] = ax[1].jacobian(unit(j), A, -n)
+            (A_d, A_b), (B_d, B_b) = ax[0].motion(unit(i)), ax[1].motion(unit(j))
             C.append(_dot(A, B)[:, None])
             J.append(Jr)
             Je.append(Jre)
-            g.append(-(_dot(ax[0].bias(unit(i)), B) + 2.0 * _dot(ax[0].rate(unit(i)), ax[1].rate(unit(j)))
-                       + _dot(A, ax[1].bias(unit(j))))[:, None])
+            g.append(-(_dot(A_b, B) + 2.0 * _dot(A_d, B_d) + _dot(A, B_b))[:, None])
         if self.ON_PLANE:
             d = x[1] - x[0]
             d_dot = self.sides[1].velocities(cfg) - self.sides[0].velocities(cfg)
@@ -300,8 +302,8 @@ class FramedJoint(RowsJoint):
             C.append(_dot(A, d)[:, None])
             J.append(Jr)
             Je.append(Jre)
-            g.append(-(_dot(ax[0].bias(unit(i)), d) + 2.0 * _dot(ax[0].rate(unit(i)), d_dot)
-                       + _dot(A, bias_[1] - bias_[0]))[:, None])
+            A_d, A_b = ax[0].motion(unit(i))
+            g.append(-(_dot(A_b, d) + 2.0 * _dot(A_d, d_dot) + _dot(A, bias_[1] - bias_[0]))[:, None])
         return np.concatenate(C, axis=1), (np.concatenate(J, axis=1), np.concatenate(Je, axis=1)), np.concatenate(g, axis=1)
 
     @property
@@ -321,7 +323,7 @@ class FramedJoint(RowsJoint):
         for _, code in self.FREE:
             q, u = coordinate(code, ax[0].a, ax[1].a, e)
             values.append(q)
-            rates.append(_dot(u, e_dot) + _dot(ax[0].rate(unit(2)), e) if code == DISTANCE_Z
+            rates.append(_dot(u, e_dot) + _dot(ax[0].motion(unit(2))[0], e) if code == DISTANCE_Z
                          else _dot(ax[0].w + ax[0].Omega - ax[1].w - ax[1].Omega, u))
         shape = (self.n_joints, 0)
         return (np.stack(values, axis=-1) if values else np.zeros(shape),
@@ -652,7 +654,7 @@ class JointDrive(RowsJoint):
 
 def _joint_axes(ax: SideAxes, j: int) -> SideAxes:
     """Joint ``j``'s axes of a side (a ``SideAxes`` of one joint)."""
-    return SideAxes(*(x[[j]] for x in (ax.a, ax.alpha, ax.R, ax.w, ax.Omega, ax.G)))
+    return SideAxes(*(x[[j]] for x in (ax.a, ax.alpha, ax.R, ax.w, ax.Omega, ax.G)), rigid=ax.rigid)
 
 
 def _angle_row(ax: tuple[SideAxes, SideAxes], drive: tuple, r: float, r_d: float, r_dd: float):
@@ -664,11 +666,14 @@ def _angle_row(ax: tuple[SideAxes, SideAxes], drive: tuple, r: float, r_d: float
     c = np.cos(r) * unit(i2) + np.sin(r) * unit(i1)
     c_m = np.sin(r) * unit(i2) - np.cos(r) * unit(i1)
     u, w, m = B.vector(unit(iu))[0], A.vector(c)[0], A.vector(c_m)[0]
-    u_d, w_d = B.rate(unit(iu))[0], A.rate(c)[0] - r_d * m
-    w_bias = A.bias(c)[0] - 2.0 * r_d * A.rate(c_m)[0] - r_dd * m - r_d * r_d * w
+    u_d, u_b = (x[0] for x in B.motion(unit(iu)))
+    w_d, w_b = (x[0] for x in A.motion(c))
+    m_d = A.motion(c_m)[0][0]
+    w_d = w_d - r_d * m
+    w_bias = w_b - 2.0 * r_d * m_d - r_dd * m - r_d * r_d * w
     J, Je = np.zeros((2, 6)), np.zeros((2, A.G.shape[2]))
     (J[sa], Je[sa]), (J[sb], Je[sb]) = A.jacobian(c, -u[None]), B.jacobian(unit(iu), -w[None])
-    gamma = B.bias(unit(iu))[0] @ w + 2.0 * u_d @ w_d + u @ w_bias
+    gamma = u_b @ w + 2.0 * u_d @ w_d + u @ w_bias
     return -u @ w, (J, Je), gamma, r_d * (u @ m)
 
 
@@ -683,7 +688,8 @@ def _distance_row(ax: SideAxes, sides: list[BodyPoints], cfg: Configuration, r: 
     J = np.stack([z @ J1[0] + Jz[0], -(z @ J2[0])])
     Je = np.stack([z @ Je1[0] + Jze[0], -(z @ Je2[0])])
     b = sides[0].bias(cfg)[0] - sides[1].bias(cfg)[0]
-    gamma = r_dd - (ax.bias(unit(2))[0] @ e + 2.0 * ax.rate(unit(2))[0] @ e_d + z @ b)
+    z_d, z_b = (x[0] for x in ax.motion(unit(2)))
+    gamma = r_dd - (z_b @ e + 2.0 * z_d @ e_d + z @ b)
     return z @ e - r, (J, Je), gamma, -r_d
 
 
