@@ -22,7 +22,10 @@ import numpy as np
 from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.methods import method_overrides, parse_method
 from viz3d.scene.load import load_scene
-from viz3d.simulate import ProgressBar, simulate
+from viz3d.simulate import simulate
+from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.plan import Point
+from viz3d.trajectory import Trajectory
 
 #: Reference: the most accurate method, much tighter than any run.
 REFERENCE_METHOD = "dop853"
@@ -122,39 +125,51 @@ def reference_run(path, overrides: list[str], output_dt: float, t_end: float, rt
     return traj
 
 
-def _run(path, overrides: list[str], t_end: float | None):
-    scene = load_scene(path, overrides)
-    t0 = time.process_time()
-    traj = simulate(scene, t_end=t_end)
-    return traj, time.process_time() - t0
+@dataclass(frozen=True)
+class BenchRun:
+    """Measure of one benchmark run (``viz3d.studies``): an untimed warm-up over ``warm_up`` [s]
+    (compilation, caches of the worker), then the run to ``t_end`` [s], timed (process time), and its
+    error against ``reference``."""
+
+    reference: Trajectory
+    t_end: float
+    warm_up: float
+
+    def __call__(self, scene) -> dict:
+        simulate(scene, t_end=self.warm_up)
+        t0 = time.process_time()
+        traj = simulate(scene, t_end=self.t_end)
+        cpu = time.process_time() - t0
+        return {"error": body_point_error(traj, self.reference), "cpu": cpu, "steps": traj.n_steps, "rhs": traj.n_rhs,
+                "energy_drift": traj.energy_drift_rel, "constraint": traj.max_constraint_violation,
+                "status": traj.status}
+
+
+def _bench_row(point: Point, row: dict) -> BenchRow:
+    method, (kind, value) = point.values
+    nan = float("nan")
+    return BenchRow(method, f"{kind}={value:g}", row.get("error", np.inf), row.get("cpu", nan), row.get("steps", 0),
+                    row.get("rhs", 0), row.get("energy_drift", nan), row.get("constraint", nan), row["status"])
 
 
 def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, tols: list[float] | None = None,
-          t_end: float | None = None, progress: bool = True, overrides: list[str] = ()) -> BenchReport:
-    """Run the benchmark (see the module docstring); ``overrides`` apply to every run."""
+          t_end: float | None = None, progress: bool = True, overrides: list[str] = (), cluster: Cluster = IN_PROCESS
+          ) -> BenchReport:
+    """Run the benchmark (see the module docstring); ``overrides`` apply to every run, which run on
+    ``cluster`` (``viz3d.studies.execute``; the references run here first)."""
     base = load_scene(path, list(overrides))
     if "rtol" in base.data["sim"] and base.data["contacts"]:
         raise ValueError(f"{path}: bench compares methods on fixed steps and tolerances; runs with contact events are "
                          f"adaptive (model size: viz3d stability --sweep; see benchmarks/bench_impact_convergence.py)")
     output_dt, t_end = common_grid(dts, base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
     plan = [(m, s) for m in methods for s in settings_for(m, dts, tols)]
-    bar = ProgressBar(len(plan) + 2) if progress else None
     grid = list(overrides) + [f"sim.output_dt={output_dt!r}"]
     ref = reference_run(path, grid, output_dt, t_end, REFERENCE_RTOL)
     chk = reference_run(path, grid, output_dt, t_end, CHECK_RTOL)
-    for method, setting in {m: s for m, s in plan}.items():  # untimed warm-up: compilation, caches
-        _run(path, grid + run_overrides(method, setting, output_dt), 3 * output_dt)
-    rows = []
-    for i, (method, setting) in enumerate(plan):
-        if bar:
-            bar.update(i + 2)
-        traj, cpu = _run(path, grid + run_overrides(method, setting, output_dt), t_end)
-        rows.append(BenchRow(method, f"{setting[0]}={setting[1]:g}", body_point_error(traj, ref), cpu, traj.n_steps,
-                             traj.n_rhs, traj.energy_drift_rel, traj.max_constraint_violation, traj.status))
-    if bar:
-        bar.close()
+    points = [Point((m, s), tuple(run_overrides(m, s, output_dt))) for m, s in plan]
+    outcomes = run_study(path, points, BenchRun(ref, t_end, 3 * output_dt), cluster, overrides=grid, progress=progress)
     desc = f"{REFERENCE_METHOD} adaptive, rtol {REFERENCE_RTOL:g}, {ref.n_steps} steps"
-    return BenchReport(Path(path).stem, rows, desc, body_point_error(chk, ref))
+    return BenchReport(Path(path).stem, [_bench_row(o.point, o.row) for o in outcomes], desc, body_point_error(chk, ref))
 
 
 def save(report: BenchReport, out: Path) -> list[Path]:

@@ -7,6 +7,8 @@ Usage::
     viz3d replay FILE.rrd
     viz3d bench SCENE --methods LIST (--dt LIST | --tol LIST) [--t-end T] [--out DIR]
     viz3d stability SCENE --methods LIST [--sweep key.path=V1,V2,...] [--t-end T] [--out DIR]
+    viz3d sweep SCENE --grid key.path=V1,V2,... [--grid key.path=A:B:N] [--sample key.path=DIST(ARGS) --n N]
+                [--metrics LIST] [--out DIR] [--workers N | --scheduler tcp://HOST:8786]
     viz3d check SCENE [SCENE ...]
     viz3d list [--format] [--scenes DIR]
 
@@ -109,6 +111,7 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--dt", type=_positive_list("--dt"), help="comma-separated steps [s] for fixed-step methods")
     bench.add_argument("--tol", type=_positive_list("--tol"), help="comma-separated relative tolerances for dopri5/dop853")
     _report_args(bench, "bench")
+    _cluster_args(bench, 1, "(default 1: CPU times are measured on an otherwise idle core)")
     bench.set_defaults(func=cmd_bench)
     stab = sub.add_parser("stability", help="map where methods fail (largest stable step, failure reasons)")
     stab.add_argument("scene", type=Path)
@@ -116,15 +119,17 @@ def _parser() -> argparse.ArgumentParser:
     stab.add_argument("--sweep", help="key.path=V1,V2,...: find the largest stable step at each value")
     stab.add_argument("--dt", type=_positive_flag, help="step of the runs without --sweep (default: the scene's)")
     _report_args(stab, "stability")
+    _cluster_args(stab)
     stab.set_defaults(func=cmd_stability)
     stow = sub.add_parser("stowage", help="verdict and peak hauling force of a haul over a grid of heel and trim")
     stow.add_argument("scene", type=Path)
     stow.add_argument("--heel", type=_number_list("--heel"), default=[-5.0, 0.0, 5.0], help="ship.heel values [deg]")
     stow.add_argument("--trim", type=_number_list("--trim"), default=[-2.0, 0.0, 2.0], help="ship.trim values [deg]")
-    stow.add_argument("--workers", type=int, default=1, help="runs at a time (processes)")
+    _cluster_args(stow)
     _set_arg(stow)
     stow.add_argument("--out", type=Path, help="report folder (default out/stowage/<scene>)")
     stow.set_defaults(func=cmd_stowage)
+    _sweep_parser(sub)
     check = sub.add_parser("check", help="validate scene files (and build them)")
     check.add_argument("scenes", type=Path, nargs="+")
     _set_arg(check)
@@ -214,8 +219,8 @@ def cmd_bench(args) -> int:
 
     methods = [m.strip() for m in args.methods.split(",")]
     out = _writable_dir(args.out or Path("out") / "bench" / args.scene.stem, "bench")
-    return _report(lambda: bench(args.scene, methods, args.dt, args.tol, args.t_end, overrides=args.overrides),
-                   save, out)
+    return _report(lambda: bench(args.scene, methods, args.dt, args.tol, args.t_end, overrides=args.overrides,
+                                 cluster=_cluster(args)), save, out)
 
 
 def cmd_stability(args) -> int:
@@ -223,8 +228,23 @@ def cmd_stability(args) -> int:
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     out = _writable_dir(args.out or Path("out") / "stability" / args.scene.stem, "stability")
-    return _report(lambda: stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides),
-                   save, out)
+    return _report(lambda: stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides,
+                                     cluster=_cluster(args)), save, out)
+
+
+def _cluster_args(p, default: int | None = None, why: str = "(default: one per core)") -> None:
+    """``--workers`` and ``--scheduler`` of the studies (``viz3d.studies.execute.Cluster``)."""
+    from viz3d.scene.schema import positive_int
+
+    p.add_argument("--workers", type=flag_type(positive_int), default=default,
+                   help=f"local worker processes {why}; 1 runs in this process")
+    p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on this existing Dask scheduler's workers instead")
+
+
+def _cluster(args):
+    from viz3d.studies.execute import Cluster, local_cores
+
+    return Cluster(args.workers or local_cores(), args.scheduler)
 
 
 def _report(make, save, out: Path) -> int:
@@ -234,7 +254,7 @@ def _report(make, save, out: Path) -> int:
 
     try:
         report = make()
-    except (ValueError, MethodError) as exc:
+    except (ValueError, MethodError, ConnectionError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(report.markdown())
@@ -307,7 +327,87 @@ def cmd_stowage(args) -> int:
 
     out = _writable_dir(args.out or Path("out") / "stowage" / args.scene.stem, "stowage")
     grid = {"ship.heel": args.heel, "ship.trim": args.trim}
-    return _report(lambda: stowage_study(args.scene, grid, args.overrides, args.workers), save, out)
+    return _report(lambda: stowage_study(args.scene, grid, args.overrides, cluster=_cluster(args)), save, out)
+
+
+def _sweep_parser(sub) -> None:
+    from viz3d.scene.schema import nonnegative_int, positive_int
+
+    sw = sub.add_parser("sweep", help="run a scene over a grid or a random sample of --set values (Dask: local cores "
+                                      "or a cluster)")
+    sw.add_argument("scene", type=Path)
+    sw.add_argument("--grid", action="append", default=[], metavar="KEY.PATH=V1,V2,...",
+                    help="a grid axis: listed values, or A:B:N (A:B:N:log) for N values from A to B; axes multiply")
+    sw.add_argument("--sample", action="append", default=[], metavar="KEY.PATH=DIST(ARGS)",
+                    help="a sampled key: uniform(a,b), loguniform(a,b), normal(mean,std), int(a,b), choice(v1,v2,...)")
+    sw.add_argument("--n", type=flag_type(positive_int), help="number of draws of --sample (default 20)")
+    sw.add_argument("--seed", type=flag_type(nonnegative_int), default=0, help="seed of the draws (default 0)")
+    sw.add_argument("--metrics", help="comma-separated table columns after the keys (default status,energy_drift_rel,"
+                    "max_constraint_violation): "
+                    "status, t_final, energy_drift_rel, energy_drift, max_constraint_violation or a scalar extra of the "
+                    "scene (e.g. restitution); the first numeric one is charted")
+    sw.add_argument("--out", type=Path, help="study folder (default out/sweep/<scene>); its runs.jsonl keeps every "
+                    "finished run, so the same command started again runs only what is missing")
+    sw.add_argument("--max-runs", type=flag_type(positive_int), help="run at most this many new points, then stop")
+    sw.add_argument("--no-progress", action="store_true", help="never draw the progress line")
+    _cluster_args(sw)
+    _set_arg(sw, "scene overrides applied to every run")
+    _mesh_dir_arg(sw)
+    sw.set_defaults(func=cmd_sweep)
+
+
+def cmd_sweep(args) -> int:
+    from viz3d.scene.load import kind_of_file
+    from viz3d.studies.plan import PlanError
+    from viz3d.sweep import STORE_NAME, save, sweep
+
+    try:
+        keys, points, metrics = _sweep_plan(args)
+    except PlanError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if kind_of_file(args.scene) != "multibody":
+        raise SceneError(str(args.scene), "", "a multibody scene (viz3d sweep runs viz3d.simulate on each point)")
+    out = _writable_dir(args.out or Path("out") / "sweep" / args.scene.stem, "sweep")
+    try:
+        report = sweep(args.scene, keys, points, metrics, _cluster(args), out, args.overrides, args.mesh_dirs,
+                       progress=not args.no_progress, max_runs=args.max_runs)
+    except KeyboardInterrupt:
+        print(f"interrupted: finished runs are kept in {out / STORE_NAME}; the same command runs only the missing ones",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except ConnectionError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    refused = [o for o in report.outcomes if o.key is None]
+    if len(refused) == len(report.outcomes):
+        print(f"error: every point was refused; the first: {refused[0].row['status']}", file=sys.stderr)
+        return 2
+    print(report.markdown())
+    for name in report.missing_metrics():
+        print(f"warning: --metrics {name}: no run has it (a typo, or not a scalar summary of this scene)", file=sys.stderr)
+    for path in save(report, out) + [out / STORE_NAME]:
+        print(f"wrote {path}")
+    return 0
+
+
+def _sweep_plan(args):
+    """(keys, points, metrics) of ``viz3d sweep``'s flags; ``PlanError`` naming a bad flag."""
+    from viz3d.studies.plan import PlanError, parse_grid, parse_sample, plan_points
+    from viz3d.sweep import DEFAULT_METRICS
+
+    axes = [parse_grid(g) for g in args.grid]
+    samples = [parse_sample(s) for s in args.sample]
+    if not axes and not samples:
+        raise PlanError("--grid", "at least one --grid or --sample", "")
+    if args.n is not None and not samples:
+        raise PlanError("--n", "a --sample to draw from", str(args.n))
+    text = args.metrics if args.metrics is not None else ",".join(DEFAULT_METRICS)
+    metrics = tuple(m.strip() for m in text.split(",") if m.strip())
+    if not metrics or any(not m.isidentifier() for m in metrics):
+        raise PlanError("--metrics", "comma-separated metric names (e.g. status,energy_drift_rel)", text)
+    keys, points = plan_points(axes, samples, args.n or 20, args.seed)
+    return keys, points, metrics
 
 
 def cmd_run(args) -> int:
@@ -592,13 +692,13 @@ def _check_built(scene) -> str:
 
 
 def cmd_list(args) -> int:
+    from viz3d.contact.collision import GEOMETRIES
+    from viz3d.contact.friction import FRICTION_LAWS
+    from viz3d.contact.laws import NORMAL_LAWS
     from viz3d.coordinates import ROTATIONS
     from viz3d.forces import FORCES
     from viz3d.formulation import FORMULATIONS
     from viz3d.integrators import INTEGRATORS
-    from viz3d.contact.collision import GEOMETRIES
-    from viz3d.contact.friction import FRICTION_LAWS
-    from viz3d.contact.laws import NORMAL_LAWS
     from viz3d.joints import DRIVES, JOINTS
     from viz3d.scene import format_reference
     from viz3d.timefunctions import TIME_FUNCTIONS

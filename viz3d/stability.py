@@ -35,8 +35,11 @@ import numpy as np
 from viz3d.bench import body_point_error, common_grid, reference_run, write_report
 from viz3d.contact.intervals import physical_contacts
 from viz3d.methods import method_overrides
-from viz3d.scene.load import load_scene
+from viz3d.scene.load import load_scene, with_sim
 from viz3d.simulate import simulate
+from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.plan import Point
+from viz3d.trajectory import Trajectory
 
 #: Searched range of steps [s], descent factor from the top, halvings of the log interval after it
 #: (the result is within DESCENT ** (1 / 2 ** BISECTIONS) = 0.5 % of the true limit).
@@ -122,8 +125,9 @@ def reason_of(traj) -> tuple[str, str]:
 
 
 def stability(path, methods: list[str], sweep: str | None, dt: float | None, t_end: float | None,
-              overrides: list[str] = ()) -> StabilityReport:
-    """The map for ``path`` (see the module docstring); ``overrides`` apply to every run."""
+              overrides: list[str] = (), cluster: Cluster = IN_PROCESS) -> StabilityReport:
+    """The map for ``path`` (see the module docstring); ``overrides`` apply to every run; the runs (a
+    whole step search per point of the sweep map) run on ``cluster`` (``viz3d.studies.execute``)."""
     over = list(overrides)
     scene = load_scene(path, over)
     key, values = _parse_sweep(sweep)
@@ -131,10 +135,10 @@ def stability(path, methods: list[str], sweep: str | None, dt: float | None, t_e
         if not (sweep and scene.data["contacts"]):
             raise ValueError(f"{path}: give --methods (e.g. rk4,trapezoidal), or --sweep for a scene with contacts "
                              f"(e.g. bar.modes=1,2,4,8,16)")
-        return _contact_map(path, key, values, t_end, over)
+        return _contact_map(path, key, values, t_end, over, cluster)
     if sweep:
-        return _sweep_map(path, methods, key, values, t_end, over)
-    return _methods_map(path, methods, dt, t_end, over)
+        return _sweep_map(path, methods, key, values, t_end, over, cluster)
+    return _methods_map(path, methods, dt, t_end, over, cluster)
 
 
 def _parse_sweep(sweep: str | None) -> tuple[str, list[str]]:
@@ -146,28 +150,42 @@ def _parse_sweep(sweep: str | None) -> tuple[str, list[str]]:
     return key.strip(), [v.strip() for v in vals.split(",")]
 
 
-def _sweep_map(path, methods, key, values, t_end, base_over) -> StabilityReport:
-    rows = []
-    for value in values:
-        for method in methods:
-            over = base_over + method_overrides(method) + [f"{key}={value}"]
-            dt_ok, reason, detail = largest_stable_step(path, over, t_end)
-            rows.append(StabilityRow(method, value, dt_ok, reason, detail))
+@dataclass(frozen=True)
+class StableStep:
+    """Measure of the sweep map (``viz3d.studies``): the largest stable step of one scene."""
+
+    t_end: float | None
+
+    def __call__(self, scene) -> dict:
+        dt, reason, detail = stable_step_of(scene, self.t_end)
+        return {"dt": dt, "reason": reason, "detail": detail}
+
+
+def _sweep_map(path, methods, key, values, t_end, base_over, cluster) -> StabilityReport:
+    points = [Point((value, method), (*method_overrides(method), f"{key}={value}")) for value in values
+              for method in methods]
+    outcomes = run_study(path, points, StableStep(t_end), cluster, overrides=base_over)
+    rows = [StabilityRow(o.point.values[1], o.point.values[0], o.row.get("dt", float("nan")),
+                         o.row.get("reason", "failed"), o.row.get("detail", o.row["status"])) for o in outcomes]
     return StabilityReport(Path(path).stem, "sweep", key, rows)
 
 
 def largest_stable_step(path, overrides: list[str], t_end) -> tuple[float, str, str]:
-    """Largest stable step [s], with the reason of the failure just above it.
+    """Largest stable step [s] of the scene ``path`` with ``overrides`` (``stable_step_of``)."""
+    return stable_step_of(load_scene(path, overrides), t_end)
+
+
+def stable_step_of(scene, t_end) -> tuple[float, str, str]:
+    """Largest stable step [s] of ``scene``, with the reason of the failure just above it.
 
     Steps descend from ``top_step`` by factors of ``DESCENT`` until a run is stable (so the cost is
     set by the stable step, never by ``DT_MIN``), then ``BISECTIONS`` halvings of the log interval
     between that step and the failing one above it."""
 
     def run(dt):
-        traj = simulate(load_scene(path, overrides + [f"sim.dt={dt!r}", f"sim.output_dt={dt!r}"]), t_end=t_end)
-        return reason_of(traj)
+        return reason_of(simulate(with_sim(scene, dt=dt, output_dt=dt), t_end=t_end))
 
-    top = top_step(load_scene(path, overrides), t_end)
+    top = top_step(scene, t_end)
     hi, above = top, run(top)
     if above[0] == "ok":
         return top, "ok", "stable over the whole range"
@@ -205,41 +223,82 @@ def failure_time(traj) -> float:
     return float(m.group(1)) if m else float(traj.t[-1]) if len(traj.t) else float("nan")
 
 
-def _methods_map(path, methods, dt, t_end, base_over) -> StabilityReport:
+@dataclass(frozen=True)
+class MethodRun:
+    """Measure of the methods map (``viz3d.studies``): one run, its reason, error against
+    ``reference`` and drift histories (t, max |C|, energy drift; each shape (n,))."""
+
+    reference: Trajectory
+    t_end: float
+
+    def __call__(self, scene) -> dict:
+        traj = simulate(scene, t_end=self.t_end)
+        reason, detail = reason_of(traj)
+        n = len(traj.t)
+        scale = float(np.max(traj.energy_kinetic)) if n and np.max(traj.energy_kinetic) > 0 else 1.0
+        return {"reason": reason, "detail": detail, "t_fail": failure_time(traj),
+                "error": body_point_error(traj, self.reference) if traj.ok else float("nan"),
+                "energy_drift": traj.energy_drift_rel, "constraint": traj.max_constraint_violation,
+                "history": (traj.t, traj.constraint_violation,
+                            np.abs(traj.energy_total - traj.energy_total[0]) / scale)}
+
+
+def _methods_map(path, methods, dt, t_end, base_over, cluster) -> StabilityReport:
     base = load_scene(path, base_over)
     dt = dt or base.data["sim"]["dt"]
     output_dt, t_end = common_grid([dt], base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
     grid = base_over + [f"sim.output_dt={output_dt!r}"]
     ref = reference_run(path, base_over + ["sim.rotation=quaternion"], output_dt, t_end)
-    rows, hist = [], {}
-    for method in methods:
-        traj = simulate(load_scene(path, grid + method_overrides(method) + [f"sim.dt={dt!r}"]), t_end=t_end)
-        reason, detail = reason_of(traj)
-        n = len(traj.t)
-        err = body_point_error(traj, ref) if traj.ok else float("nan")
-        scale = float(np.max(traj.energy_kinetic)) if n and np.max(traj.energy_kinetic) > 0 else 1.0
-        rows.append(StabilityRow(method, "", dt, reason, detail, failure_time(traj), err, traj.energy_drift_rel,
-                                 traj.max_constraint_violation))
-        hist[method] = (traj.t, traj.constraint_violation, np.abs(traj.energy_total - traj.energy_total[0]) / scale)
+    points = [Point((method,), (*method_overrides(method), f"sim.dt={dt!r}")) for method in methods]
+    outcomes = run_study(path, points, MethodRun(ref, t_end), cluster, overrides=grid)
+    nan = float("nan")
+    rows = [StabilityRow(o.point.values[0], "", dt, o.row.get("reason", "failed"), o.row.get("detail", o.row["status"]),
+                         o.row.get("t_fail", nan), o.row.get("error", nan), o.row.get("energy_drift", nan),
+                         o.row.get("constraint", nan)) for o in outcomes]
+    hist = {o.point.values[0]: o.row["history"] for o in outcomes if "history" in o.row}
     return StabilityReport(Path(path).stem, "methods", "", rows, hist)
 
 
-def _contact_map(path, key, values, t_end, base_over) -> StabilityReport:
-    runs = [simulate(load_scene(path, base_over + [f"{key}={v}"]), t_end=t_end) for v in values]
+@dataclass(frozen=True)
+class ContactRun:
+    """Measure of the model-size map (``viz3d.studies``): one run's contacts (rows of start, approach
+    speed, end, separation speed; shape (n, 4)), unresolved touches (same columns), restitution and
+    peak contact force [N]."""
+
+    t_end: float | None
+
+    def __call__(self, scene) -> dict:
+        traj = simulate(scene, t_end=self.t_end)
+        x = traj.extras
+        touches = np.asarray(x.get("contact_touches_unresolved", np.zeros((0, 4))), float).reshape(-1, 4)
+        return {"status": traj.status, "contacts": np.asarray(x["contacts"]), "touches": touches,
+                "restitution": float(x["restitution"]), "contact_count": int(x["contact_count"]),
+                "peak_force": float(np.max(x["contact_force"]))}
+
+
+def _contact_map(path, key, values, t_end, base_over, cluster) -> StabilityReport:
+    outcomes = run_study(path, [Point((v,), (f"{key}={v}",)) for v in values], ContactRun(t_end), cluster,
+                         overrides=base_over)
+    runs = [o.row for o in outcomes]
     finest = runs[-1]
-    ref = finest.extras["contacts"]
+    if "contacts" not in finest:
+        raise RuntimeError(f"the finest model ({key} = {values[-1]}) did not run: {finest['status']}")
+    ref = finest["contacts"]
     gap = GAP_FRACTION * (np.nanmax(ref[:, [0, 2]]) - ref[0, 0]) if len(ref) else 0.0
-    ref_windows, e_ref = contact_windows(ref, 0.0), float(finest.extras["restitution"])
+    ref_windows, e_ref = contact_windows(ref, 0.0), finest["restitution"]
     ref_any = ref_windows + _touch_windows(finest)
     rows = []
-    for v, tr in zip(values, runs):
-        x = tr.extras
-        windows, e = contact_windows(x["contacts"], 0.0), float(x["restitution"])
+    for v, run in zip(values, runs):
+        if "contacts" not in run:
+            rows.append(StabilityRow("", v, float("nan"), "failed", run["status"],
+                                     extra={"contacts": 0, "restitution": float("nan"), "peak_force": float("nan")}))
+            continue
+        windows, e = contact_windows(run["contacts"], 0.0), run["restitution"]
         # an unresolved touch (shorter than the model resolves) neither misses nor adds a contact
-        missed = [w for w in ref_windows if not _overlaps(w, windows + _touch_windows(tr), gap)]
+        missed = [w for w in ref_windows if not _overlaps(w, windows + _touch_windows(run), gap)]
         spurious = [w for w in windows if not _overlaps(w, ref_any, gap)]
-        if not tr.ok:
-            reason, detail = "failed", tr.status
+        if run["status"] != "ok":
+            reason, detail = "failed", run["status"]
         elif missed:
             reason, detail = "missed contact", f"no contact near {_window_text(missed[0])} ({key} = {values[-1]} has one)"
         elif spurious:
@@ -248,9 +307,8 @@ def _contact_map(path, key, values, t_end, base_over) -> StabilityReport:
             reason, detail = "restitution error above tolerance", f"{e:.4f} vs {e_ref:.4f}"
         else:
             reason, detail = "ok", f"contacts match and restitution within {RESTITUTION_TOL} of the finest model"
-        rows.append(StabilityRow("", v, float("nan"), reason, detail,
-                                 extra={"contacts": int(x["contact_count"]), "restitution": e,
-                                        "peak_force": float(np.max(x["contact_force"]))}))
+        rows.append(StabilityRow("", v, float("nan"), reason, detail, extra={
+            "contacts": run["contact_count"], "restitution": e, "peak_force": run["peak_force"]}))
     return StabilityReport(Path(path).stem, "contacts", key, rows)
 
 
@@ -264,10 +322,9 @@ def contact_windows(contacts, gap: float) -> list[tuple[float, float]]:
     return [(float(s), float(s if np.isnan(e) else e)) for s, _, e, _ in rows]
 
 
-def _touch_windows(traj) -> list[tuple[float, float]]:
-    """Unresolved touches of a run (recontacts shorter than its model resolves)."""
-    touches = np.asarray(traj.extras.get("contact_touches_unresolved", np.zeros((0, 4))), float).reshape(-1, 4)
-    return [(float(a), float(b)) for a, _, b, _ in touches]
+def _touch_windows(run: dict) -> list[tuple[float, float]]:
+    """Unresolved touches of a run (recontacts shorter than its model resolves; ``ContactRun``'s row)."""
+    return [(float(a), float(b)) for a, _, b, _ in run["touches"]]
 
 
 def _overlaps(w, windows, gap) -> bool:

@@ -2,20 +2,22 @@
 over a grid of two scene keys, by default the ship's heel and trim.
 
 ``stowage_study(scene, {"ship.heel": [...], "ship.trim": [...]})`` runs the scene once per grid point
-(``workers`` processes at a time), and returns a ``StowageReport``: a table (markdown, CSV) and a
-chart (verdict per cell, coloured; peak force written in it).
+(``viz3d.studies``: in this process, on local worker processes or on a Dask cluster), and returns a
+``StowageReport``: a table (markdown, CSV) and a chart (verdict per cell, coloured; peak force written
+in it).
 """
 
 from __future__ import annotations
 
 import csv
-import itertools
 import json
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.plan import grid_points
 
 #: Cell colours of the chart per outcome (RGB 0-1).
 COLORS = {"seated": (0.55, 0.80, 0.55), "jammed": (0.90, 0.45, 0.40), "not reached": (0.95, 0.80, 0.40),
@@ -54,38 +56,39 @@ class StowageReport:
         return "\n".join(lines)
 
 
-def _one(args) -> StowageRun:
-    """One grid point's run; a scene error (a value the scene refuses) is a ``failed`` row, so the
-    other points' runs are kept."""
-    path, overrides, values = args
-    import viz3d
-    from viz3d.scene.schema import SceneError
+@dataclass(frozen=True)
+class StowageMeasure:
+    """Measure of the study (``viz3d.studies``): the haul's verdict and numbers of one run."""
 
-    try:
-        traj = viz3d.simulate(viz3d.load_scene(path, overrides))
-    except SceneError as exc:
-        return StowageRun(values, "failed", np.nan, np.nan, np.nan, np.nan, str(exc), 0.0)
-    x = traj.extras
-    if "stowage_verdict" not in x:
-        return StowageRun(values, "failed", float(traj.t[-1]), np.nan, np.nan, np.nan, traj.status, traj.wall_time)
-    jam = x["stowage_verdict"] == "jammed"
-    outcome = str(x["stowage_verdict"]) if traj.ok or jam else "failed"
-    return StowageRun(values, outcome, float(x["stowage_time"]), float(x["stowage_peak_force"]),
-                      float(x["stowage_position_error"]), float(x["stowage_angle_error"]), traj.status, traj.wall_time)
+    def __call__(self, scene) -> dict:
+        from viz3d.simulate import simulate
+
+        traj = simulate(scene)
+        x = traj.extras
+        if "stowage_verdict" not in x:
+            return {"outcome": "failed", "time": float(traj.t[-1]), "status": traj.status, "wall_time": traj.wall_time}
+        jam = x["stowage_verdict"] == "jammed"
+        return {"outcome": str(x["stowage_verdict"]) if traj.ok or jam else "failed", "time": float(x["stowage_time"]),
+                "peak_force": float(x["stowage_peak_force"]), "position_error": float(x["stowage_position_error"]),
+                "angle_error": float(x["stowage_angle_error"]), "status": traj.status, "wall_time": traj.wall_time}
 
 
-def stowage_study(scene: str | Path, grid: dict[str, list[float]], overrides=(), workers: int = 1) -> StowageReport:
+def _run_of(values: tuple, row: dict) -> StowageRun:
+    """A grid point's ``StowageRun`` from its row; a point the scene refuses, or a run that raised, is a
+    ``failed`` row, so the other points' runs are kept."""
+    nan = np.nan
+    return StowageRun(values, row.get("outcome", "failed"), row.get("time", nan), row.get("peak_force", nan),
+                      row.get("position_error", nan), row.get("angle_error", nan),
+                      row["status"].removeprefix("refused: "), row.get("wall_time", 0.0))
+
+
+def stowage_study(scene: str | Path, grid: dict[str, list[float]], overrides=(), cluster: Cluster = IN_PROCESS
+                  ) -> StowageReport:
     """Run ``scene`` at every point of ``grid`` (key path -> values; the product of all), with the
-    extra ``overrides``; ``workers`` processes at a time."""
+    extra ``overrides``, on ``cluster`` (``viz3d.studies.execute``)."""
     keys = tuple(grid)
-    points = list(itertools.product(*(grid[k] for k in keys)))
-    jobs = [(str(scene), [*overrides, *(f"{k}={v!r}" for k, v in zip(keys, p))], p) for p in points]
-    if workers > 1:
-        with ProcessPoolExecutor(workers) as pool:
-            runs = list(pool.map(_one, jobs))
-    else:
-        runs = [_one(j) for j in jobs]
-    return StowageReport(Path(scene).stem, keys, tuple(runs))
+    outcomes = run_study(scene, grid_points(grid), StowageMeasure(), cluster, overrides=list(overrides))
+    return StowageReport(Path(scene).stem, keys, tuple(_run_of(o.point.values, o.row) for o in outcomes))
 
 
 def save(report: StowageReport, out: Path) -> list[Path]:
