@@ -104,8 +104,8 @@ class StateLog:
         ``check(columns)`` on every chunk as it is computed (the run's health checks); it may raise.
     """
 
-    def __init__(self, sim, check=None):
-        self.sim, self.check = sim, check
+    def __init__(self, sim, check=None, chunk: int = CHUNK):
+        self.sim, self.check, self.chunk = sim, check, chunk
         self.states: list[State] = []
         self.parts: list[FrameColumns] = []
         system = sim.system
@@ -114,7 +114,7 @@ class StateLog:
     def record(self, state: State) -> None:
         """Keep ``state`` (an output instant); compute the chunk when it is full."""
         self.states.append(state)
-        if len(self.states) >= CHUNK:
+        if len(self.states) >= self.chunk:
             self.flush()
 
     def flush(self, check: bool = True) -> None:

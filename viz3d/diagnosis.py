@@ -21,6 +21,15 @@ class SimulationFailure(RuntimeError):
         self.frame = frame
 
 
+class RunComplete(Exception):
+    """A frame check that ends a run successfully (a goal reached: an anchor seated); ``str(exc)``
+    says why, ``frame`` is the index of the last frame kept among those the check was given."""
+
+    def __init__(self, message: str, frame: int):
+        super().__init__(message)
+        self.frame = frame
+
+
 #: A body whose orientation coordinates change faster than this per step [rad] is unresolved.
 MAX_COORDINATE_TURN = 1.0
 

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.diagnosis import SimulationFailure
+from viz3d.columns import FrameColumns
+from viz3d.diagnosis import RunComplete, SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals
 from viz3d.integrators import INTEGRATORS, make_integrator
@@ -32,7 +33,7 @@ from viz3d.scene.build import build, make_controller, make_formulation, make_int
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.scene.visuals import flexible_drawings, live_plots, scene_visuals
-from viz3d.simulate import Simulation
+from viz3d.simulate import Simulation, run_checks
 
 #: Frames published per second of wall time [Hz].
 DISPLAY_RATE = 60.0
@@ -72,6 +73,7 @@ class Driver:
         cfg = {**self.scene.data["sim"], **settings}
         self.sim = Simulation(self.system, state, make_integrator_from(cfg), make_formulation(cfg), float(cfg["dt"]),
                               cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
+        self._check = run_checks(self.sim, self.scene)[0]
         self._drawings = flexible_drawings(self.scene, self.system)
         self.settings = settings
 
@@ -106,6 +108,13 @@ class Driver:
 
     def frame(self) -> Frame:
         return self._frame(self.sim.state)
+
+    def check(self, frame: Frame) -> None:
+        """The run's frame checks (``viz3d.simulate.run_checks``) on a frame of the current state:
+        ``SimulationFailure`` (a drive over its capacity, a violation, energy growth) or
+        ``RunComplete`` (an anchor seated) as a headless run would stop."""
+        self._check(FrameColumns.from_frames([frame], self.system.n_bodies, len(self.system.joint_names)),
+                    [self.sim.state])
 
     def plot_values(self, frame: Frame) -> tuple[float, ...]:
         return tuple(f(frame) for f in self._series)
@@ -371,6 +380,11 @@ class SimRunner(threading.Thread):
         self._last_publish = now
         d = self.driver
         frame = d.frame()
+        if self.playing:
+            try:
+                d.check(frame)
+            except (SimulationFailure, RunComplete) as exc:  # stops as a headless run would (Play goes on)
+                self.status, self.playing = str(exc), False
         if not self._history or frame.t > self._history[-1][0]:
             self._history.append((frame.t, *d.plot_values(frame)))
         self.snapshot = Snapshot(self.generation, d.visuals, frame, self.playing, self.speed, self._rtf(), self.status,

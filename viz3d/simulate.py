@@ -17,10 +17,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from viz3d.columns import FrameColumns, StateLog
+from viz3d.columns import CHUNK, FrameColumns, StateLog
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
     EnergyWatch,
+    RunComplete,
     SimulationFailure,
     check_capacity,
     check_chart,
@@ -41,12 +42,15 @@ from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink
 from viz3d.stabilization import ProjectionError
-from viz3d.stowage import run_events, run_verdict, verdict_fields
+from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
 from viz3d.system import State, System
 from viz3d.trajectory import Trajectory
 
 #: Output interval when the scene gives none [s].
 DEFAULT_OUTPUT_DT = 0.01
+#: A run that may end at a goal (``[stowage] settle_time``) checks its frames this often [s of
+#: simulated time]: the steps it computes past the goal.
+GOAL_CHECK_INTERVAL = 0.5
 #: Show a progress bar when a run is projected to take longer than this [s] of wall time.
 PROGRESS_AFTER = 2.0
 #: Largest change of an orientation coordinate in one adaptive step [rad]: a chart is re-centred
@@ -549,6 +553,26 @@ def check_methods(scene: Scene) -> None:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
 
 
+def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
+    """The checks of a run's output frames, ``check(cols, states)`` (``cols``: their
+    ``FrameColumns``): constraint violation, energy growth of a conservative run, drives over their
+    capacity (``SimulationFailure``), and the goal of a ``[stowage]`` table with ``settle_time``
+    (``RunComplete``); and whether there is such a goal. The live viewer applies the same checks."""
+    cfg = scene.data["sim"]
+    energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
+    capacity = {d["name"]: d["capacity"] for d in scene.data["drives"] if "capacity" in d}
+    goal = seated_stop(scene.data["stowage"], sim.system.bodies.names) if "stowage" in scene.data else None
+
+    def check(cols, states):
+        check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
+        check_capacity(states, cols.scalars, capacity)
+        energy.check(cols)
+        if goal is not None:
+            goal(cols, states)
+
+    return check, goal is not None
+
+
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory (their
     frames computed a chunk at a time, ``viz3d.columns``, and checked), and frames to the ``sinks``
@@ -559,16 +583,10 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
-    energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
-
-    capacity = {d["name"]: d["capacity"] for d in scene.data["drives"] if "capacity" in d}
-
-    def check(cols, states):
-        check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
-        check_capacity(states, cols.scalars, capacity)
-        energy.check(cols)
-
-    log = StateLog(sim, check)
+    check, has_goal = run_checks(sim, scene)
+    # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
+    chunk = CHUNK if not has_goal else max(1, round(GOAL_CHECK_INTERVAL / (every * cfg["dt"])))
+    log = StateLog(sim, check, chunk)
     with InterruptGuard() as guard:
         emitter = _Emitter(sim, log, sinks, guard)
         try:
@@ -589,6 +607,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             log.flush()
         except SimulationFailure as exc:
             status = _earliest_failure(log, exc)
+        except RunComplete as done:  # the goal reached: frames up to it kept, status ok
+            emitter.announce([(log.parts[-1].t[-1], str(done))])
         except KeyboardInterrupt:
             status = f"interrupted at t = {sim.state.t:.6g} s"
         except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly

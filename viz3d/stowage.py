@@ -14,10 +14,11 @@ The peak hauling force is the largest ``|effort|`` of the drive over the run.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from viz3d.diagnosis import RunComplete
 from viz3d.outputs import HawseTension
 
 OUTCOMES = ("seated", "jammed", "not reached")
@@ -98,7 +99,27 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
         if moved < spec["stall_distance"]:
             return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
                            f"{spec['stall_time']:g} s while the drive hauled")
-    return Verdict("not reached", float(t[-1]), *args, "the haul ended short of the stowed pose")
+    return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose")
+
+
+def seated_stop(spec: dict, body_names):
+    """The run's frame check that stops the windlass once the ``[stowage]`` bodies have stayed seated
+    (``tolerance``, ``angle_tolerance``) for ``settle_time`` [s]: ``check(cols, states)`` raises
+    ``RunComplete`` at that frame; None when the spec has no ``settle_time`` (the haul runs to t_end)."""
+    if spec.get("settle_time") is None:
+        return None
+    index = [list(body_names).index(b) for b in spec["bodies"]]
+    since = [None]  # when the bodies last came within tolerance (over chunks)
+
+    def check(cols, states):
+        dist, angle = pose_errors(spec, cols.W_r, cols.R_WB, index)
+        inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
+        for i, (t, ok) in enumerate(zip(cols.t, inside)):
+            since[0] = (since[0] if since[0] is not None else t) if ok else None
+            if ok and t - since[0] >= spec["settle_time"] - 1e-9:
+                raise RunComplete(f"seated since t = {since[0]:.6g} s: the windlass stopped at t = {t:.6g} s", i)
+
+    return check
 
 
 def run_verdict(data: dict, cols, body_names) -> Verdict | None:
@@ -114,7 +135,12 @@ def run_verdict(data: dict, cols, body_names) -> Verdict | None:
                      and (coordinate is None or k == f"joint/{joint['name']}/{coordinate}_rate")), None)
     hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
     effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
-    return verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling)
+    v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling)
+    depth0 = float(np.asarray(cols.scalars.get("collision/max_depth", [0.0]))[0])
+    if v.outcome == "jammed" and depth0 > 0.0:  # a scene that starts in contact may 'jam' on its own overlap
+        v = replace(v, reason=f"{v.reason}; at t = 0 shapes already overlapped by {depth0:.3g} m (check the "
+                    "starting pose)")
+    return v
 
 
 def run_events(data: dict, cols) -> list[tuple[float, str]]:

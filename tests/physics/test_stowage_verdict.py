@@ -60,3 +60,54 @@ def test_a_body_stuck_short_of_its_pose_while_the_drive_hauls_is_jammed_else_not
     assert done.outcome == "not reached" and done.position_error == pytest.approx(0.5)
     P, R = _approach(20.0)                                                            # still on its way
     assert verdict(SPEC, T, P, R, ["anchor"], np.full(T.size, 1e5), None, hauling).outcome == "not reached"
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 101])
+def test_the_windlass_stops_once_the_anchor_has_stayed_seated_for_settle_time(chunk):
+    """seated_stop on the synthetic approach, its frames given in chunks of any length: the body
+    enters the tolerance (0.1 m, and 5 deg: the angle is 40 deg (6 - t) / 6, under 5 deg from
+    t = 5.25 s; the distance from t = 5.9 s) at t = 5.9 s; with settle_time 1.5 s the run ends at the
+    frame of t = 7.4 s (kept: the check names it); a body that leaves the tolerance restarts the clock."""
+    from types import SimpleNamespace
+
+    from viz3d.diagnosis import RunComplete
+    from viz3d.stowage import seated_stop
+
+    P, R = _approach(6.0)
+    check = seated_stop({**SPEC, "settle_time": 1.5}, ["anchor"])
+    with pytest.raises(RunComplete) as done:
+        for a in range(0, T.size, chunk):
+            check(SimpleNamespace(t=T[a:a + chunk], W_r=P[a:a + chunk], R_WB=R[a:a + chunk]), None)
+    assert T[a + done.value.frame] == pytest.approx(7.4)
+    assert "seated since t = 5.9 s" in str(done.value)
+    assert seated_stop(SPEC, ["anchor"]) is None                   # no settle_time: haul to t_end
+    away = P.copy()
+    away[66, 0, 0] += 0.5                                          # out of tolerance at t = 6.6 s
+    check = seated_stop({**SPEC, "settle_time": 1.5}, ["anchor"])
+    with pytest.raises(RunComplete) as done:
+        check(SimpleNamespace(t=T, W_r=away, R_WB=R), None)
+    assert T[done.value.frame] == pytest.approx(8.2)               # 6.7 s + 1.5 s
+
+
+@pytest.mark.parametrize("depth0", [0.0, 0.011])
+def test_a_jam_from_a_starting_overlap_says_so(depth0):
+    """run_verdict: a drive over its capacity is a jam either way; when the shapes already overlapped at
+    t = 0 (the trimmed ship that started 11 mm into the rim 'jammed' at 677 MN), the reason says so."""
+    from types import SimpleNamespace
+
+    from viz3d.stowage import run_verdict
+
+    P, R = _approach(6.0)
+    data = {"stowage": SPEC | {"drive": "windlass"}, "drives": [{"name": "windlass", "joint": "guide", "capacity": 4e5}],
+            "joints": [{"name": "guide"}]}
+    effort = np.where(T > 0.2, 7e8, 0.0)
+    depth = np.zeros(T.size)
+    depth[:3] = depth0
+    class Cols(SimpleNamespace):
+        def __len__(self):
+            return T.size
+
+    cols = Cols(t=T, W_r=P, R_WB=R, scalars={"drive/windlass/effort": effort, "collision/max_depth": depth})
+    v = run_verdict(data, cols, ["anchor"])
+    assert v.outcome == "jammed" and v.time == pytest.approx(0.3)
+    assert ("already overlapped by 0.011 m" in v.reason) == (depth0 > 0)

@@ -61,7 +61,9 @@ SHIP = Table({
     "hang": Field(positive, 0.5, "chain hanging below the pocket's lower rim at the start [m]"),
     "hauling_speed": Field(positive, 0.15, "windlass nominal speed [m/s] (9 m/min, IACS UR A3)"),
     "ramp_time": Field(positive, 2.0, "time to reach the hauling speed [s]"),
-    "margin": Field(nonnegative, 0.05, "the windlass stops this short of the stowed pose [m]"),
+    "overhaul": Field(nonnegative, 0.5, "the windlass may haul this much beyond the haul of the level ship to the "
+                      "stowed pose (heel and trim change the path) before the run ends [m]"),
+    "settle_time": Field(positive, 0.5, "the windlass stops once the anchor has stayed seated this long [s]"),
     "capacity": Field(positive, OPTIONAL, "windlass capacity [N] (default 1.5 x 42.5 d^2 N, d in mm)"),
     "mu": Field(nonnegative, 0.25, "steel on steel: sliding friction coefficient (bristle law, eqs. 3.40-3.49)"),
     "mu_static": Field(nonnegative, 0.30, "steel on steel: static friction coefficient"),
@@ -164,7 +166,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     capacity = p.get("capacity", 1.5 * 42.5 * (p["chain_diameter"] * 1e3) ** 2)
     travel = _haul_length(T, crown_stowed + eye * a + shackle_len * a, chain_len)
     v, t_r = p["hauling_speed"], p["ramp_time"]
-    t_end = t_r / 2 + max(travel - p["margin"], 0.0) / v
+    t_end = t_r / 2 + (travel + p["overhaul"]) / v
 
     def body(name, mesh, R, origin, centre, color, density):
         return {"name": name, "shape": {"type": "mesh", "generator": mesh, "params": {"mass": p["anchor_mass"]}},
@@ -233,7 +235,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
                      (crown_stowed + R_flukes_stowed @ c_flukes).tolist()],
         "axes": [R_shank_stowed.tolist(), R_flukes_stowed.tolist()],
         "tolerance": p["position_tolerance"], "angle_tolerance": p["angle_tolerance"],
-        "stall_time": p["stall_time"], "stall_distance": p["stall_distance"],
+        "stall_time": p["stall_time"], "stall_distance": p["stall_distance"], "settle_time": p["settle_time"],
         "report": {"simulated_links": n_links, "real_links_each": k, "pitch": pitch, "real_link_mass": link_mass,
                    "haul": travel, "flukes_joint": "crown", "flukes_angle0": phi0},
     }

@@ -511,6 +511,8 @@ STOWAGE = Table({
     "stall_time": Field(positive, 2.0, "jammed: the bodies move less than stall_distance over this time while the "
                         "drive hauls [s]"),
     "stall_distance": Field(positive, 0.02, "[m]"),
+    "settle_time": Field(nonnegative, OPTIONAL, "the windlass stops once the bodies have stayed seated this long [s] "
+                         "(the run ends there); absent: it hauls until sim.t_end"),
     "hawse": Field(vec3, OPTIONAL, "where the chain enters the hull, world [m]: the chain's tension there is saved "
                    "(stowage_hawse_tension)"),
     "chain": Field(string, "link", "the chain's body-name prefix (its joints are <prefix>_j<i>)"),
