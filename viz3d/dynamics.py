@@ -231,17 +231,28 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
 def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple = (),
               drives: float = 0.0) -> FloatArray:
     """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
-    contact ``F alpha_dot``, the damping power of the flexible bodies, the work in: the power of the
-    force elements' non-conservative forces (``ForceElement.nonconservative_power``) plus ``drives``,
+    contact ``F alpha_dot``; the power taken by dampers: the flexible bodies' damping and the
+    non-potential power of dissipative force elements (``ForceElement.dissipative``: dampers, stops,
+    drag, shape contacts' damping and friction); the work in: the power of the other elements'
+    non-conservative forces (``ForceElement.nonconservative_power``: motors, applied loads) and of the
+    flexible bodies' geometric stiffening (``viz3d.flexible.floating.stiffening_power``) plus ``drives``,
     the drives' power (``drive_power``) [W]."""
     parts = [c.power(cfg, memory[k] if memory else c.initial_phases()) for k, c in enumerate(system.contacts)]
     # (called only when the system keeps a ledger: some contact set is located, or a drive works)
-    damping = 0.0
+    damping = stiffening = 0.0
     for i, fb in enumerate(system.bodies.flexible):
         damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
-    power_in = sum(element.nonconservative_power(cfg) if not elements or elements[i] is None
-                   else element.nonconservative_power(cfg, elements[i]) for i, element in enumerate(system.forces))
-    return np.concatenate(parts + [[damping, power_in + drives]])
+        if fb.floating:
+            stiffening += ffr.stiffening_power(fb.bar, cfg.twist.B_omega[fb.index], cfg.eta[i], cfg.eta_dot[i])
+    power_in = stiffening + drives
+    for i, element in enumerate(system.forces):
+        power = (element.nonconservative_power(cfg) if not elements or elements[i] is None
+                 else element.nonconservative_power(cfg, elements[i]))
+        if element.dissipative:
+            damping -= power
+        else:
+            power_in += power
+    return np.concatenate(parts + [[damping, power_in]])
 
 
 def drive_power(lam: FloatArray, C_t: FloatArray | None) -> float:

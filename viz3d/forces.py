@@ -44,6 +44,9 @@ class ForceElement(ABC):
     #: Forces smooth in the positions (False: shape contacts, whose contact sets change between
     #: nearby configurations, so a difference tangent across a change misleads Newton; ``viz3d.ali3p``).
     smooth: ClassVar[bool] = True
+    #: Its non-potential power is a loss (dampers, stops, drag, contact damping and friction): the
+    #: energy ledger books it as dissipated, not as (negative) work in (``viz3d.dynamics.aux_rates``).
+    dissipative: ClassVar[bool] = False
 
     @abstractmethod
     def wrench(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray | None]:
@@ -182,6 +185,7 @@ class SpringDamper(ForceElement):
     """
 
     type_name = "spring_damper"
+    dissipative = True
     names: tuple[str, ...]
     body: IntArray
     B_s: FloatArray
@@ -258,7 +262,7 @@ def _spring(d, t, v, power):
         for c in range(3):
             f[c] = K * (f[c] - l0 * f[c] * inv) + D * length_d * f[c] * inv
         apply_pair(v, p1, p2, f)
-        power[power.shape[0] - 1] -= D * length_d * length_d
+        power[power.shape[0] - 2] += D * length_d * length_d  # (dissipated: the dampers' slot)
 
 
 @compiled_piece(energy_piece, SpringItems)
@@ -499,6 +503,7 @@ class JointStop(JointCoordinateForce):
     """
 
     type_name = "joint_stop"
+    dissipative = True
     lower: FloatArray = field(default=None)
     upper: FloatArray = field(default=None)
     stiffness: FloatArray = field(default=None)
@@ -556,7 +561,7 @@ def _joint_stop(d, t, v, power):
         force, spring = _stop_effort(d.f[k], q, q_dot)
         if force != 0.0 or spring != 0.0:
             _coordinate_force(v, d, k, force, u, v.v3[25])
-            power[power.shape[0] - 1] += (force - spring) * q_dot
+            power[power.shape[0] - 2] -= (force - spring) * q_dot  # (dissipated: the dampers' slot)
 
 
 @compiled_piece(energy_piece, JointStopItems)

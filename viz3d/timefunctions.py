@@ -9,9 +9,12 @@ sine        ``sin(2 pi frequency t + phase)``
 step        ``1`` for ``t >= start``, else ``0``
 ramp        ``0`` before ``start``, linear to ``1`` over ``duration``, then ``1``
 pulse       ``1`` for ``start <= t < start + duration``, else ``0``
+smooth_ramp ``0`` before ``start``, ``tau / T - sin(2 pi tau / T) / (2 pi)`` over ``T = duration``
+            (``tau = t - start``), then ``1``: a cycloidal ramp, its rate and acceleration
+            continuous (Kane, Ryan & Banerjee's spin-up as a velocity profile)
 ==========  ===================================================================
 
-A scene never executes code; these five shapes are the whole vocabulary.
+A scene never executes code; these six shapes are the whole vocabulary.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.compiled import jit
 
-TIME_FUNCTIONS = ("constant", "sine", "step", "ramp", "pulse")
+TIME_FUNCTIONS = ("constant", "sine", "step", "ramp", "pulse", "smooth_ramp")
 
 
 @dataclass(frozen=True)
@@ -75,6 +78,7 @@ class TimeFunctions:
             (tau >= 0).astype(float),
             ramp,
             ((tau >= 0) & (tau < self.duration)).astype(float),
+            np.where(self.duration > 0, ramp - np.sin(2 * np.pi * ramp) / (2 * np.pi), ramp),
         ])
         return np.take_along_axis(table, self.kind[None], axis=0)[0]
 
@@ -105,6 +109,9 @@ def value(kind, f, t, out):
             shape = 1.0 if tau >= 0.0 else 0.0
     elif kind == 4:
         shape = 1.0 if (tau >= 0.0 and tau < f[9]) else 0.0
+    elif kind == 5:
+        shape = min(max(tau / f[9], 0.0), 1.0) if f[9] > 0.0 else (1.0 if tau >= 0.0 else 0.0)
+        shape -= math.sin(2.0 * math.pi * shape) / (2.0 * math.pi)
     else:
         shape = 0.0
     for c in range(3):
@@ -113,7 +120,7 @@ def value(kind, f, t, out):
 
 #: Profiles a drive may follow (``profile``): a prescribed position must have a bounded second
 #: derivative (sine or constant); a prescribed velocity a bounded first derivative (ramp too).
-PROFILE_KINDS = {"position": ("constant", "sine"), "velocity": ("constant", "sine", "ramp")}
+PROFILE_KINDS = {"position": ("constant", "sine", "smooth_ramp"), "velocity": ("constant", "sine", "ramp", "smooth_ramp")}
 
 
 @jit
@@ -150,6 +157,18 @@ def profile(kind, velocity, f, t):
             s = 1.0
         elif tau > 0.0:
             s, ds = tau / T, 1.0 / T
+    elif kind == 5 and f[9] > 0.0:  # smooth ramp from f[8] over f[9]: S = I(t - start) - I(-start)
+        T, a = f[9], 2.0 * math.pi / f[9]
+        for tau, sign in ((t - f[8], 1.0), (-f[8], -1.0)):
+            if tau >= T:
+                S += sign * (tau - 0.5 * T)
+            elif tau > 0.0:
+                S += sign * (0.5 * tau * tau / T + (math.cos(a * tau) - 1.0) / (a * a * T))
+        tau = t - f[8]
+        if tau >= T:
+            s = 1.0
+        elif tau > 0.0:
+            s, ds, dds = tau / T - math.sin(a * tau) / (2.0 * math.pi), (1.0 - math.cos(a * tau)) / T, a * math.sin(a * tau) / T
     if velocity == 1:
         return a0 * t + a1 * S, a0 + a1 * s, a1 * ds
     return a0 + a1 * s, a1 * ds, a1 * dds

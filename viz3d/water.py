@@ -205,6 +205,7 @@ class Water(ForceElement):
     """
 
     type_name: ClassVar[str] = "water"
+    dissipative: ClassVar[bool] = True
     #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
     scalar_names: ClassVar[tuple[str, ...]] = ("water/submerged_volume", "water/buoyancy")
     #: The live viewer's plot of this element: (title, frame scalar).

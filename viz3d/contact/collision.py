@@ -349,6 +349,7 @@ class Collisions(ForceElement):
     """
 
     type_name: ClassVar[str] = "collisions"
+    dissipative: ClassVar[bool] = True
     #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
     scalar_names: ClassVar[tuple[str, ...]] = ("collision/contacts", "collision/max_depth", "collision/normal_force")
     #: The live viewer's plot of this element: (title, frame scalar).

@@ -44,8 +44,18 @@ modal units as in ``viz3d.flexible``):
 
   with ``Q_velocity`` the centrifugal, Coriolis and gyroscopic terms (``-w x J0 w`` for a rigid
   body) and torques in body axes: ``Q = [W_F, B_tau, Q_eta]``.
-* **Not modelled.** Geometric (centrifugal) stiffening, torsion, the sections' rotation beyond
-  first order. Given the linear field, T and everything below are exact (no further approximation).
+* **Geometric stiffening** (optional, ``with_geometric_stiffening``; docs/notation.md, "Geometric
+  stiffening"): the centrifugal tension of the frame's rotation ``w_perp^2 n(x)`` (``w_perp^2 =
+  |w|^2 - (e_x . w)^2``, ``n(x) = int rho A |xi - x_s| dxi`` from x away from the stiffening centre
+  ``x_s``, the supported end or else G, to the bar's end, plus point masses) acting on the slopes: the
+  motion-induced geometric stiffness ``Q_eta -= w_perp^2 K_w eta``, ``K_w = int n U_perp'^T U_perp' dx``
+  (Banerjee & Dickens 1990, its centrifugal load case; the first-order effect of Kane, Ryan & Banerjee's
+  foreshortening). It depends on the frame's motion, so it is not a potential: the frame feels no
+  foreshortening (as kineto-elastodynamics), and its power ``-w_perp^2 eta_dot^T K_w eta`` is booked
+  with the work in of the energy ledger. Exact for a support at rest (the spin-up beam); the
+  support's acceleration and gravity's axial load are left out.
+* **Not modelled.** Torsion, the sections' rotation beyond first order. Given the linear field, T and
+  everything below are exact (no further approximation).
 
 Inertia invariants (``FloatingBar``; n elastic coordinates, N the inertial field above, dm over
 the bar's line mass and point masses): ``m``; ``S = int U dm`` (3, n); ``I0 = int s0 s0^T dV`` (3, 3);
@@ -70,16 +80,17 @@ acceleration ``a = w x (w x s) + 2 w x N eta_dot`` of every material point,
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.linalg import eigh
 
 from viz3d._typing import FloatArray
 from viz3d.flexible.bar import BarModel, Material, PointMass, Section, gauss_points
 from viz3d.rotations import cross, skew
 
 E_X = np.array([1.0, 0.0, 0.0])
+#: Projection normal to the bar's axis, ``I - e_x e_x^T``.
+P_AXIS = np.diag([0.0, 1.0, 1.0])
 #: Default depth direction of the section (the bending plane of a single bending field is x-y).
 E_Y = np.array([0.0, 1.0, 0.0])
 #: Directions are unit vectors and bending directions normal to e_x to this tolerance (they are
@@ -158,6 +169,11 @@ class FloatingBar:
         Block-diagonal stiffness of the fields [N/m per unit eta^2].
     C : ndarray, shape (n, n)
         Damping: ``modal_damping`` ratio on every mode of (K, M_ee); zero by default.
+    K_omega : ndarray, shape (n, n), or None
+        Centrifugal geometric stiffness per unit ``w_perp^2`` [kg m^2 per unit eta^2]
+        (``with_geometric_stiffening``); None: no stiffening.
+    x_s : float
+        Stiffening centre [m] (where the foreshortening is measured from).
     """
 
     length: float
@@ -186,6 +202,8 @@ class FloatingBar:
     M_ee: FloatArray = field(repr=False)
     K: FloatArray = field(repr=False)
     C: FloatArray = field(repr=False)
+    K_omega: FloatArray | None = field(default=None, repr=False)
+    x_s: float = 0.0
 
     @property
     def n(self) -> int:
@@ -261,6 +279,33 @@ def rigid_bar(length: float, material: Material, section: Section, point_masses:
     """The same body without deformation fields (n = 0): a rigid bar."""
     return _assemble(length, material, section, tuple(point_masses), (), (), np.zeros((0, 3)),
                      E_Y if depth_axis is None else depth_axis, lateral_second_moment, 0.0)
+
+
+def with_geometric_stiffening(bar: FloatingBar) -> FloatingBar:
+    """``bar`` with centrifugal geometric stiffening (module docstring): ``K_omega`` about the
+    stiffening centre, the first supported end of its bending fields (x = 0, else L), else G."""
+    bending = [m for m in bar.fields if m.kind == "bending"]
+    if not bending:
+        raise ValueError("geometric stiffening needs a bending field")
+    supports = bending[0].supports
+    x_s = 0.0 if supports[0] != "free" else (bar.length if supports[1] != "free" else bar.x_G)
+    x, w = _quadrature(bar.fields, bar.length)
+    U1 = _columns([m.shape(x, "u", 1) for m in bar.fields], len(x))[:, None, :] * bar.D[None]   # (m, 3, n)
+    U1 -= E_X[None, :, None] * np.einsum("i,miq->mq", E_X, U1)[:, None, :]                     # normal part
+    K_omega = np.einsum("m,miq,mip->qp", w * _tension_per_omega2(bar, x, x_s), U1, U1)
+    return replace(bar, K_omega=_symmetric(K_omega), x_s=float(x_s))
+
+
+def _tension_per_omega2(bar: FloatingBar, x: FloatArray, x_s: float) -> FloatArray:
+    """``n(x) = int rho A |xi - x_s| dxi + sum m_j |x_j - x_s|`` from x away from x_s to the bar's end
+    (m,) [kg m]: the centrifugal tension per unit ``w_perp^2`` of a bar turning about ``x_s``."""
+    rhoA = bar.material.rho * bar.section.area
+    end = np.where(x >= x_s, bar.length, 0.0)
+    n = 0.5 * rhoA * ((end - x_s) ** 2 - (x - x_s) ** 2)
+    for pm in bar.point_masses:
+        beyond = np.where(x >= x_s, pm.x >= x, pm.x <= x) & (np.sign(pm.x - x_s) == np.sign(x - x_s))
+        n += pm.mass * abs(pm.x - x_s) * beyond
+    return n
 
 
 def _unit(d) -> FloatArray:
@@ -408,6 +453,7 @@ def _block_diagonal(blocks: Sequence[FloatArray]) -> FloatArray:
 def modal_damping_matrix(M: FloatArray, K: FloatArray, zeta: float) -> FloatArray:
     """``C = M V diag(2 zeta omega) V^T M`` (n, n) with ``K V = M V diag(omega^2)``, ``V^T M V = I``:
     damping ratio ``zeta`` on every mode, none on rigid (zero-frequency) ones."""
+    from scipy.linalg import eigh
     if zeta < 0:
         raise ValueError(f"modal damping ratio must be >= 0, got {zeta}")
     if zeta == 0 or M.shape[0] == 0:
@@ -493,7 +539,22 @@ def velocity_forces(bar: FloatingBar, R_WB: FloatArray, B_omega: FloatArray, eta
     Q_v = -R_WB @ (cross(w, cross(w, s_c)) + 2.0 * cross(w, s_c_dot))
     Q_w = -cross(w, J @ w) - 2.0 * (np.trace(Y) * w - Y @ w)
     Q_eta = -np.einsum("ij,jiq->q", W, F) - 2.0 * np.einsum("ij,ijqp,p->q", skew(w), bar.B, eta_dot)
+    if bar.K_omega is not None:
+        Q_eta -= stiffening_rate(bar, w) * (bar.K_omega @ eta)
     return np.concatenate([Q_v, Q_w, Q_eta])
+
+
+def stiffening_rate(bar: FloatingBar, B_omega: FloatArray) -> float:
+    """``w_perp^2 = B_omega^T P B_omega`` [rad^2/s^2]: the squared rate of turning about axes normal to the bar."""
+    return float(B_omega @ P_AXIS @ B_omega)
+
+
+def stiffening_power(bar: FloatingBar, B_omega: FloatArray, eta: FloatArray, eta_dot: FloatArray) -> float:
+    """Power of the geometric stiffness force, ``-w_perp^2 eta_dot^T K_w eta`` [W] (0 without it): not a
+    potential's, it goes with the ledger's work in."""
+    if bar.K_omega is None:
+        return 0.0
+    return -stiffening_rate(bar, B_omega) * float(eta_dot @ bar.K_omega @ eta)
 
 
 def elastic_forces(bar: FloatingBar, eta: FloatArray, eta_dot: FloatArray) -> FloatArray:

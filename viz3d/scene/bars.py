@@ -15,7 +15,7 @@ from viz3d._typing import FloatArray
 from viz3d.bodies import FlexibleBody
 from viz3d.flexible import BarModel, Material, PointMass, Section, analytic_modes, contact_band, fe_model, reduce, select_modes
 from viz3d.flexible.bar import rigid_mode_count
-from viz3d.flexible.floating import E_X, E_Y, floating_bar
+from viz3d.flexible.floating import E_X, E_Y, floating_bar, with_geometric_stiffening
 from viz3d.scene.schema import SceneError
 
 #: Reference model used to choose a mode count from a tolerance: this many analytic modes.
@@ -122,8 +122,12 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
     """The scene's flexible body ``index`` and how its model was chosen."""
     model, choice = bar_model(bar, src, where)
     direction = E_X if model.kind == "axial" else E_Y
+    if bar["geometric_stiffening"] and model.kind != "bending":
+        raise SceneError(src, f"{where}.geometric_stiffening", "false for a rod: it stiffens bending fields", True)
     try:
         body = floating_bar(model, direction, depth_axis=E_Y, modal_damping=bar["damping"])
+        if bar["geometric_stiffening"]:
+            body = with_geometric_stiffening(body)
     except (ValueError, ArithmeticError) as exc:  # e.g. inertia invariants out of floating-point range
         raise SceneError(src, where, _uncomputable(bar, exc)) from None
     axis, R0 = bar_frame(bar)

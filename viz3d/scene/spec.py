@@ -173,6 +173,8 @@ BODY_TYPES = {
         "coupling": Field(one_of("coupled", "ked"), "coupled", "coupled: the floating frame and the deformation "
                           "act on each other; ked: kineto-elastodynamic (seed 003), the frame moves as the rigid "
                           "body and drives the deformation without feedback (joints at the undeformed sections)"),
+        "geometric_stiffening": Field(boolean, False, "centrifugal stiffening of bending: the foreshortening's "
+                                      "kinetic energy about the supported end (docs/notation.md); a bending bar"),
         "point_masses": Field(ArrayOf(POINT_MASS), list, "rigid point masses on the axis"),
         "position": Field(vec3, doc="world position of the end x = 0 [m]"),
         "axis": Field(nonzero_vec3, [1.0, 0.0, 0.0], "world direction of the bar axis (x = 0 to x = L)"),
@@ -488,14 +490,14 @@ DRIVE = Table({
     "coordinate": Field(string, OPTIONAL, "its coordinate (angle, angle1, angle2, distance; default: the first)"),
     "mode": Field(one_of(*PROFILE_KINDS), "velocity", "what the profile prescribes: the coordinate's velocity "
                   "(integrated from 0 at t = 0) or its position"),
-    "kind": Field(one_of(*TIME_FUNCTIONS), "constant", "profile = value + amplitude * f(t); position: constant or "
-                  "sine; velocity: constant, sine or ramp"),
+    "kind": Field(one_of(*TIME_FUNCTIONS), "constant", "profile = value + amplitude * f(t); position: constant, "
+                  "sine or smooth_ramp; velocity: constant, sine, ramp or smooth_ramp"),
     "value": Field(number, 0.0, "constant part [rad, m or per s]"),
     "amplitude": Field(number, 0.0, "amplitude [rad, m or per s]"),
     "frequency": Field(nonnegative, 0.0, "[Hz] (sine)"),
     "phase": Field(number, 0.0, "[rad] (sine)"),
-    "start": Field(number, 0.0, "[s] (ramp)"),
-    "duration": Field(nonnegative, 0.0, "[s] (ramp)"),
+    "start": Field(number, 0.0, "[s] (ramp, smooth_ramp)"),
+    "duration": Field(nonnegative, 0.0, "[s] (ramp, smooth_ramp)"),
     "capacity": Field(positive, OPTIONAL, "largest |effort| the drive can give [N or N m] (a windlass's): the run "
                       "stops with a diagnosis at the first output frame that needs more"),
 }, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
