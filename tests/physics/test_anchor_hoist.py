@@ -84,6 +84,10 @@ def test_the_default_ship_seats_its_anchor():
     assert x["stowage_verdict"] == "seated", (x["stowage_reason"], x["stowage_position_error"], x["stowage_angle_error"])
     capacity = 1.5 * 42.5 * (traj.scene["scene"]["ship"]["chain_diameter"] * 1e3) ** 2
     assert 0.0 < x["stowage_peak_force"] < capacity
+    # the windlass stopped settle_time after seating (frames checked every 0.5 s), before sim.t_end
+    settle = traj.scene["scene"]["stowage"]["settle_time"]
+    assert x["stowage_time"] + settle - 1e-9 <= traj.t[-1] <= x["stowage_time"] + settle + 0.5 + 1e-9
+    assert traj.t[-1] < traj.scene["scene"]["sim"]["t_end"]
 
 
 @pytest.mark.slow
