@@ -1,14 +1,15 @@
 """viz3d against MuJoCo on the same N-link ball-joint chain, in one run (a benchmark, not a test).
 
-    pip install mujoco      # optional: without it only viz3d is measured
+    pip install -e '.[peers]'   # optional (MuJoCo): without it only viz3d is measured
     python benchmarks/bench_mujoco.py [--n 2,5,10,20,50] [--t-end 1.0] [--out docs/bench_mujoco.png]
 
-Both simulators get the identical physical model: the `chain` scene's capsule links (mass and
-principal inertia computed by viz3d, given to MuJoCo as explicit <inertial>), ball joints at the
-link ends, gravity, the same initial rigid rotation about the anchor, RK4 at the same step, no
-contacts. Accuracy: every run's link centres of mass at t_end are compared with a reference, the
-viz3d RK4 solution at dt/16 (its own self-convergence is printed; MuJoCo at dt/16 must agree with
-it, which checks that the two models are the same). Time per step is the best of three.
+Both simulators get the identical physical model (``peers.mujoco_xml``, shared with
+bench_peers.py): the `chain` scene's capsule links (mass and inertia computed by viz3d, given to
+MuJoCo as explicit <inertial>), ball joints at the link ends, gravity, the same initial rigid
+rotation about the anchor, RK4 at the same step, no contacts. Accuracy: every run's link centres
+of mass at t_end are compared with a reference, the viz3d RK4 solution at dt/16 (its own
+self-convergence is printed; MuJoCo at dt/16 must agree with it, which checks that the two models
+are the same). Time per step is the best of three.
 Columns: viz3d with NumPy (the reference implementation), viz3d with the compiled kernel
 (viz3d.kernel, numba), MuJoCo; errors in metres. "Equal accuracy": viz3d is also run at the step
 whose error matches MuJoCo's (RK4's h^4 scaling picks it; the error actually reached is printed),
@@ -22,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from peers import mujoco_model, mujoco_reset, rigid_tree
 
 import viz3d
 from viz3d.integrators import make_integrator
@@ -37,7 +39,8 @@ DT = 5e-4
 def chain(n: int):
     scene = viz3d.load_scene(ROOT / "scenes" / "chain.toml", [f"chain.n={n}"])
     system, state = viz3d.build(scene)
-    return scene, system, state, make_formulation(scene.data["sim"])
+    tree = rigid_tree(scene, viz3d.simulate(scene, t_end=0.01))  # the peers' model, from the first frame
+    return tree, system, state, make_formulation(scene.data["sim"])
 
 
 def positions_kernel(system, state, formulation, dt: float, t_end: float):
@@ -71,46 +74,19 @@ def time_numpy(system, state, formulation, steps: int) -> float:
     return best / steps
 
 
-def mujoco_model(scene, system, dt: float):
-    """MJCF of the same chain: link i's frame at its upper joint, x along the link."""
-    import mujoco
-
-    c = scene.data["chain"]
-    L = c["link_length"]
-    m, I = float(system.bodies.mass[0]), system.bodies.inertia[0].tolist()
-    # viz3d body axes: z along the link; MuJoCo body x along the link -> (Izz, Ixx, Iyy)
-    diag = f"{I[2][2]!r} {I[0][0]!r} {I[1][1]!r}"
-    body = ""
-    for i in reversed(range(c["n"])):
-        pos = "0 0 0" if i == 0 else f"{L!r} 0 0"
-        body = (f'<body pos="{pos}"><joint type="ball" damping="0"/>'
-                f'<inertial pos="{L / 2!r} 0 0" mass="{m!r}" diaginertia="{diag}"/>'
-                f'<geom type="capsule" fromto="0 0 0 {L!r} 0 0" size="{c["radius"]!r}" contype="0" conaffinity="0"/>'
-                f"{body}</body>")
-    anchor = " ".join(repr(float(x)) for x in c["anchor"])
-    body = f'<body pos="{anchor}">' + body[len('<body pos="0 0 0">'):]  # the first link hangs at the anchor
-    xml = (f'<mujoco><option integrator="RK4" timestep="{dt!r}" gravity="0 0 -9.81"/>'
-           f"<worldbody>{body}</worldbody></mujoco>")
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    data.qvel[:3] = c["omega"]  # first ball joint: angular velocity of link 0 (its frame = world at t = 0)
-    return mujoco, model, data
-
-
-def positions_mujoco(scene, system, dt: float, t_end: float):
-    mujoco, model, data = mujoco_model(scene, system, dt)
-    for _ in range(round(t_end / dt)):
-        mujoco.mj_step(model, data)
+def positions_mujoco(tree, dt: float, t_end: float):
+    """Centres of mass of the links at ``t_end`` in MuJoCo (RK4, step ``dt``), world [m]."""
+    mujoco, model, data = mujoco_model(tree, dt)
+    mujoco.mj_step(model, data, nstep=round(t_end / dt))
     mujoco.mj_forward(model, data)
-    return data.xipos[1:].copy()  # centres of mass of the links, world
+    return data.xipos[[model.body(f"b{i}").id for i in range(len(tree.mass))]].copy()
 
 
-def time_mujoco(scene, system, steps: int) -> float:
-    mujoco, model, data = mujoco_model(scene, system, DT)
+def time_mujoco(tree, steps: int) -> float:
+    mujoco, model, data = mujoco_model(tree, DT)
     best = np.inf
     for _ in range(3):
-        mujoco.mj_resetData(model, data)
-        data.qvel[:3] = scene.data["chain"]["omega"]
+        mujoco_reset(tree, model, data)
         t0 = time.perf_counter()
         for _ in range(steps):
             mujoco.mj_step(model, data)
@@ -119,7 +95,7 @@ def time_mujoco(scene, system, steps: int) -> float:
 
 
 def measure(n: int, t_end: float, steps: int) -> dict:
-    scene, system, state, form = chain(n)
+    tree, system, state, form = chain(n)
     ref = positions_kernel(system, state, form, DT / 16, t_end)
     ref8 = positions_kernel(system, state, form, DT / 8, t_end)
     row = {"n": n, "ref_self": float(np.abs(ref8 - ref).max()),
@@ -127,9 +103,9 @@ def measure(n: int, t_end: float, steps: int) -> dict:
            "us_numpy": 1e6 * time_numpy(system, state, form, min(steps, 400)),
            "us_kernel": 1e6 * time_kernel(system, state, form, steps)}
     try:
-        row["err_mujoco"] = float(np.abs(positions_mujoco(scene, system, DT, t_end) - ref).max())
-        row["mujoco_vs_ref"] = float(np.abs(positions_mujoco(scene, system, DT / 16, t_end) - ref).max())
-        row["us_mujoco"] = 1e6 * time_mujoco(scene, system, steps)
+        row["err_mujoco"] = float(np.abs(positions_mujoco(tree, DT, t_end) - ref).max())
+        row["mujoco_vs_ref"] = float(np.abs(positions_mujoco(tree, DT / 16, t_end) - ref).max())
+        row["us_mujoco"] = 1e6 * time_mujoco(tree, steps)
     except ImportError:
         return row
     # equal accuracy: the viz3d step whose error matches MuJoCo's (global RK4 error ~ h^4), run and measured

@@ -36,9 +36,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.linalg import lu_factor, lu_solve
-from scipy.sparse.linalg import splu
 
 from viz3d._typing import FloatArray
 from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
@@ -246,15 +243,19 @@ class _DenseLU:
     """LAPACK's LU of a dense matrix with SuperLU's ``solve`` interface."""
 
     def __init__(self, A):
+        from scipy.linalg import lu_factor
         self.lu = lu_factor(A)
 
     def solve(self, b):
+        from scipy.linalg import lu_solve
         return lu_solve(self.lu, b)
 
 
 def _factor(A):
     """Factors of the square matrix ``A`` with ``.solve(b)``: SuperLU (COLAMD column order) for a
     sparse one, LAPACK's LU for a dense one (``_dense``)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
     return splu(sp.csc_matrix(A)) if sp.issparse(A) else _DenseLU(A)
 
 

@@ -251,40 +251,32 @@ def _stamp(files: tuple[str, ...]) -> str:
 def stamped_files() -> tuple[str, ...]:
     """The source files with compiled code: this module, every module of viz3d that imports it,
     and the files of pieces registered from elsewhere (independent of import order)."""
-    ours = {str(p) for p in PACKAGE.rglob("*.py") if p.name == "compiled.py" or _uses_compiled(p)}
-    return tuple(sorted(ours | _SOURCES))
+    return tuple(sorted(set(_package_sources()) | _SOURCES))
 
 
 def source_stamp() -> str:
-    """One hash of ``stamped_files``: the key of every cached compiled function of viz3d."""
-    files = stamped_files()
-    return _stamp_cached(files, tuple(_mtime(f) for f in files))
+    """One hash of ``stamped_files``: the key of every cached compiled function of viz3d.
+
+    Hashed once per set of files in a process (numba asks for it once per compiled function, 80 and
+    more at start): a process compiles the code it imported, so a file edited while it runs must
+    not change its key (it would store the old code under the new file's stamp)."""
+    return _stamp_cached(stamped_files())
 
 
 @functools.lru_cache(maxsize=8)
-def _stamp_cached(files: tuple[str, ...], mtimes: tuple) -> str:
+def _stamp_cached(files: tuple[str, ...]) -> str:
     return _stamp(files)
 
 
-def _mtime(name: str) -> tuple:
-    try:
-        st = Path(name).stat()
-        return st.st_mtime_ns, st.st_size
-    except OSError:
-        return None
-
-
-@functools.lru_cache(maxsize=None)
-def _uses_compiled_cached(path: str, mtime: float) -> bool:
-    try:
-        return "viz3d.compiled import" in Path(path).read_text(encoding="utf-8")
-    except OSError:
-        return False
+@functools.cache
+def _package_sources() -> tuple[str, ...]:
+    """``compiled.py`` and the modules of viz3d that import it (the package is read once per process)."""
+    return tuple(str(p) for p in PACKAGE.rglob("*.py") if p.name == "compiled.py" or _uses_compiled(p))
 
 
 def _uses_compiled(path: Path) -> bool:
     try:
-        return _uses_compiled_cached(str(path), path.stat().st_mtime)
+        return "viz3d.compiled import" in path.read_text(encoding="utf-8")
     except OSError:
         return False
 
@@ -307,7 +299,8 @@ def _install_stamp_locators() -> None:
         import warnings
 
         warnings.warn(f"numba {numba.__version__}: cannot key the kernel cache on all of viz3d's compiled "
-                      "sources; after an edit of an element's piece, clear the numba cache", RuntimeWarning)
+                      "sources; after an edit of an element's piece, clear the numba cache", RuntimeWarning,
+                      stacklevel=2)
         return
     ours = []
     for base in bases:

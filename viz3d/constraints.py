@@ -23,9 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.joints import Joint
@@ -221,6 +218,8 @@ def _shared_body_pairs(row_body: IntArray, n_bodies: int):
 
 
 def _bandwidth_order(r_idx: IntArray, k_idx: IntArray, n_c: int) -> IntArray:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
     if n_c == 0:
         return np.zeros(0, dtype=int)
     graph = coo_matrix((np.ones(len(r_idx)), (r_idx, k_idx)), shape=(n_c, n_c)).tocsr()
@@ -338,6 +337,7 @@ def schur_solve(layout: ConstraintLayout, mass, J: FloatArray, b: FloatArray, sh
     SingularConstraintError
         If the matrix is not positive definite (the Jacobian lost rank).
     """
+    from scipy.linalg import lapack
     if layout.n_rows == 0:
         return np.zeros(0)
     M_inv = mass if isinstance(mass, np.ndarray) else mass.M_inv

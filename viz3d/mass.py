@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 
 from viz3d._typing import FloatArray
 from viz3d.bodies import FlexibleBody
@@ -47,6 +46,7 @@ class MassMatrix:
 
     def solve(self, frame: FloatArray, elastic: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``M^-1 x`` for ``x = (frame (nb + 1, 6), elastic (n_e,))``, in the same split form."""
+        from scipy.linalg import cho_solve
         a = np.einsum("bij,bj->bi", self.M_inv, frame)
         a_e = np.zeros_like(elastic)
         for i, fb in enumerate(self.flexible):
@@ -59,6 +59,7 @@ class MassMatrix:
 
     def solve_block(self, i: int, G: FloatArray) -> FloatArray:
         """``M_b^-1 G^T`` for flexible body ``i`` and rows ``G`` (m, width): shape (width, m)."""
+        from scipy.linalg import cho_solve
         return cho_solve(self.factors[i], G.T)
 
 
@@ -66,6 +67,8 @@ def mass_matrix(bodies, v_elastic: tuple[slice, ...], cfg: Configuration) -> Mas
     """The mass matrix of ``bodies`` at ``cfg`` (factorizes each flexible body's block)."""
     if not bodies.flexible:
         return MassMatrix(bodies.M_inv)
+    from scipy.linalg import cho_factor
+
     factors = tuple(cho_factor(fb.mass_matrix(cfg.pose.R_WB[fb.index], cfg.eta[i]))
                     for i, fb in enumerate(bodies.flexible))
     return MassMatrix(bodies.M_inv, bodies.flexible, factors, v_elastic)

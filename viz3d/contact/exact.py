@@ -24,9 +24,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.polynomial import Polynomial
-from scipy.integrate import quad
-from scipy.optimize import brentq
-from scipy.special import betaincinv
 
 from viz3d._typing import FloatArray
 
@@ -138,6 +135,7 @@ class HertzImpact:
         ``t(x) = alpha_MC / v * 2/5 B(x^2.5; 2/5, 1/2)`` for ``x = alpha / alpha_MC`` (incomplete beta),
         inverted with ``betaincinv``; symmetric about maximum compression.
         """
+        from scipy.special import betaincinv
         t = np.asarray(t, dtype=float)
         half = 0.5 * self.contact_time
         tau = np.clip(np.where(t <= half, t, self.contact_time - t), 0.0, half) / half
@@ -152,6 +150,7 @@ def hertz_impact(K_h: float, m1: float, m2: float, v: float) -> HertzImpact:
     The contact time is ``2 alpha_MC / v * integral_0^1 dx / sqrt(1 - x^2.5)``, evaluated by quadrature
     with the endpoint singularity as an algebraic weight.
     """
+    from scipy.integrate import quad
     mu = 1.0 / (1.0 / m1 + 1.0 / m2)
     r = K_h / mu
     alpha_max = (1.25 * v**2 / r) ** 0.4
@@ -585,6 +584,7 @@ def _flight_step(a, b, V_a, X_a, u_a, s_in, k):
 
 def _first_sign_change(f, length: float) -> float | None:
     """First ``x`` in ``(0, length]`` where ``f`` (positive just after 0) becomes <= 0, else None."""
+    from scipy.optimize import brentq
     if length <= TIME_EPS:
         return None
     if f(0.0) < 0.0:
@@ -737,6 +737,7 @@ def model_c_impacts(m1: float, m_eq: float, k: float, v: float, e: float) -> Mod
 
 def _next_balance(x1, x2, v1, v2, omega) -> float | None:
     """Time to the next closing of the gap ``x2 - x1``, or None if the masses never meet again."""
+    from scipy.optimize import brentq
     period = 2.0 * np.pi / omega
 
     def gap(tau):

@@ -15,7 +15,6 @@ the text says "rigid sphere" (digest Appendix A item 14); the ``*_thesis`` funct
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 #: Peak Hertz pressure at first yield, p0 / sigma_Y, for nu ~ 0.3 (von Mises; Johnson 1985, sec. 6.2).
 #: It gives the thesis's 25.27 = (1.6 pi)^2 in (7.26).
@@ -151,6 +150,7 @@ def power_plastic_constants(K_h: float, alpha_Y: float, alpha_fp: float) -> tupl
     K_hY : float [N/m^n]
     n : float
     """
+    from scipy.optimize import brentq
     r = alpha_fp / alpha_Y
     ratio = johnson_plastic_stiffness(K_h, alpha_Y) / yigit_plastic_stiffness(K_h, alpha_Y)
     n = brentq(lambda n: (r**n - 1.0) / (n * (r - 1.0)) - ratio, *POWER_EXPONENT_BRACKET, xtol=1e-15)
@@ -214,6 +214,7 @@ def hysteresis_restitution(chi: float) -> float:
     whose root with ``0 < chi e < 1`` is returned (``e = 1`` for ``chi = 0``). Solved for
     ``y = -ln(1 - chi e) > 0``: ``y - (1 - exp(-y)) = chi - ln(1 + chi)``, monotonic in ``y``.
     """
+    from scipy.optimize import brentq
     if chi == 0.0:
         return 1.0
     target = _x_minus_log1p(chi)
@@ -236,6 +237,7 @@ def _x_minus_log1p(x: float) -> float:
 
 def hysteresis_factor_exact(e: float) -> float:
     """Hysteresis factor ``chi`` whose exact restitution is ``e`` (inverse of ``hysteresis_restitution``)."""
+    from scipy.optimize import brentq
     _check_restitution(e)
     if e == 1.0:
         return 0.0
@@ -263,6 +265,7 @@ def linear_restitution(zeta: float) -> float:
 
 def linear_damping(stiffness: float, m_eff: float, e: float) -> float:
     """Dashpot ``D`` [N s/m] giving restitution ``e`` to the no-tension linear law (see ``linear_restitution``)."""
+    from scipy.optimize import brentq
     _check_restitution(e)
     if e == 1.0:
         return 0.0

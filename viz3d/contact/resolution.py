@@ -18,7 +18,6 @@ into the sentence a run stops with. Conventions and units as in ``viz3d.contact.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from viz3d.contact.laws import MIN_APPROACH_SPEED, ContactMemory, HysteresisLaw, Linear, NormalLaw
 from viz3d.contact.parameters import hysteresis_restitution, linear_restitution
@@ -72,6 +71,7 @@ def quasi_static_indentation(law: NormalLaw, force: float, memory: ContactMemory
 def _first_root(excess, crater: float) -> float:
     """Root of ``excess``, increasing from <= 0 at ``crater``: bracketed by doubling the depth
     below the crater from ``ALPHA_FLOOR``, then refined (``inf`` beyond ``ALPHA_CEILING``)."""
+    from scipy.optimize import brentq
     depth = ALPHA_FLOOR
     while excess(crater + depth) <= 0.0:
         depth *= 2.0

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq, minimize_scalar
 
 from viz3d._typing import FloatArray
 
@@ -138,6 +136,7 @@ def achieved_restitution(law: NormalLaw, m_eff: float, v0: float, memory: Contac
 
 def _scales(law, memory, m_eff, v0):
     """Indentation, speed, energy and time scales: ``alpha*`` stores the impact's kinetic energy."""
+    from scipy.optimize import brentq
     energy = 0.5 * m_eff * v0**2
 
     def excess(alpha):
@@ -154,6 +153,7 @@ def _scales(law, memory, m_eff, v0):
 
 def _phase(law, memory, m_eff, t0, y0, scale, which):
     """One monotonic phase; stops at ``alpha_dot = 0`` (compression) or ``alpha = 0`` (restitution)."""
+    from scipy.integrate import solve_ivp
 
     def rhs(t, y):
         F = law.force(y[0], y[1], memory)
@@ -204,6 +204,7 @@ def _last_contact_time(law, memory, sol, t_mc, t_out):
 
 def _peak_force(law, memories, sols, history):
     """Largest force: best sample, refined by a bounded scalar search around it."""
+    from scipy.optimize import minimize_scalar
     i = int(np.argmax(history.force))
     lo, hi = history.t[max(i - 1, 0)], history.t[min(i + 1, len(history.t) - 1)]
     t_mc = sols[1].t[0]

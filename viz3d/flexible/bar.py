@@ -12,7 +12,6 @@ from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
-from scipy.linalg import eigh
 
 from viz3d._typing import FloatArray
 
@@ -384,6 +383,7 @@ class BarModel:
     # ---- spectra and inertia integrals ------------------------------------------------------
     def frequencies(self) -> FloatArray:
         """Natural frequencies omega (n,) [rad/s], ascending, from ``K v = omega^2 M v``; rigid modes give 0."""
+        from scipy.linalg import eigh
         omega2 = eigh(self.K, self.M, eigvals_only=True)
         return np.sqrt(np.clip(omega2, 0.0, None))
 
@@ -465,6 +465,7 @@ def reduce(model: BarModel, n_modes: int, *, drop_rigid: bool = False) -> BarMod
     BarModel
         With n = n_modes coordinates, the modal amplitudes [m sqrt(kg)].
     """
+    from scipy.linalg import eigh
     omega2, V = eigh(model.K, model.M)
     if drop_rigid:
         n_rigid = rigid_mode_count(model.kind, model.supports)

@@ -45,7 +45,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.flexible.bar import BarModel, Material, PointMass, Section, peak_points, rayleigh_ritz, shear_stiffness
@@ -358,6 +357,7 @@ def frequency_roots(theory, n_modes: int, supports, end_masses) -> FloatArray:
     Scans the dimensionless wavenumber for sign changes of det B (rows normalised, so det B is a
     continuous function without poles on each side of the cut-off) and refines each by Brent.
     """
+    from scipy.optimize import brentq
 
     def det(s: float) -> float:
         return float(np.linalg.det(boundary_matrix(theory, theory.omega(s), supports, end_masses)))
@@ -399,6 +399,7 @@ def modal_basis(theory, omegas: FloatArray, supports, end_masses) -> TrigExpBasi
 
 def peak_amplitudes(basis: TrigExpBasis) -> FloatArray:
     """Signed value of each shape's displacement at its largest |u| on [0, L] (n,), refined locally."""
+    from scipy.optimize import minimize_scalar
     x = peak_points(basis)
     U = basis.evaluate(x, "u", 0)
     out = np.empty(basis.n_basis)

@@ -29,9 +29,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.fft import irfft, next_fast_len, rfft, rfftfreq
-from scipy.linalg import eigh
-from scipy.optimize import brentq
 
 from viz3d._typing import FloatArray
 from viz3d.flexible import BarModel, Material, Section, analytic_modes
@@ -221,6 +218,8 @@ def fundamental_frequency(dam: Dam, reservoir: Reservoir | None = None, *, rtol:
     by Brent's method (it exists when the dam's added mass grows without bound at omega_r). An absorbing
     bottom has no real natural frequency: read the peak of ``frequency_response`` instead.
     """
+    from scipy.linalg import eigh
+    from scipy.optimize import brentq
     if reservoir is None:
         return float(dam.omega.min())
     if not reservoir.rigid_bottom:
@@ -303,6 +302,7 @@ class WindowedSpectrum:
     def response(self, transfer: np.ndarray) -> FloatArray:
         """Time history of the response whose transfer functions (per unit a_g) are ``transfer``:
         shape (m, ...) -> (n, ...), the record's samples [the transfer's unit times m/s^2]."""
+        from scipy.fft import irfft
         shaped = self.transform.reshape((-1,) + (1,) * (transfer.ndim - 1))
         out = irfft(transfer * shaped, self.n_fft, axis=0)[: self.window.size]
         return out / self.window.reshape((-1,) + (1,) * (transfer.ndim - 1))
@@ -312,6 +312,7 @@ def windowed_spectrum(dam: Dam, record: GroundMotion, pad: float | None = None) 
     """Zero pad ``record`` by ``pad`` seconds (default ``padding``, at least the record's length) to n_fft
     samples, period T = n_fft dt, and transform it with the exponential window eta T = ln(1 / PAD_DECAY)
     (``time_response`` says why)."""
+    from scipy.fft import next_fast_len, rfft, rfftfreq
     a, dt = record.acceleration, record.dt
     pad = max(padding(dam), record.duration) if pad is None else float(pad)
     n_fft = next_fast_len(a.size + int(np.ceil(pad / dt)), real=True)

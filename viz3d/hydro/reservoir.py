@@ -44,7 +44,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import spence, zeta
 
 from viz3d._typing import FloatArray
 from viz3d.hydro.shapes import BLOCK_ELEMENTS, WallShapes, as_shapes
@@ -55,8 +54,11 @@ DEFAULT_RTOL = 1e-8
 MAX_TERMS = 1 << 20
 #: Westergaard's (1933) parabola p = (7/8) rho a sqrt(h (h - y)).
 WESTERGAARD_COEFFICIENT = 7.0 / 8.0
+#: Apery's constant zeta(3) (``scipy.special.zeta(3.0)`` to the last bit; a literal, so that importing
+#: this module does not import scipy.special, 0.3 s: tests/test_startup.py).
+ZETA_3 = 1.2020569031595942
 #: sum_{n>=1} 1 / (2n - 1)^3 = (7/8) zeta(3): the series of a rigid wall's incompressible force.
-ODD_ZETA_3 = 7.0 / 8.0 * float(zeta(3.0))
+ODD_ZETA_3 = 7.0 / 8.0 * ZETA_3
 #: Total force on a rigid wall, incompressible water, per unit acceleration: RIGID_FORCE_COEFFICIENT rho h^2
 #: = (16 / pi^3) sum 1 / (2n - 1)^3 = 14 zeta(3) / pi^3 = 0.5427...
 RIGID_FORCE_COEFFICIENT = 16.0 / np.pi**3 * ODD_ZETA_3
@@ -221,6 +223,7 @@ def modal_norms(mu: np.ndarray, depth: float) -> np.ndarray:
 
 def legendre_chi2(z) -> np.ndarray:
     """Legendre's chi function chi_2(z) = sum_{k>=0} z^(2k+1) / (2k+1)^2 = (Li_2(z) - Li_2(-z)) / 2, |z| <= 1."""
+    from scipy.special import spence
     z = np.asarray(z, dtype=complex)
     return 0.5 * (spence(1.0 - z) - spence(1.0 + z))
 
@@ -250,6 +253,7 @@ def odd_power_tail(depth: float, n_terms: int, power: int) -> float:
 
     sum_{n>N} (2n - 1)^-p = 2^-p zeta(p, N + 1/2).
     """
+    from scipy.special import zeta
     return float((depth / np.pi) ** power * zeta(float(power), n_terms + 0.5))
 
 

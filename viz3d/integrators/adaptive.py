@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from viz3d._typing import FloatArray
 from viz3d.integrators.base import Integrator, StepResult
@@ -136,6 +135,7 @@ FRESH_PROBES = 32
 def _locate(g_of, t0: float, t1: float, g_end: float) -> float:
     """Root of ``g_of`` in (t0, t1] bracketed by a sign change (the step end if the interpolant
     disagrees with the step at ``t0`` or the end is the root)."""
+    from scipy.optimize import brentq
     lo_val = g_of(t0)
     if g_end == 0.0 or (np.sign(lo_val) == np.sign(g_end)):
         return t1
@@ -145,6 +145,7 @@ def _locate(g_of, t0: float, t1: float, g_end: float) -> float:
 def _fresh_crossing(ev, g_of, t0: float, t1: float, g_end: float) -> float | None:
     """First crossing of a fresh event after its interpolant is on the armed side at one of the
     ``FRESH_PROBES`` points of the step (None if it never is, or ends there)."""
+    from scipy.optimize import brentq
     side = -1.0 if ev.direction > 0 else 1.0            # armed: below 0 for a rising event, above for falling
     if side * g_end > 0.0:
         return None

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Callable, ClassVar
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
 
 from viz3d._typing import FloatArray
 from viz3d.integrators.base import Integrator, Status, StepResult
@@ -75,6 +74,7 @@ def newton_solve(residual, guesses, matrix: NewtonMatrix | None, h: float, what:
     state, not on ``x``, whose round-off floor can be far larger (stiff springs). The finite
     differences step ``x`` by at least ``FD_REL / effect`` (the state by ``FD_REL``).
     """
+    from scipy.linalg import lu_factor
     size, tol = np.inf, NEWTON_TOL * max(1.0, scale) / effect
     for x0 in guesses:
         for fresh in ((False, True) if matrix is not None and matrix.h == h else (True,)):
@@ -98,6 +98,7 @@ def _iterate(residual, x0, r, matrix, tol, fresh):
     """Simplified Newton from ``x0`` (``r = residual(x0)``): ``(x, size)``, ``size`` below ``tol``
     on success (the update, or the error still ahead of a contracting iteration:
     rate / (1 - rate) times the update, Hairer & Wanner, Solving ODEs II, IV.8)."""
+    from scipy.linalg import lu_solve
     x, prev, size = x0.copy(), np.inf, np.inf
     for _ in range(NEWTON_MAX_ITER):
         if not np.all(np.isfinite(r)):
@@ -120,6 +121,7 @@ def _damped_newton(residual, x0, tol, floor, h):
     opening or closing inside the step): full Newton, the matrix rebuilt at every iterate, each
     update halved until the residual norm falls (Armijo backtracking, Dennis & Schnabel, sec. 6.3).
     Returns ``(x, matrix at x, size)``, ``size <= tol`` on success."""
+    from scipy.linalg import lu_factor, lu_solve
     x, r, matrix, size = x0.copy(), residual(x0), None, np.inf
     for _ in range(NEWTON_DAMPED_ITER):
         if not np.all(np.isfinite(r)):

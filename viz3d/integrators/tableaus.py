@@ -242,4 +242,10 @@ def _dop853() -> ButcherTableau:
                           error_order=5, fsal=False, dense=dense)
 
 
-DOP853 = _dop853()
+def __getattr__(name: str):
+    """``DOP853``, built on first use: its coefficients come from scipy.integrate, whose import (0.3 s)
+    a run with another method does not pay for (tests/test_startup.py)."""
+    if name != "DOP853":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = globals()["DOP853"] = _dop853()
+    return value

@@ -1,0 +1,266 @@
+"""viz3d, MuJoCo and Exudyn at equal accuracy on the problems of issue 14 (a benchmark, not a test).
+
+    pip install -e '.[peers]'   # MuJoCo and Exudyn; a peer that is not installed is skipped with a message
+    python benchmarks/bench_peers.py [--problems heavy_top,torque_free,top_through_vertical,chain]
+        [--chains 2,10,50,100,200] [--tol 1e-6] [--max-run 20] [--out docs/bench_peers.png]
+
+Problems (the shipped scenes, one model for all simulators, ``peers.rigid_tree``): the heavy top on
+a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, no gravity) over
+20 s, the top whose axis passes through theta = 0 over its scene's 3 s, and ball-joint chains of N
+links over their first second (``--chains``). The default run takes about 6 minutes on 2 cores.
+
+Each simulator runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...: about
+sqrt(2) apart, each dividing the frame interval), coarse to fine, until a run reaches
+``--tol`` or the next run would take longer than ``--max-run`` seconds. Error: the largest distance,
+over the 100 Hz output frames, of any marker point (each body's centre of mass and three points
+0.1 m along its axes) from the reference: viz3d's own equations (maximal coordinates, Euler-angle
+charts) integrated by its adaptive DOP853 at rtol 1e-12 (``viz3d.bench.reference_run``). MuJoCo
+(minimal coordinates, quaternions, RK4) and Exudyn (Euler parameters, index-3 generalized-alpha;
+RK44 on rotation vectors for the free body) are independent formulations of the same model: the
+error they reach at small steps also bounds how well the models agree. Wall time: the whole run
+with its frames at 100 Hz: ``viz3d.simulate`` (build, run, frames, trajectory); MuJoCo stepping and
+reading the poses at every frame; Exudyn's ``SolveDynamic`` with its sensors (peer models are
+built before the clock starts); best of ``--repeat`` for runs under a second, the simulators
+interleaved at each step. Writes the table to ``docs/bench_peers.md`` and a work-precision chart.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from peers import exudyn_run, markers, mujoco_run, rigid_tree
+
+from viz3d.bench import reference_run
+from viz3d.scene.load import load_scene
+from viz3d.simulate import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+OUTPUT_DT = 0.01
+#: name -> (scene file, overrides, simulated time [s])
+PROBLEMS = {
+    "heavy_top": ("heavy_top.toml", [], 10.0),
+    "torque_free": ("torque_free.toml", [], 20.0),
+    "top_through_vertical": ("top_through_vertical.toml", [], 3.0),
+}
+#: Steps tried: the output interval over these (every step divides it), about sqrt(2) apart.
+DIVISIONS = (2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64, 91, 128, 181, 256, 362, 512, 724, 1024)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run: problem, simulator, step [s], error [m], wall time [s], steps."""
+
+    problem: str
+    simulator: str
+    dt: float
+    error: float
+    wall: float
+    steps: int
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A problem ready to run: its scene, reference markers (n, nb, 4, 3) [m] and peer model."""
+
+    name: str
+    path: Path
+    overrides: list
+    t_end: float
+    reference: np.ndarray
+    tree: object
+
+
+def problems(names: list[str], chains: list[int], rtol: float) -> list[Problem]:
+    """The selected problems with their references (computed here, printed with their cost)."""
+    specs = [(n, *PROBLEMS[n]) for n in names if n != "chain"]
+    if "chain" in names:
+        specs += [(f"chain N={n}", "chain.toml", [f"chain.n={n}"], 1.0) for n in chains]
+    out = []
+    for name, scene, over, t_end in specs:
+        path = ROOT / "scenes" / scene
+        t0 = time.perf_counter()
+        ref = reference_run(path, over, OUTPUT_DT, t_end, rtol)
+        print(f"{name}: reference (viz3d dop853, rtol {rtol:g}) in {time.perf_counter() - t0:.1f} s", flush=True)
+        out.append(Problem(name, path, over, t_end, markers(ref.position, ref.rotation),
+                           rigid_tree(load_scene(path, over), ref)))
+    return out
+
+
+def viz3d_run(p: Problem, dt: float) -> tuple[np.ndarray | None, float, int]:
+    """viz3d's default method (RK4, index-1, Euler-angle charts, compiled kernel) at step ``dt``."""
+    scene = load_scene(p.path, p.overrides + [f"sim.dt={dt!r}", f"sim.output_dt={OUTPUT_DT!r}"])
+    t0 = time.perf_counter()
+    traj = simulate(scene, t_end=p.t_end)
+    wall = time.perf_counter() - t0
+    return (markers(traj.position, traj.rotation) if traj.ok else None), wall, traj.n_steps
+
+
+def mujoco(p: Problem, dt: float):
+    r = mujoco_run(p.tree, dt, p.t_end, OUTPUT_DT)
+    return r.position, r.wall, r.steps
+
+
+def exudyn(p: Problem, dt: float):
+    r = exudyn_run(p.tree, dt, p.t_end, OUTPUT_DT)
+    return r.position, r.wall, r.steps
+
+
+def simulators(wanted: list[str]) -> dict:
+    """The runners of the installed simulators among ``wanted`` (a message for each one missing)."""
+    runners = {"viz3d": viz3d_run, "MuJoCo": mujoco, "Exudyn": exudyn}
+    out = {}
+    for name in wanted:
+        module = {"MuJoCo": "mujoco", "Exudyn": "exudyn"}.get(name)
+        try:
+            if module:
+                version = __import__(module).__version__
+                print(f"{name} {version}")
+        except ImportError:
+            print(f"{name}: not installed, skipped (pip install -e '.[peers]')")
+            continue
+        out[name] = runners[name]
+    return out
+
+
+def measure(p: Problem, runners: dict, tol: float, max_run: float, repeat: int) -> list[Run]:
+    """Every simulator on ``p`` at steps ``OUTPUT_DT / DIVISIONS`` until it reaches ``tol`` or its next
+    run would exceed ``max_run`` seconds; the simulators alternate at each step."""
+    active, rows = dict(runners), []
+    for k in DIVISIONS:
+        dt = OUTPUT_DT / k
+        if not active:
+            break
+        for name, run in list(active.items()):
+            row = one(p, name, run, dt, repeat)
+            rows.append(row)
+            print(f"  {p.name:>22} {name:<7} dt {dt:9.3e} s  error {row.error:9.2e} m  wall {row.wall:8.3f} s", flush=True)
+            if row.error <= tol or 1.5 * row.wall > max_run:
+                del active[name]
+    return rows
+
+
+def one(p: Problem, name: str, run, dt: float, repeat: int) -> Run:
+    """Best of ``repeat`` runs (one when a run takes over a second); a failed run has error inf."""
+    best, error, steps = np.inf, np.inf, 0
+    for _ in range(repeat):
+        try:
+            pos, wall, steps = run(p, dt)
+        except Exception as exc:  # a peer's solver may give up (Exudyn's Newton iteration)
+            print(f"  {name} at dt {dt:g}: {type(exc).__name__}: {str(exc)[:100]}")
+            return Run(p.name, name, dt, np.inf, np.nan, 0)
+        if pos is None or pos.shape != p.reference.shape or not np.all(np.isfinite(pos)):
+            return Run(p.name, name, dt, np.inf, wall, steps)
+        error = float(np.linalg.norm(pos - p.reference, axis=-1).max())
+        best = min(best, wall)
+        if wall > 1.0:
+            break
+    return Run(p.name, name, dt, error, best, steps)
+
+
+def cheapest(rows: list[Run], tol: float) -> dict[tuple[str, str], Run]:
+    """Per (problem, simulator): the fastest run that reaches ``tol``."""
+    out: dict = {}
+    for r in rows:
+        if r.error <= tol and ((r.problem, r.simulator) not in out or r.wall < out[r.problem, r.simulator].wall):
+            out[r.problem, r.simulator] = r
+    return out
+
+
+def summary(rows: list[Run], tol: float, sims: list[str]) -> str:
+    best = cheapest(rows, tol)
+    lines = [f"| problem | {' | '.join(sims)} | viz3d / fastest peer |", "|---|" + "---|" * (len(sims) + 1)]
+    for prob in dict.fromkeys(r.problem for r in rows):
+        cells = []
+        for s in sims:
+            r = best.get((prob, s))
+            if r is None:
+                tried = [x for x in rows if x.problem == prob and x.simulator == s and np.isfinite(x.error)]
+                low = min(tried, key=lambda x: x.error) if tried else None
+                cells.append("not reached" + (f" (best {low.error:.1e} m, {low.wall:.3g} s)" if low else ""))
+            else:
+                cells.append(f"{r.wall:.3g} s (dt {r.dt:.3g}, {r.error:.1e} m)")
+        ratio = _ratio(best, prob, sims)
+        lines.append(f"| {prob} | {' | '.join(cells)} | {ratio} |")
+    return "\n".join(lines)
+
+
+def _ratio(best: dict, prob: str, sims: list[str]) -> str:
+    """viz3d's cheapest wall time over the fastest peer's, on ``prob``."""
+    peers = [best[prob, s].wall for s in sims if s != "viz3d" and (prob, s) in best]
+    if (prob, "viz3d") not in best:
+        return "-"
+    return f"{best[prob, 'viz3d'].wall / min(peers):.2f}" if peers else "no peer reached it"
+
+
+def all_runs(rows: list[Run]) -> str:
+    lines = ["| problem | simulator | dt [s] | steps | error [m] | wall [s] |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r.problem} | {r.simulator} | {r.dt:.4g} | {r.steps} | {r.error:.2e} | {r.wall:.4g} |" for r in rows]
+    return "\n".join(lines)
+
+
+def chart(rows: list[Run], tol: float, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    probs = list(dict.fromkeys(r.problem for r in rows))
+    cols = min(4, len(probs))
+    nrows = -(-len(probs) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4 * cols, 3.4 * nrows), squeeze=False)
+    for ax, prob in zip(axes.flat, probs):
+        for sim, marker in zip(dict.fromkeys(r.simulator for r in rows), "os^v"):
+            mine = [r for r in rows if r.problem == prob and r.simulator == sim and np.isfinite(r.error)]
+            ax.loglog([r.wall for r in mine], [r.error for r in mine], marker + "-", label=sim)
+        ax.axhline(tol, color="grey", lw=0.8, ls="--")
+        ax.set_title(prob, fontsize=9)
+        ax.set_xlabel("wall time of the run [s]")
+        ax.set_ylabel("largest marker error [m]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.xaxis.set_minor_formatter(NullFormatter())  # a narrow decade labels its minor ticks over each other
+        ax.legend(fontsize=7)
+    for ax in list(axes.flat)[len(probs):]:
+        ax.set_visible(False)
+    fig.suptitle(f"work-precision, whole runs with 100 Hz frames (dashed: {tol:g} m)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problems", default="heavy_top,torque_free,top_through_vertical,chain")
+    ap.add_argument("--chains", default="2,10,50,100,200", help="chain lengths (links)")
+    ap.add_argument("--simulators", default="viz3d,MuJoCo,Exudyn")
+    ap.add_argument("--tol", type=float, default=1e-6, help="accuracy to reach [m]")
+    ap.add_argument("--max-run", type=float, default=20.0, help="longest run tried [s]")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--ref-rtol", type=float, default=1e-12)
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_peers.png")
+    args = ap.parse_args(argv)
+    runners = simulators(args.simulators.split(","))
+    probs = problems(args.problems.split(","), [int(n) for n in args.chains.split(",")], args.ref_rtol)
+    for p in probs:  # untimed warm-up: the kernel from numba's cache, first calls of each library
+        for run in runners.values():
+            one(Problem(p.name, p.path, p.overrides, 2 * OUTPUT_DT, p.reference[:3], p.tree), "", run, 1e-3, 1)
+    rows = [r for p in probs for r in measure(p, runners, args.tol, args.max_run, args.repeat)]
+    sims = list(runners)
+    head = (f"Generated by `python benchmarks/bench_peers.py` ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores; "
+            f"cheapest whole run, frames at 100 Hz, whose largest marker error is at most {args.tol:g} m; "
+            f"reference: viz3d dop853 at rtol {args.ref_rtol:g}).\n\n")
+    text = head + summary(rows, args.tol, sims) + "\n\nAll runs:\n\n" + all_runs(rows) + "\n"
+    print("\n" + summary(rows, args.tol, sims))
+    chart(rows, args.tol, args.out)
+    args.out.with_suffix(".md").write_text(text)
+    print(f"\nwrote {args.out} and {args.out.with_suffix('.md')}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,50 @@
+"""What starting viz3d imports (issue 14): the command line and the package load no viewer, recorder,
+plotting, study or mesh library, and a headless run of a small scene loads none of them either, nor
+the parts of scipy it does not use. Checked on ``sys.modules`` of a fresh interpreter, not by timing
+(``benchmarks/bench_startup.py`` measures the time).
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Imported only by the commands that use them: viewer, recorder, charts, studies, meshes, oracles.
+OPTIONAL = ("viser", "rerun", "matplotlib", "dask", "distributed", "trimesh", "coal", "pyarrow", "sympy", "websockets")
+#: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import).
+UNUSED_SCIPY = ("scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial", "scipy.stats")
+
+
+def loaded_after(code: str) -> set[str]:
+    """The top-level and scipy modules in ``sys.modules`` after running ``code`` in a fresh interpreter."""
+    probe = f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=600, check=True)
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def offending(modules: set[str], names: tuple[str, ...]) -> list[str]:
+    return sorted(n for n in names if n in modules)
+
+
+@pytest.mark.parametrize("code", ["import viz3d", "import viz3d.cli", "from viz3d.cli import main"])
+def test_the_package_and_the_command_line_import_no_optional_library(code):
+    modules = loaded_after(code)
+    assert not offending(modules, OPTIONAL + ("scipy", "numba")), code
+
+
+def test_the_lazy_api_gives_the_entry_points():
+    modules = loaded_after("import viz3d\nassert callable(viz3d.simulate) and callable(viz3d.load_scene)\n"
+                           "import viz3d.simulate\nassert callable(viz3d.simulate), viz3d.simulate")
+    assert "viz3d.simulate" in modules
+
+
+def test_a_headless_run_imports_only_what_it_uses(tmp_path):
+    out = tmp_path / "top.npz"
+    code = ("from viz3d.cli import main\n"
+            f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0")
+    modules = loaded_after(code)
+    assert not offending(modules, OPTIONAL + UNUSED_SCIPY)
+    assert out.exists()
