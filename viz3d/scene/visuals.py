@@ -76,7 +76,7 @@ def _plots(system: System) -> tuple[tuple[str, str], ...]:
     if system.contacts:
         plots.append(("Contact force [N]", "contact"))
     plots += list(dict.fromkeys(out.plot for out in system.outputs))  # (gauges on several bars: one panel)
-    if any(getattr(js, "rheonomic", False) for js in system.joints.joints):
+    if system.driven:
         plots.append(("Drive effort [N or N m]", "drive"))
     for e in system.forces:  # shape contacts, water, joint stops: the element's own series
         for title, key in live_plots(e):
