@@ -7,14 +7,17 @@ rtol = 1e-12, whose self-convergence (its distance to the same method at rtol = 
 beside it. The error of a run is the largest distance, over output frames and bodies, between
 its body points and the reference's: ``|dW_r| + r_g |dR|`` with ``r_g`` the body's radius of
 gyration [m]. Results: a table (printed, and saved as Markdown and CSV) and a log-log chart of
-error against CPU time, one line per method.
+error against CPU time, one line per method. With an output folder, finished runs are kept in its
+results store (``viz3d.studies.execute.Store``): the same command started again runs only the
+missing ones (the references are computed again: they identify the runs).
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +26,7 @@ from viz3d.integrators import INTEGRATORS, make_integrator
 from viz3d.methods import method_overrides, parse_method
 from viz3d.scene.load import load_scene
 from viz3d.simulate import simulate
-from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.execute import IN_PROCESS, Cluster, Store, run_study, store_note
 from viz3d.studies.plan import Point
 from viz3d.trajectory import Trajectory
 
@@ -56,9 +59,11 @@ class BenchReport:
     rows: list[BenchRow]
     reference: str
     reference_self: float  # [m]
+    note: str = ""         # what came from the results store (``store_note``)
 
     def markdown(self) -> str:
-        lines = [f"Reference: {self.reference}; its self-convergence {self.reference_self:.2e} m.", "",
+        lines = [f"Reference: {self.reference}; its self-convergence {self.reference_self:.2e} m.",
+                 *([self.note] if self.note else []), "",
                  "| method | setting | error [m] | CPU time [s] | steps | RHS evaluations | energy drift | max abs C [m] "
                  "| status |",
                  "|---|---|---|---|---|---|---|---|---|"]
@@ -125,13 +130,25 @@ def reference_run(path, overrides: list[str], output_dt: float, t_end: float, rt
     return traj
 
 
+def reference_digest(reference: Trajectory) -> str:
+    """SHA-256 (hex) of what ``body_point_error`` reads of a reference (times, body positions and
+    rotations, masses and inertias): the identity of a measure that carries it (its wall time differs
+    from run to run)."""
+    h = hashlib.sha256()
+    for a in (reference.t, reference.position, reference.rotation, reference.mass, reference.inertia_body):
+        a = np.ascontiguousarray(a, dtype=float)
+        h.update(repr(a.shape).encode() + a.tobytes())
+    return h.hexdigest()
+
+
 @dataclass(frozen=True)
 class BenchRun:
     """Measure of one benchmark run (``viz3d.studies``): an untimed warm-up over ``warm_up`` [s]
     (compilation, caches of the worker), then the run to ``t_end`` [s], timed (process time), and its
-    error against ``reference``."""
+    error against ``reference`` (identified by ``reference_key``, its ``reference_digest``)."""
 
-    reference: Trajectory
+    reference: Trajectory = field(compare=False)
+    reference_key: str
     t_end: float
     warm_up: float
 
@@ -153,10 +170,11 @@ def _bench_row(point: Point, row: dict) -> BenchRow:
 
 
 def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, tols: list[float] | None = None,
-          t_end: float | None = None, progress: bool = True, overrides: list[str] = (), cluster: Cluster = IN_PROCESS
-          ) -> BenchReport:
+          t_end: float | None = None, progress: bool = True, overrides: list[str] = (), cluster: Cluster = IN_PROCESS,
+          out: Path | None = None) -> BenchReport:
     """Run the benchmark (see the module docstring); ``overrides`` apply to every run, which run on
-    ``cluster`` (``viz3d.studies.execute``; the references run here first)."""
+    ``cluster`` (``viz3d.studies.execute``; the references run here first); finished runs are kept
+    in (and read back from) the results store of the folder ``out``."""
     base = load_scene(path, list(overrides))
     if "rtol" in base.data["sim"] and base.data["contacts"]:
         raise ValueError(f"{path}: bench compares methods on fixed steps and tolerances; runs with contact events are "
@@ -167,9 +185,12 @@ def bench(path: str | Path, methods: list[str], dts: list[float] | None = None, 
     ref = reference_run(path, grid, output_dt, t_end, REFERENCE_RTOL)
     chk = reference_run(path, grid, output_dt, t_end, CHECK_RTOL)
     points = [Point((m, s), tuple(run_overrides(m, s, output_dt))) for m, s in plan]
-    outcomes = run_study(path, points, BenchRun(ref, t_end, 3 * output_dt), cluster, overrides=grid, progress=progress)
+    store = Store.in_folder(out)
+    measure = BenchRun(ref, reference_digest(ref), t_end, 3 * output_dt)
+    outcomes = run_study(path, points, measure, cluster, overrides=grid, progress=progress, store=store)
     desc = f"{REFERENCE_METHOD} adaptive, rtol {REFERENCE_RTOL:g}, {ref.n_steps} steps"
-    return BenchReport(Path(path).stem, [_bench_row(o.point, o.row) for o in outcomes], desc, body_point_error(chk, ref))
+    return BenchReport(Path(path).stem, [_bench_row(o.point, o.row) for o in outcomes], desc, body_point_error(chk, ref),
+                       store_note(store, outcomes))
 
 
 def save(report: BenchReport, out: Path) -> list[Path]:

@@ -8,13 +8,14 @@ Usage::
     viz3d bench SCENE --methods LIST (--dt LIST | --tol LIST) [--t-end T] [--out DIR]
     viz3d stability SCENE --methods LIST [--sweep key.path=V1,V2,...] [--t-end T] [--out DIR]
     viz3d sweep SCENE --grid key.path=V1,V2,... [--grid key.path=A:B:N] [--sample key.path=DIST(ARGS) --n N]
-                [--metrics LIST] [--out DIR] [--workers N | --scheduler tcp://HOST:8786]
+                [--metrics LIST] [--out DIR] [--workers N | --scheduler tcp://HOST:8786 [--worker-timeout S]]
     viz3d check SCENE [SCENE ...]
     viz3d list [--format] [--scenes DIR]
 
 Every flag value goes through the same checkers as the scene keys (``viz3d.scene.schema``); bad
 input ends with exit code 2 and one message naming the flag or key. SIGTERM is treated like
-Ctrl-C: a run stops, keeps and writes what it computed.
+Ctrl-C: a run stops, keeps and writes what it computed; a study (bench, stability, stowage, sweep)
+keeps its finished runs in ``DIR/runs.jsonl`` and the same command started again runs only the rest.
 
 ``python -m viz3d`` is the same command.
 """
@@ -127,7 +128,8 @@ def _parser() -> argparse.ArgumentParser:
     stow.add_argument("--trim", type=_number_list("--trim"), default=[-2.0, 0.0, 2.0], help="ship.trim values [deg]")
     _cluster_args(stow)
     _set_arg(stow)
-    stow.add_argument("--out", type=Path, help="report folder (default out/stowage/<scene>)")
+    stow.add_argument("--out", type=Path, help="report folder (default out/stowage/<scene>); its runs.jsonl keeps every "
+                      "finished run, so the same command started again runs only what is missing")
     stow.set_defaults(func=cmd_stowage)
     _sweep_parser(sub)
     check = sub.add_parser("check", help="validate scene files (and build them)")
@@ -210,7 +212,8 @@ def _report_args(p, kind: str) -> None:
     from viz3d.scene.schema import positive
 
     p.add_argument("--t-end", type=flag_type(positive), help="simulated duration [s] (default: the scene's)")
-    p.add_argument("--out", type=Path, help=f"output directory (default out/{kind}/<scene>)")
+    p.add_argument("--out", type=Path, help=f"output directory (default out/{kind}/<scene>); its runs.jsonl keeps "
+                   "every finished run, so the same command started again runs only what is missing")
     _set_arg(p, "scene overrides applied to every run")
 
 
@@ -220,7 +223,7 @@ def cmd_bench(args) -> int:
     methods = [m.strip() for m in args.methods.split(",")]
     out = _writable_dir(args.out or Path("out") / "bench" / args.scene.stem, "bench")
     return _report(lambda: bench(args.scene, methods, args.dt, args.tol, args.t_end, overrides=args.overrides,
-                                 cluster=_cluster(args)), save, out)
+                                 cluster=_cluster(args), out=out), save, out)
 
 
 def cmd_stability(args) -> int:
@@ -229,34 +232,44 @@ def cmd_stability(args) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     out = _writable_dir(args.out or Path("out") / "stability" / args.scene.stem, "stability")
     return _report(lambda: stability(args.scene, methods, args.sweep, args.dt, args.t_end, overrides=args.overrides,
-                                     cluster=_cluster(args)), save, out)
+                                     cluster=_cluster(args), out=out), save, out)
 
 
 def _cluster_args(p, default: int | None = None, why: str = "(default: one per core)") -> None:
-    """``--workers`` and ``--scheduler`` of the studies (``viz3d.studies.execute.Cluster``)."""
-    from viz3d.scene.schema import positive_int
+    """``--workers``, ``--scheduler`` and ``--worker-timeout`` of the studies (``viz3d.studies.execute.Cluster``)."""
+    from viz3d.scene.schema import positive, positive_int
+    from viz3d.studies import WORKER_TIMEOUT
 
     p.add_argument("--workers", type=flag_type(positive_int), default=default,
                    help=f"local worker processes {why}; 1 runs in this process")
     p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on this existing Dask scheduler's workers instead")
+    p.add_argument("--worker-timeout", type=flag_type(positive), default=WORKER_TIMEOUT, metavar="SECONDS",
+                   help=f"with --scheduler: stop with an error once the scheduler has had no worker for this long "
+                        f"(default {WORKER_TIMEOUT:g} s); finished runs stay in the results store")
 
 
 def _cluster(args):
     from viz3d.studies.execute import Cluster, local_cores
 
-    return Cluster(args.workers or local_cores(), args.scheduler)
+    return Cluster(args.workers or local_cores(), args.scheduler, args.worker_timeout)
 
 
 def _report(make, save, out: Path) -> int:
-    """Run ``make()`` (a bench or stability report), print its table and save it into ``out``
-    (into a temporary folder if ``out`` cannot be written: a computed report is never lost)."""
+    """Run ``make()`` (a bench, stability or stowage report), print its table and save it into ``out``
+    (into a temporary folder if ``out`` cannot be written: a computed report is never lost). Ctrl-C
+    keeps the finished runs in ``out``'s results store."""
     from viz3d.methods import MethodError
+    from viz3d.studies.execute import STORE_NAME
 
     try:
         report = make()
     except (ValueError, MethodError, ConnectionError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"interrupted: finished runs are kept in {out / STORE_NAME}; the same command runs only the missing ones",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     print(report.markdown())
     try:
         paths = save(report, out)
@@ -327,7 +340,7 @@ def cmd_stowage(args) -> int:
 
     out = _writable_dir(args.out or Path("out") / "stowage" / args.scene.stem, "stowage")
     grid = {"ship.heel": args.heel, "ship.trim": args.trim}
-    return _report(lambda: stowage_study(args.scene, grid, args.overrides, cluster=_cluster(args)), save, out)
+    return _report(lambda: stowage_study(args.scene, grid, args.overrides, cluster=_cluster(args), out=out), save, out)
 
 
 def _sweep_parser(sub) -> None:
@@ -359,7 +372,8 @@ def _sweep_parser(sub) -> None:
 def cmd_sweep(args) -> int:
     from viz3d.scene.load import kind_of_file
     from viz3d.studies.plan import PlanError
-    from viz3d.sweep import STORE_NAME, save, sweep
+    from viz3d.studies.execute import STORE_NAME
+    from viz3d.sweep import save, sweep
 
     try:
         keys, points, metrics = _sweep_plan(args)

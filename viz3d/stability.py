@@ -23,6 +23,10 @@ Reasons: ``ok``, ``diverged`` (non-finite, runaway speed or energy growth), ``si
 drift above tolerance``, ``unresolved rotation`` (orientation coordinates turning more than
 a radian per step), ``missed contact``, ``spurious contact``, ``restitution error above
 tolerance``, ``failed`` (any other diagnosis); the diagnosis's full text is kept as the detail.
+
+With an output folder, every finished run (a whole step search, in the first map) is kept in its
+results store (``viz3d.studies.execute.Store``): the same command started again runs only the
+missing ones.
 """
 
 from __future__ import annotations
@@ -32,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.bench import body_point_error, common_grid, reference_run, write_report
+from viz3d.bench import body_point_error, common_grid, reference_digest, reference_run, write_report
 from viz3d.contact.intervals import physical_contacts
 from viz3d.methods import method_overrides
 from viz3d.scene.load import load_scene, with_sim
 from viz3d.simulate import simulate
-from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.execute import IN_PROCESS, Cluster, Store, run_study, store_note
 from viz3d.studies.plan import Point
 from viz3d.trajectory import Trajectory
 
@@ -77,6 +81,7 @@ class StabilityReport:
     key: str
     rows: list[StabilityRow]
     histories: dict = field(default_factory=dict)  # method -> (t, |C|, energy drift) for "methods"
+    note: str = ""          # what came from the results store (``store_note``)
 
     def markdown(self) -> str:
         if self.mode == "sweep":
@@ -91,7 +96,7 @@ class StabilityReport:
             head = (f"| {self.key} | reason | contacts | restitution | peak force [N] | detail |\n|---|---|---|---|---|---|")
             body = [f"| {r.value} | {r.reason} | {r.extra['contacts']} | {r.extra['restitution']:.4f} | "
                     f"{r.extra['peak_force']:.4g} | {r.detail[:80]} |" for r in self.rows]
-        return "\n".join([head, *body])
+        return "\n".join([*([self.note, ""] if self.note else []), head, *body])
 
 
 def _dt_text(row: StabilityRow) -> str:
@@ -125,20 +130,21 @@ def reason_of(traj) -> tuple[str, str]:
 
 
 def stability(path, methods: list[str], sweep: str | None, dt: float | None, t_end: float | None,
-              overrides: list[str] = (), cluster: Cluster = IN_PROCESS) -> StabilityReport:
+              overrides: list[str] = (), cluster: Cluster = IN_PROCESS, out: Path | None = None) -> StabilityReport:
     """The map for ``path`` (see the module docstring); ``overrides`` apply to every run; the runs (a
-    whole step search per point of the sweep map) run on ``cluster`` (``viz3d.studies.execute``)."""
-    over = list(overrides)
+    whole step search per point of the sweep map) run on ``cluster`` (``viz3d.studies.execute``), and
+    are kept in (and read back from) the results store of the folder ``out``."""
+    over, store = list(overrides), Store.in_folder(out)
     scene = load_scene(path, over)
     key, values = _parse_sweep(sweep)
     if not methods:
         if not (sweep and scene.data["contacts"]):
             raise ValueError(f"{path}: give --methods (e.g. rk4,trapezoidal), or --sweep for a scene with contacts "
                              f"(e.g. bar.modes=1,2,4,8,16)")
-        return _contact_map(path, key, values, t_end, over, cluster)
+        return _contact_map(path, key, values, t_end, over, cluster, store)
     if sweep:
-        return _sweep_map(path, methods, key, values, t_end, over, cluster)
-    return _methods_map(path, methods, dt, t_end, over, cluster)
+        return _sweep_map(path, methods, key, values, t_end, over, cluster, store)
+    return _methods_map(path, methods, dt, t_end, over, cluster, store)
 
 
 def _parse_sweep(sweep: str | None) -> tuple[str, list[str]]:
@@ -161,13 +167,13 @@ class StableStep:
         return {"dt": dt, "reason": reason, "detail": detail}
 
 
-def _sweep_map(path, methods, key, values, t_end, base_over, cluster) -> StabilityReport:
+def _sweep_map(path, methods, key, values, t_end, base_over, cluster, store) -> StabilityReport:
     points = [Point((value, method), (*method_overrides(method), f"{key}={value}")) for value in values
               for method in methods]
-    outcomes = run_study(path, points, StableStep(t_end), cluster, overrides=base_over)
+    outcomes = run_study(path, points, StableStep(t_end), cluster, overrides=base_over, store=store)
     rows = [StabilityRow(o.point.values[1], o.point.values[0], o.row.get("dt", float("nan")),
                          o.row.get("reason", "failed"), o.row.get("detail", o.row["status"])) for o in outcomes]
-    return StabilityReport(Path(path).stem, "sweep", key, rows)
+    return StabilityReport(Path(path).stem, "sweep", key, rows, note=store_note(store, outcomes))
 
 
 def largest_stable_step(path, overrides: list[str], t_end) -> tuple[float, str, str]:
@@ -226,9 +232,11 @@ def failure_time(traj) -> float:
 @dataclass(frozen=True)
 class MethodRun:
     """Measure of the methods map (``viz3d.studies``): one run, its reason, error against
-    ``reference`` and drift histories (t, max |C|, energy drift; each shape (n,))."""
+    ``reference`` (identified by ``reference_key``, its ``viz3d.bench.reference_digest``) and drift
+    histories (t, max |C|, energy drift; each shape (n,))."""
 
-    reference: Trajectory
+    reference: Trajectory = field(compare=False)
+    reference_key: str
     t_end: float
 
     def __call__(self, scene) -> dict:
@@ -243,20 +251,21 @@ class MethodRun:
                             np.abs(traj.energy_total - traj.energy_total[0]) / scale)}
 
 
-def _methods_map(path, methods, dt, t_end, base_over, cluster) -> StabilityReport:
+def _methods_map(path, methods, dt, t_end, base_over, cluster, store) -> StabilityReport:
     base = load_scene(path, base_over)
     dt = dt or base.data["sim"]["dt"]
     output_dt, t_end = common_grid([dt], base.data["sim"].get("output_dt", 0.01), t_end or base.data["sim"]["t_end"])
     grid = base_over + [f"sim.output_dt={output_dt!r}"]
     ref = reference_run(path, base_over + ["sim.rotation=quaternion"], output_dt, t_end)
     points = [Point((method,), (*method_overrides(method), f"sim.dt={dt!r}")) for method in methods]
-    outcomes = run_study(path, points, MethodRun(ref, t_end), cluster, overrides=grid)
+    outcomes = run_study(path, points, MethodRun(ref, reference_digest(ref), t_end), cluster, overrides=grid,
+                         store=store)
     nan = float("nan")
     rows = [StabilityRow(o.point.values[0], "", dt, o.row.get("reason", "failed"), o.row.get("detail", o.row["status"]),
                          o.row.get("t_fail", nan), o.row.get("error", nan), o.row.get("energy_drift", nan),
                          o.row.get("constraint", nan)) for o in outcomes]
     hist = {o.point.values[0]: o.row["history"] for o in outcomes if "history" in o.row}
-    return StabilityReport(Path(path).stem, "methods", "", rows, hist)
+    return StabilityReport(Path(path).stem, "methods", "", rows, hist, store_note(store, outcomes))
 
 
 @dataclass(frozen=True)
@@ -276,10 +285,11 @@ class ContactRun:
                 "peak_force": float(np.max(x["contact_force"]))}
 
 
-def _contact_map(path, key, values, t_end, base_over, cluster) -> StabilityReport:
+def _contact_map(path, key, values, t_end, base_over, cluster, store) -> StabilityReport:
     outcomes = run_study(path, [Point((v,), (f"{key}={v}",)) for v in values], ContactRun(t_end), cluster,
-                         overrides=base_over)
-    runs = [o.row for o in outcomes]
+                         overrides=base_over, store=store)
+    runs = [{**o.row, "contacts": _contact_rows(o.row["contacts"])} if "contacts" in o.row else o.row
+            for o in outcomes]
     finest = runs[-1]
     if "contacts" not in finest:
         raise RuntimeError(f"the finest model ({key} = {values[-1]}) did not run: {finest['status']}")
@@ -309,7 +319,12 @@ def _contact_map(path, key, values, t_end, base_over, cluster) -> StabilityRepor
             reason, detail = "ok", f"contacts match and restitution within {RESTITUTION_TOL} of the finest model"
         rows.append(StabilityRow("", v, float("nan"), reason, detail, extra={
             "contacts": run["contact_count"], "restitution": e, "peak_force": run["peak_force"]}))
-    return StabilityReport(Path(path).stem, "contacts", key, rows)
+    return StabilityReport(Path(path).stem, "contacts", key, rows, note=store_note(store, outcomes))
+
+
+def _contact_rows(contacts) -> np.ndarray:
+    """A ``ContactRun`` row's contacts (lists, as rows come back) as an array, shape (n, 4)."""
+    return np.asarray(contacts, float).reshape(-1, 4)
 
 
 def contact_windows(contacts, gap: float) -> list[tuple[float, float]]:

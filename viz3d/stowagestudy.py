@@ -4,7 +4,8 @@ over a grid of two scene keys, by default the ship's heel and trim.
 ``stowage_study(scene, {"ship.heel": [...], "ship.trim": [...]})`` runs the scene once per grid point
 (``viz3d.studies``: in this process, on local worker processes or on a Dask cluster), and returns a
 ``StowageReport``: a table (markdown, CSV) and a chart (verdict per cell, coloured; peak force written
-in it).
+in it). With an output folder, finished runs are kept in its results store
+(``viz3d.studies.execute.Store``): the same study started again runs only the missing points.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.studies.execute import IN_PROCESS, Cluster, run_study
+from viz3d.studies.execute import IN_PROCESS, Cluster, Store, run_study, store_note
 from viz3d.studies.plan import grid_points
 
 #: Cell colours of the chart per outcome (RGB 0-1).
@@ -43,12 +44,14 @@ class StowageReport:
     scene: str
     keys: tuple[str, ...]
     runs: tuple[StowageRun, ...]
+    note: str = ""  # what came from the results store (``store_note``)
 
     def markdown(self) -> str:
         head = [*self.keys, "verdict", "at [s]", "peak force [kN]", "pose error [m]", "[deg]", "wall [s]"]
         rows = [[*(f"{v:g}" for v in r.values), r.outcome, f"{r.time:.2f}", f"{r.peak_force / 1e3:.1f}",
                  f"{r.position_error:.3f}", f"{r.angle_error:.2f}", f"{r.wall_time:.0f}"] for r in self.runs]
-        lines = [f"stowage study of {self.scene}", "", "| " + " | ".join(head) + " |",
+        lines = [f"stowage study of {self.scene}", *([self.note] if self.note else []), "",
+                 "| " + " | ".join(head) + " |",
                  "|" + "---|" * len(head)]
         lines += ["| " + " | ".join(r) + " |" for r in rows]
         failed = [r for r in self.runs if r.outcome == "failed"]
@@ -82,13 +85,15 @@ def _run_of(values: tuple, row: dict) -> StowageRun:
                       row["status"].removeprefix("refused: "), row.get("wall_time", 0.0))
 
 
-def stowage_study(scene: str | Path, grid: dict[str, list[float]], overrides=(), cluster: Cluster = IN_PROCESS
-                  ) -> StowageReport:
+def stowage_study(scene: str | Path, grid: dict[str, list[float]], overrides=(), cluster: Cluster = IN_PROCESS,
+                  out: Path | None = None) -> StowageReport:
     """Run ``scene`` at every point of ``grid`` (key path -> values; the product of all), with the
-    extra ``overrides``, on ``cluster`` (``viz3d.studies.execute``)."""
-    keys = tuple(grid)
-    outcomes = run_study(scene, grid_points(grid), StowageMeasure(), cluster, overrides=list(overrides))
-    return StowageReport(Path(scene).stem, keys, tuple(_run_of(o.point.values, o.row) for o in outcomes))
+    extra ``overrides``, on ``cluster`` (``viz3d.studies.execute``); finished runs are kept in (and
+    read back from) the results store of the folder ``out``."""
+    keys, store = tuple(grid), Store.in_folder(out)
+    outcomes = run_study(scene, grid_points(grid), StowageMeasure(), cluster, overrides=list(overrides), store=store)
+    return StowageReport(Path(scene).stem, keys, tuple(_run_of(o.point.values, o.row) for o in outcomes),
+                         store_note(store, outcomes))
 
 
 def save(report: StowageReport, out: Path) -> list[Path]:

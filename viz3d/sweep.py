@@ -29,9 +29,6 @@ SUMMARY = ("status", "t_final", "energy_drift_rel", "energy_drift", "max_constra
 COST = ("wall_time_s", "cpu_s", "n_steps", "n_rhs")
 #: Metrics of the table when ``--metrics`` is not given.
 DEFAULT_METRICS = ("status", "energy_drift_rel", "max_constraint_violation")
-#: The results store's file name in ``--out``.
-STORE_NAME = "runs.jsonl"
-
 
 @dataclass(frozen=True)
 class Summary:
@@ -128,7 +125,7 @@ def sweep(path, keys: tuple[str, ...], points: list[Point], metrics=DEFAULT_METR
           max_runs: int | None = None) -> SweepReport:
     """Run ``points`` of the scene ``path`` (``viz3d.studies.plan``); rows stored in ``out/runs.jsonl``
     as they arrive when ``out`` is given (and read back from it: done points are not run again)."""
-    store = Store(Path(out) / STORE_NAME) if out is not None else None
+    store = Store.in_folder(out)
     outcomes = run_study(path, points, Summary(), cluster, overrides=overrides, mesh_dirs=mesh_dirs, store=store,
                          progress=progress, max_runs=max_runs)
     return SweepReport(Path(path).stem, tuple(keys), tuple(metrics), tuple(outcomes))

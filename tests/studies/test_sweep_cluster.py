@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from viz3d.studies.execute import Cluster
+from viz3d.studies.execute import STORE_NAME, Cluster
 from viz3d.studies.plan import grid_points
-from viz3d.sweep import COST, STORE_NAME, sweep
+from viz3d.sweep import COST, sweep
 
 from conftest import SCENES
 

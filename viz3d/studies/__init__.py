@@ -8,3 +8,7 @@ place to run them (this process, a local Dask cluster, or an existing Dask sched
 
 docs/sweep.md describes the command and the fault handling.
 """
+
+#: Seconds a study on an existing scheduler waits while no worker is attached (``--worker-timeout``);
+#: here, not in ``execute``, so the command line's parser reads it without importing the machinery.
+WORKER_TIMEOUT = 60.0

@@ -5,7 +5,8 @@ A run is a pure task: ``run_task(task) -> row`` depends only on the task (the re
 measure), so Dask may run it again elsewhere when a worker dies. A run that fails, diverges or raises
 comes back as a row carrying its diagnosis; a point the scene refuses is a row too. Rows are plain
 data (``dict``), appended to the results store (``Store``) as they arrive, keyed by the hash of the
-resolved scene and the measure, so a study started again runs only what is missing.
+resolved scene and the measure, so a study started again runs only what is missing. A study sent
+to a scheduler that has no worker for ``Cluster.worker_timeout`` seconds stops with ``NoWorkers``.
 """
 
 from __future__ import annotations
@@ -17,25 +18,37 @@ import logging
 import math
 import os
 import pickle
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
+from viz3d.studies import WORKER_TIMEOUT
 from viz3d.studies.plan import Point
 from viz3d.studies.resolved import ResolvedScene, resolve, scene_on_disk
 
 #: Seconds to wait for an existing scheduler to answer.
 CONNECT_TIMEOUT = "10s"
+#: Seconds between two looks at a scheduler's workers, and between two looks for finished runs.
+WORKER_POLL_S, RESULT_POLL_S = 1.0, 0.05
+#: File name of the results store in a study's output folder.
+STORE_NAME = "runs.jsonl"
 
 
 class Measure(Protocol):
     """What one run computes: ``measure(scene) -> row`` (a ``dict`` of plain values). Measures are
-    frozen dataclasses (picklable, compared by value); a row's ``status`` is ``"ok"`` or a diagnosis."""
+    frozen dataclasses (picklable, compared by value); a row's ``status`` is ``"ok"`` or a diagnosis.
+
+    A measure's identity (``measure_identity``, part of every run's key) is its class and the fields
+    that take part in comparison: a field derived from others that would not hash alike twice (a
+    reference trajectory, with its wall time) is declared ``field(compare=False)`` beside a field
+    that identifies it (its digest)."""
 
     def __call__(self, scene: Scene) -> dict: ...
 
@@ -50,10 +63,13 @@ class Cluster:
         Local worker processes (one thread each); 1, without ``scheduler``: in this process.
     scheduler : str or None
         Address of an existing Dask scheduler (``tcp://host:8786``); its workers run the study.
+    worker_timeout : float
+        Seconds [s] the study waits on ``scheduler`` while it has no worker, then stops (``NoWorkers``).
     """
 
     workers: int = 1
     scheduler: str | None = None
+    worker_timeout: float = WORKER_TIMEOUT
 
     @property
     def in_process(self) -> bool:
@@ -79,48 +95,123 @@ class Task:
 
 
 def task_key(scene: ResolvedScene, measure: Measure) -> str:
-    """``viz3d-run-<sha256>`` of the resolved scene's key and the pickled measure: equal keys, equal rows."""
-    h = hashlib.sha256(scene.key.encode() + pickle.dumps(measure))
+    """``viz3d-run-<sha256>`` of viz3d's version, the resolved scene's key and the measure's identity:
+    equal keys, equal rows."""
+    from viz3d import __version__
+
+    h = hashlib.sha256(__version__.encode() + b"\0" + scene.key.encode() + measure_identity(measure))
     return f"viz3d-run-{h.hexdigest()[:32]}"
+
+
+def measure_identity(measure: Measure) -> bytes:
+    """The pickled class name and compared fields of a dataclass measure (see ``Measure``); the
+    pickled measure otherwise."""
+    if not is_dataclass(measure):
+        return pickle.dumps(measure)
+    kind = f"{type(measure).__module__}.{type(measure).__qualname__}"
+    return pickle.dumps((kind, [(f.name, getattr(measure, f.name)) for f in fields(measure) if f.compare]))
 
 
 def run_task(task: Task) -> dict:
     """The row of one run (pure: a function of ``task`` only). Whatever the run raises becomes the
-    row's ``status`` (``raised <Type>: message``), so a study never loses a point to an exception."""
-    try:
-        with scene_on_disk(task.scene) as scene:
-            row = task.measure(scene)
-    except Exception as exc:  # noqa: BLE001 - a row with the diagnosis instead of a lost study
-        return {"status": f"raised {type(exc).__name__}: {exc}"}
+    row's ``status`` (``raised <Type>: message``), so a study never loses a point to an exception.
+    Ctrl-C (or SIGTERM under the command line) during the run raises ``KeyboardInterrupt`` after it:
+    a run stops itself on Ctrl-C and returns what it computed (``viz3d.simulate``), but that row
+    describes the interruption, not the scene, and must not enter a study's results."""
+    with InterruptWatch() as watch:
+        try:
+            with scene_on_disk(task.scene) as scene:
+                row = task.measure(scene)
+        except Exception as exc:  # noqa: BLE001 - a row with the diagnosis instead of a lost study
+            row = {"status": f"raised {type(exc).__name__}: {exc}"}
+    if watch.received:
+        raise KeyboardInterrupt
     return {"status": "ok", **row}
+
+
+class InterruptWatch:
+    """Context manager noting whether SIGINT or SIGTERM arrived while it was entered (then handled
+    as before: the handler it wraps is called). Only Python-callable handlers on the main thread are
+    wrapped (``viz3d.interrupts.InterruptGuard``'s rule); elsewhere ``received`` stays False."""
+
+    def __init__(self):
+        self.received = False
+        self._previous: dict[int, Callable] = {}
+
+    def __enter__(self) -> InterruptWatch:
+        from viz3d.interrupts import SIGNALS
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in SIGNALS:
+                if callable(signal.getsignal(sig)):
+                    self._previous[sig] = signal.signal(sig, self._receive)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+    def _receive(self, signum, frame) -> None:
+        self.received = True
+        self._previous[signum](signum, frame)
 
 
 @dataclass(frozen=True)
 class Store:
     """The results store of a study: JSON lines ``{"key": ..., "row": {...}}`` in ``path``, one per run,
-    appended as runs finish (a line cut short by an interruption is ignored when read back)."""
+    appended as runs finish. A line cut short (the process killed while writing it) is ignored when
+    read back, and the next line starts on a line of its own; so an interrupted study leaves nothing
+    a rerun would misread. One study at a time per store."""
 
     path: Path
 
+    @classmethod
+    def in_folder(cls, out: Path | None) -> Store | None:
+        """The store of a study whose output folder is ``out`` (``out/STORE_NAME``); None without a folder."""
+        return None if out is None else cls(Path(out) / STORE_NAME)
+
     def load(self) -> dict[str, dict]:
+        """Key -> row of every complete line (the last line of a key wins)."""
         rows = {}
         if self.path.is_file():
-            for line in self.path.read_text(encoding="utf-8").splitlines():
-                with contextlib.suppress(ValueError, KeyError, TypeError):
+            for line in self.path.read_text(encoding="utf-8", errors="replace").splitlines():
+                with contextlib.suppress(ValueError, KeyError, TypeError, AttributeError):
                     entry = json.loads(line)
-                    rows[entry["key"]] = entry["row"]
+                    if isinstance(entry["row"]["status"], str):
+                        rows[entry["key"]] = entry["row"]
         return rows
 
     def append(self, key: str, row: dict) -> None:
+        """Append one line (after a newline if the last line was cut short)."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        with self.path.open("a", encoding="utf-8") as fh:
-            fh.write(json.dumps({"key": key, "row": row}, default=_plain) + "\n")
+        line = json.dumps({"key": key, "row": row}, default=_plain) + "\n"
+        with self.path.open("a+b") as fh:
+            if fh.tell() > 0:
+                fh.seek(-1, os.SEEK_END)
+                line = ("" if fh.read(1) == b"\n" else "\n") + line
+            fh.write(line.encode("utf-8"))
             fh.flush()
+
+
+def plain_row(row: dict) -> dict:
+    """``row`` as the results store gives it back (JSON values: arrays and tuples as lists, numpy
+    scalars as numbers), so a fresh row and a stored one read alike."""
+    return json.loads(json.dumps(row, default=_plain))
 
 
 def _plain(x: Any) -> Any:
     """JSON form of numpy scalars and arrays."""
     return x.tolist() if hasattr(x, "tolist") else str(x)
+
+
+def store_note(store: Store | None, outcomes: Sequence[Outcome]) -> str:
+    """One line on what a study took from its results store (empty without a store)."""
+    if store is None:
+        return ""
+    runs = [o for o in outcomes if o.key is not None]
+    reused = sum(o.cached for o in runs)
+    return f"results store {store.path}: {reused} of {len(runs)} runs reused, {len(runs) - reused} run now"
 
 
 @dataclass(frozen=True)
@@ -157,13 +248,17 @@ def run_study(path, points: Sequence[Point], measure: Measure, cluster: Cluster 
     bar = StudyProgress(len(todo), sys.stderr if progress else None)
 
     def arrived(key: str, row: dict) -> None:
-        rows[key] = row
+        rows[key] = row = plain_row(row)
         if store is not None and not row["status"].startswith("lost"):
             store.append(key, row)
         bar.update(not row["status"] == "ok")
 
     try:
         _execute(todo, cluster, arrived)
+    except NoWorkers as exc:
+        kept = (f"; finished runs are kept in {store.path} ({len(rows)} of them from this start), and the same "
+                f"command runs only the missing ones" if store is not None else "")
+        raise NoWorkers(f"{exc}{kept}") from None
     finally:
         bar.close()
     return [o if o.row is not None or o.key not in rows else Outcome(o.point, o.key, rows[o.key]) for o in outcomes]
@@ -198,9 +293,46 @@ def _execute(tasks: list[Task], cluster: Cluster, arrived: Callable[[str, dict],
 
     with dask_client(cluster, len(tasks)) as client:
         futures = [client.submit(run_task, task, key=task.key, pure=True) for task in tasks]
-        for future in as_completed(futures):
-            arrived(future.key, _row_of(future))
-            future.release()
+        finished = as_completed(futures)
+        watch = WorkerWatch(client, cluster) if cluster.scheduler else None
+        while not finished.is_empty():
+            batch = finished.next_batch(block=watch is None)
+            for future in batch:
+                arrived(future.key, _row_of(future))
+                future.release()
+            if watch is not None and batch:
+                watch.seen = time.monotonic()  # a run came back: a worker was there
+            elif not batch:
+                watch.check(finished.count())
+                time.sleep(RESULT_POLL_S)
+
+
+class NoWorkers(ConnectionError):
+    """A study's scheduler has had no worker for ``Cluster.worker_timeout`` seconds."""
+
+
+class WorkerWatch:
+    """Looks at a scheduler's workers (at most every ``WORKER_POLL_S``) while a study waits for runs;
+    ``check`` raises ``NoWorkers`` once none has been attached for ``cluster.worker_timeout`` [s]."""
+
+    def __init__(self, client, cluster: Cluster):
+        self.client, self.cluster = client, cluster
+        self.seen = self.looked = time.monotonic()
+
+    def check(self, n_waiting: int) -> None:
+        now = time.monotonic()
+        if now - self.looked < WORKER_POLL_S:
+            return
+        self.looked = now
+        if self.client.nthreads():
+            self.seen = now
+        elif now - self.seen > self.cluster.worker_timeout:
+            address = self.cluster.scheduler
+            raise NoWorkers(f"--scheduler {address}: no Dask worker attached for {self.cluster.worker_timeout:g} s "
+                            f"(--worker-timeout) while {n_waiting} run(s) were waiting. Start "
+                            f"workers with `dask worker {address} --nthreads 1` (one per core of each machine), "
+                            f"give them longer with --worker-timeout SECONDS, or leave out --scheduler to run on "
+                            f"this machine's cores")
 
 
 def _row_of(future) -> dict:
