@@ -1,12 +1,13 @@
 """The trajectory fields of runs with contacts, flexible bodies and gauges (``Trajectory.extras``;
 docs/trajectory.md, "Contacts, flexible bodies and gauges").
 
-Per frame (n frames, k contacts, ng gauges): ``contact_force`` (n, k) [N], ``penetration`` (n, k)
-[m], ``approach_velocity`` (n, k) [m/s] (relative normal velocity of each contact's bodies'
-centres of mass, positive approaching), ``gauge_strain`` (n, ng), the ledger ``energy_strain``,
-``energy_contact_elastic``, ``energy_dissipated``, ``energy_work_in``, ``energy_balance_error``
-(n,) [J]. Per run: ``contact_names`` (k,), ``gauge_names``, ``gauge_x``, ``events_t`` /
-``events_text``, and from ``viz3d.contact.report``: ``contacts`` (m, 4) as the physics defines
+Per frame (n frames, k contacts, ng strain gauges, nd deflection gauges): ``contact_force`` (n, k)
+[N], ``penetration`` (n, k) [m], ``approach_velocity`` (n, k) [m/s] (relative normal velocity of
+each contact's bodies' centres of mass, positive approaching), ``gauge_strain`` (n, ng),
+``deflection`` (n, nd) [m], the ledger ``energy_strain``, ``energy_contact_elastic``,
+``energy_dissipated``, ``energy_work_in``, ``energy_balance_error`` (n,) [J]. Per run:
+``contact_names`` (k,), ``gauge_names``, ``gauge_x``, ``deflection_names``, ``deflection_x`` (nd,),
+``events_t`` / ``events_text``, and from ``viz3d.contact.report``: ``contacts`` (m, 4) as the physics defines
 them, ``contact_touch_names`` (m,), ``contact_count``, ``contact_restitution`` (m,),
 ``contact_breaks_unresolved`` (m,), ``contact_touches_unresolved`` (u, 4), ``contact_events`` (r, 4),
 ``restitution`` (the bodies', first impact), ``restitution_uncertainty``, ``impact_restitution``
@@ -19,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from viz3d.contact.report import contact_report, per_contact_restitution
-from viz3d.outputs import StrainGauges
+from viz3d.outputs import DeflectionGauges, StrainGauges
 
 LEDGER = ("strain", "contact_elastic", "dissipated", "work_in", "balance_error")
 
@@ -30,6 +31,7 @@ def run_extras(sim, scene, frames) -> dict:
     system = sim.system
     names = [n for c in system.contacts for n in c.names]
     gauges = [(n, float(x)) for g in system.outputs if isinstance(g, StrainGauges) for n, x in zip(g.names, g.x)]
+    sags = [(n, float(x)) for g in system.outputs if isinstance(g, DeflectionGauges) for n, x in zip(g.names, g.x)]
     out = {
         "contact_names": np.array(names, dtype=str),
         "contact_force": _series(frames, [f"contact/{n}/force" for n in names]),
@@ -37,6 +39,9 @@ def run_extras(sim, scene, frames) -> dict:
         "gauge_names": np.array([n for n, _ in gauges], dtype=str),
         "gauge_x": np.array([x for _, x in gauges], float),
         "gauge_strain": _series(frames, [f"strain/{n}" for n, _ in gauges]),
+        "deflection_names": np.array([n for n, _ in sags], dtype=str),
+        "deflection_x": np.array([x for _, x in sags], float),
+        "deflection": _series(frames, [f"deflection/{n}" for n, _ in sags]),
         "model_choice": np.array("; ".join(f"{system.bodies.names[fb.index]}: {fb.model_choice}"
                                            for fb in system.bodies.flexible) or "rigid bodies"),
     }

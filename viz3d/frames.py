@@ -51,12 +51,17 @@ class DeformableVisual:
     vertices : ndarray, shape (V, 3), float32
         Initial world positions [m].
     color : ndarray, shape (3,), uint8
+    ring : int
+        A tube that carries its surface bending stress (``Frame.stress``; a ``FlexibleDrawing`` of a
+        bar that bends): points per section, vertex ``i * ring + j`` the ``j``-th point of section
+        ``i``; 0: a mesh drawn in its colour only.
     """
 
     name: str
     faces: np.ndarray
     vertices: np.ndarray
     color: np.ndarray
+    ring: int = 0
 
 
 @dataclass(frozen=True)
@@ -110,6 +115,9 @@ class SceneVisuals:
         Spheres ``[x, y, z, radius]`` [m] that bodies held by ground joints cannot leave (one per
         ground joint: its point and the farthest reach of the bodies hanging from it); with
         ``bounds``, what a camera must keep in view.
+    stress_scale : float
+        Surface stress drawn at the ends of the deformables' colour map [Pa] (``[display]
+        stress_scale``); 0: each sink's running maximum of |stress| (``viz3d.viz.colors``).
     """
 
     name: str
@@ -127,6 +135,7 @@ class SceneVisuals:
     plot_dt: float = 0.0
     statics: tuple[StaticVisual, ...] = ()
     reach: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
+    stress_scale: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -155,6 +164,8 @@ class Frame:
         Further named quantities (for plots), in SI units; keys are plot paths ("contact/force").
     deformed : dict of str -> ndarray (V, 3)
         World vertices of each deformable mesh [m].
+    stress : dict of str -> ndarray (V,)
+        Surface bending stress at each vertex of each deformable mesh, float32 [Pa] (tension > 0).
     contact_points, contact_forces : ndarray, shape (k, 3)
         Active contacts: world points [m] and the force on the struck body there [N].
     """
@@ -172,6 +183,7 @@ class Frame:
     constraint_violation: float
     scalars: dict = field(default_factory=dict)
     deformed: dict = field(default_factory=dict)
+    stress: dict = field(default_factory=dict)
     contact_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     contact_forces: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
 
@@ -182,7 +194,14 @@ class Frame:
 
 @dataclass(frozen=True, eq=False)
 class FlexibleDrawing:
-    """How a flexible body is drawn: a tube of rings along its deformed axis, deformation amplified.
+    """How a flexible body is drawn: a tube of rings along its deformed axis, deformation amplified,
+    each vertex carrying the surface bending stress of its fibre (not amplified).
+
+    The stress at ring point c of section x is that of the fibre through it: ``sigma = -E sum_k (c .
+    d_k) psi_k'(x) eta_k`` over the bending fields k (direction d_k; psi' = w'' for Euler-Bernoulli,
+    the curvature, which the quintic element carries as a nodal coordinate): ``E c kappa`` with c
+    the fibre's distance from the neutral axis on the +w side, the sign of ``BarModel.strain``
+    (tension > 0). Axial fields add no bending stress.
 
     Attributes
     ----------
@@ -198,6 +217,9 @@ class FlexibleDrawing:
         Outline of a section, body axes, from the axis [m].
     amplification : float
         Deformation drawn this many times larger.
+    stress_rows : ndarray, shape (sections * m, n), or None
+        Vertex stress per unit elastic coordinate [Pa per unit eta] (``surface_stress_rows``); None:
+        a bar without bending (no stress drawn).
     """
 
     name: str
@@ -206,6 +228,7 @@ class FlexibleDrawing:
     points: object
     ring: FloatArray
     amplification: float = 1.0
+    stress_rows: FloatArray | None = field(default=None, repr=False)
 
     def vertices(self, cfg) -> FloatArray:
         """World vertices (sections * m, 3), float32 [m]."""
@@ -213,6 +236,24 @@ class FlexibleDrawing:
         axis = self.points.s0 + self.amplification * (self.points.N @ cfg.eta[self.flex])
         local = axis[:, None, :] + self.ring[None, :, :]
         return (cfg.pose.W_r[self.body] + local.reshape(-1, 3) @ R.T).astype(np.float32)
+
+    def stresses(self, cfg) -> FloatArray:
+        """Surface bending stress at each vertex (sections * m,), float32 [Pa] (a bar that bends)."""
+        return (self.stress_rows @ cfg.eta[self.flex]).astype(np.float32)
+
+
+def surface_stress_rows(bar, x: FloatArray, ring: FloatArray) -> FloatArray | None:
+    """Bending stress per unit eta at the fibres through ``ring`` (m, 3) (body axes, from the axis)
+    of sections ``x`` (k,), shape (k * m, n) [Pa per unit eta]: ``-E (c . d) psi'(x)`` per bending
+    field of ``bar`` (a ``FloatingBar``; see ``FlexibleDrawing``); None without a bending field."""
+    if not any(model.kind == "bending" for model in bar.fields):
+        return None
+    rows = np.zeros((len(x), len(ring), bar.n))
+    for model, sl, d in zip(bar.fields, bar.field_slices, bar.directions):
+        if model.kind == "bending":
+            curvature = model.shape(x, "psi", 1)                         # (k, n_field) [1/m per unit eta]
+            rows[:, :, sl] = -model.material.E * (ring @ d)[None, :, None] * curvature[:, None, :]
+    return rows.reshape(len(x) * len(ring), bar.n)
 
 
 def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
@@ -281,6 +322,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
         constraint_violation=violation, scalars=scalars,
         deformed={d.name: d.vertices(cfg) for d in drawings},
+        stress={d.name: d.stresses(cfg) for d in drawings if d.stress_rows is not None},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
 
 

@@ -1,5 +1,5 @@
-"""Output elements: quantities a run reports without acting on the bodies (strain gauges, the
-chain's tension at a hawse).
+"""Output elements: quantities a run reports without acting on the bodies (strain and deflection
+gauges, the chain's tension at a hawse).
 
 An output element has one hook, ``values(cfg, reactions) -> {name: value}`` (SI units; ``reactions``
 (nj, 3) the joints' reaction forces on body 1 [N], in ``System.joint_names`` order), lists its
@@ -80,6 +80,61 @@ class StrainGauges(Output):
 
 
 @dataclass(frozen=True)
+class DeflectionGauges(Output):
+    """Deflection gauges on a flexible bar: the transverse displacement of the axis at sections ``x``,
+    measured from the bar's reference frame, along its bending direction d (the first bending field's:
+    the direction of positive w).
+
+    The frame is what the bar's shapes make it (``viz3d.flexible.floating``): for pinned-pinned
+    shapes the chord through the pins, so a gauge at midspan reads the sag relative to the chord;
+    clamped-free, the tangent at x = 0; free-free, the mean axes. Linear in eta:
+    ``w(x) = d . U(x) eta`` (an axial field contributes nothing along d).
+
+    Attributes
+    ----------
+    names : tuple of str, length k
+    flex : int
+        The bar among ``Bodies.flexible``.
+    x : ndarray, shape (k,)
+        Sections [m].
+    rows : ndarray, shape (k, n)
+        Deflection per unit elastic coordinate [m per unit eta] (derived from ``bar``).
+    """
+
+    type_name = "deflection_gauge"
+    plot = ("Deflection [m]", "deflection")
+    names: tuple[str, ...]
+    flex: int
+    x: FloatArray
+    bar: object = field(repr=False)
+    rows: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        from viz3d.flexible.floating_points import material_points
+
+        bending = [d for d, m in zip(self.bar.directions, self.bar.fields) if m.kind == "bending"]
+        if not bending:
+            raise ValueError("a deflection gauge needs a bar with a bending field")
+        points = material_points(self.bar, self.x)
+        object.__setattr__(self, "rows", np.einsum("i,kin->kn", bending[0], points.N))
+
+    def deflections(self, cfg: Configuration) -> FloatArray:
+        """Deflection at each gauge, shape (k,) [m]."""
+        return self.rows @ cfg.eta[self.flex]
+
+    @property
+    def keys(self):
+        return tuple(f"deflection/{n}" for n in self.names)
+
+    def values(self, cfg, reactions=None):
+        return dict(zip(self.keys, map(float, self.deflections(cfg))))
+
+
+#: Gauge classes by the scene's ``gauges[i].quantity``.
+GAUGES: dict[str, type[Output]] = {"strain": StrainGauges, "deflection": DeflectionGauges}
+
+
+@dataclass(frozen=True)
 class HawseTension(Output):
     """A chain's tension where it enters the hull: the reaction force of the chain's joint nearest to
     the hawse point (a link's joint is its upper end, ``half`` from its centre along its body z).
@@ -113,4 +168,4 @@ class HawseTension(Output):
         return {self.keys[0]: float(np.linalg.norm(reactions[self.joints[nearest]]))}
 
 
-OUTPUTS: dict[str, type[Output]] = {cls.type_name: cls for cls in (StrainGauges, HawseTension)}
+OUTPUTS: dict[str, type[Output]] = {cls.type_name: cls for cls in (StrainGauges, DeflectionGauges, HawseTension)}

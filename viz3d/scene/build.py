@@ -27,7 +27,7 @@ from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
 from viz3d.joints import JOINTS, BallJoint, JointDrive
 from viz3d.kinematics import Configuration, pose_from, twist_from
-from viz3d.outputs import StrainGauges
+from viz3d.outputs import GAUGES
 from viz3d.points import body_points
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.bars import flexible_body
@@ -560,9 +560,9 @@ def _reduced_mass(bodies: Bodies, pair) -> float | None:
 
 
 def build_gauges(scene: Scene, bodies: Bodies) -> tuple:
-    """Strain gauges on flexible bodies, one output element per body."""
+    """Gauges on flexible bodies, one output element per body and quantity (``viz3d.outputs.GAUGES``)."""
     src, entries = scene.source(), scene.data["gauges"]
-    by_body: dict[int, list] = {}
+    groups: dict[tuple[int, str], list] = {}
     for i, g in enumerate(entries):
         flex = [k for k, fb in enumerate(bodies.flexible) if "body" not in g or bodies.names[fb.index] == g["body"]]
         if len(flex) != 1:
@@ -571,9 +571,13 @@ def build_gauges(scene: Scene, bodies: Bodies) -> tuple:
         fb = bodies.flexible[flex[0]]
         if g["x"] > fb.bar.length:
             raise SceneError(src, f"gauges[{i}].x", f"a section in [0, {fb.bar.length}] m", g["x"])
-        by_body.setdefault(flex[0], []).append(g)
-    return tuple(StrainGauges(tuple(g["name"] for g in gs), k, np.array([g["x"] for g in gs], float), bodies.flexible[k].bar)
-                 for k, gs in by_body.items())
+        if g["quantity"] == "deflection" and not any(m.kind == "bending" for m in fb.bar.fields):
+            raise SceneError(src, f"gauges[{i}].quantity", "strain on a bar without bending (a rod has no deflection)",
+                             g["quantity"])
+        groups.setdefault((flex[0], g["quantity"]), []).append(g)
+    return tuple(GAUGES[quantity](tuple(g["name"] for g in gs), k, np.array([g["x"] for g in gs], float),
+                                  bodies.flexible[k].bar)
+                 for (k, quantity), gs in groups.items())
 
 
 def build_stowage_outputs(scene: Scene, bodies: Bodies, joints: tuple, W_r0: FloatArray) -> tuple:

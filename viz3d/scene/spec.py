@@ -432,7 +432,11 @@ GAUGE = Table({
     "name": Field(name, doc="gauge name"),
     "body": Field(string, OPTIONAL, "flexible body (default: the only one)"),
     "x": Field(nonnegative, doc="section [m]"),
-}, "a strain gauge (axial strain plus the bending surface strain on the +w fibre)")
+    "quantity": Field(one_of("strain", "deflection"), "strain", "strain: axial strain plus the bending surface "
+                      "strain on the +w fibre [-] (plot strain/<name>); deflection: transverse displacement of the "
+                      "axis along the bending direction, from the body's reference frame (pinned-pinned: the chord "
+                      "through the pins) [m] (plot deflection/<name>; a bending bar)"),
+}, "a gauge on a flexible body: strain or deflection at a section")
 
 DISPLAY = Table({
     "amplification": Field(positive, 1.0, "deformation of flexible bodies drawn this many times larger"),
@@ -440,6 +444,9 @@ DISPLAY = Table({
     "plot_dt": Field(positive, OPTIONAL, "simulated time between plot samples in recordings [s] (default: every "
                      "step; long runs of many joints: a recording's size)"),
     "speed": Field(positive, 1.0, "live viewer: simulated seconds per wall-clock second"),
+    "stress_scale": Field(positive, OPTIONAL, "flexible bodies are coloured by their surface bending stress: the "
+                          "stress [Pa] drawn at the ends of the diverging colour map (-scale blue, 0 light grey, +scale "
+                          "red); default: the largest |stress| drawn so far in the run (a running maximum)"),
 }, "how the run is drawn")
 
 CHAIN = Table({
@@ -531,7 +538,7 @@ SCENE_FILE = Table({
     "contacts": Field(ArrayOf(CONTACT), list, "contacts"),
     "collision": Field(COLLISION, OPTIONAL, "contacts between shapes (collision library)"),
     "water": Field(WATER, OPTIONAL, "still water: buoyancy and drag"),
-    "gauges": Field(ArrayOf(GAUGE), list, "strain gauges on flexible bodies"),
+    "gauges": Field(ArrayOf(GAUGE), list, "strain and deflection gauges on flexible bodies"),
     "display": Field(DISPLAY, dict, "drawing"),
     "chain": Field(CHAIN, OPTIONAL, "chain generator"),
     "incline": Field(INCLINE, OPTIONAL, "incline generator (gravity tilt and friction coefficient)"),

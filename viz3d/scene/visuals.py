@@ -15,7 +15,7 @@ import numpy as np
 
 from viz3d.flexible.floating_points import material_points
 from viz3d.forces import SpringDamper
-from viz3d.frames import BodyVisual, DeformableVisual, FlexibleDrawing, SceneVisuals, StaticVisual
+from viz3d.frames import BodyVisual, DeformableVisual, FlexibleDrawing, SceneVisuals, StaticVisual, surface_stress_rows
 from viz3d.geometry import display_mesh
 from viz3d.kinematics import Configuration, pose_from, twist_from
 from viz3d.scene.build import body_mass_properties, initial_pose
@@ -61,10 +61,13 @@ def scene_visuals(scene: Scene, system: System) -> SceneVisuals:
     extra = {"display_dt": float(frame_dt)} if frame_dt else {}
     if plot_dt := scene.data["display"].get("plot_dt"):
         extra["plot_dt"] = float(plot_dt)
+    if stress_scale := scene.data["display"].get("stress_scale"):
+        extra["stress_scale"] = float(stress_scale)
     return SceneVisuals(
         name=scene.name, bodies=bodies, joint_names=system.joint_names, spring_names=springs,
         length_scale=length_scale, thickness=thickness, force_scale=weight if weight > 0 else 1.0,
-        bounds=np.array([lo, hi]), deformables=tuple(DeformableVisual(d.name, d.faces, d.vertices, d.color)
+        bounds=np.array([lo, hi]), deformables=tuple(DeformableVisual(d.name, d.faces, d.vertices, d.color,
+                                                                      RING if d.stressed else 0)
                                                      for d in deformables),
         plots=_plots(system), statics=statics, reach=_reach(system, positions, radii), **extra)
 
@@ -102,18 +105,21 @@ def _bar_depth(system: System) -> float:
 
 def flexible_drawings(scene: Scene, system: System) -> tuple[FlexibleDrawing, ...]:
     """How each flexible body is drawn: a tube along its deformed axis, ``[display] amplification``
-    times its deformation."""
+    times its deformation, its vertices carrying the surface bending stress."""
     out = []
     for k, fb in enumerate(system.bodies.flexible):
         name = system.bodies.names[fb.index]
-        points = material_points(fb.bar, np.linspace(0.0, fb.bar.length, SECTIONS))
-        out.append(FlexibleDrawing(name, k, fb.index, points, _ring(fb.bar.section), scene.data["display"]["amplification"]))
+        x = np.linspace(0.0, fb.bar.length, SECTIONS)
+        ring = _ring(fb.bar.section)
+        out.append(FlexibleDrawing(name, k, fb.index, material_points(fb.bar, x), ring,
+                                   scene.data["display"]["amplification"], surface_stress_rows(fb.bar, x, ring)))
     return tuple(out)
 
 
 class _Deformable:
-    def __init__(self, name, body, faces, vertices, color):
+    def __init__(self, name, body, faces, vertices, color, stressed):
         self.name, self.body, self.faces, self.vertices, self.color = name, body, faces, vertices, color
+        self.stressed = stressed
 
 
 def _deformables(scene: Scene, system: System, drawings) -> list:
@@ -127,7 +133,8 @@ def _deformables(scene: Scene, system: System, drawings) -> list:
     for d in drawings:
         spec = scene.data["bodies"][d.body]
         color = np.asarray(spec.get("color", PALETTE[d.body % len(PALETTE)]), dtype=np.uint8)
-        out.append(_Deformable(d.name, d.body, _tube_faces().astype(np.int32), d.vertices(cfg), color))
+        out.append(_Deformable(d.name, d.body, _tube_faces().astype(np.int32), d.vertices(cfg), color,
+                               d.stress_rows is not None))
     return out
 
 

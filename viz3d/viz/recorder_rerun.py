@@ -5,7 +5,8 @@ Layout of the recording (timeline ``sim_time``, a duration in seconds; no ``log_
 * ``/world`` (static): view coordinates, z up; ``/world/bodies/<name>/mesh`` (static meshes);
   ``/world/<static>`` (static world geometry, e.g. ``/world/posts`` under springs' ground ends);
 * ``/world/bodies/<name>``: pose (``Transform3D``), at display rate; ``/world/<deformable>``
-  (``Mesh3D`` with the current vertices, e.g. the deformed bar), at display rate;
+  (``Mesh3D`` with the current vertices, e.g. the deformed bar, and ``vertex_colors`` of its surface
+  bending stress on the map of ``viz3d.viz.colors``), at display rate;
 * ``/world/joints`` (points), ``/world/springs`` (line strips), ``/world/reactions`` (arrows),
   at display rate;
 * ``/plots/energy/{kinetic,potential,total}``, ``/plots/constraint_violation``,
@@ -26,6 +27,7 @@ import numpy as np
 
 from viz3d.frames import Frame, SceneVisuals
 from viz3d.rotations import quat_from_matrix
+from viz3d.viz.colors import StressColors
 
 #: Buffered full-rate samples are written to the file (as columns) every this many frames: a
 #: 50-link chain's frame holds about 10 kB, so the buffer stays near 20 MB.
@@ -76,7 +78,9 @@ class RerunRecorder:
         self.rec.save(self.path, default_blueprint=self._blueprint())
         self.rec.set_log_time_enabled(False)
         self.rec.send_recording_name(f"{visuals.name} (viz3d, rerun-sdk {rr.__version__})")
-        self.rec.send_property("viz3d", rr.AnyValues(scene=visuals.name, rerun_sdk=rr.__version__))
+        self.rec.send_property("viz3d", rr.AnyValues(scene=visuals.name, rerun_sdk=rr.__version__,
+                                                     stress_scale_pa=visuals.stress_scale))  # 0: running maximum
+        self._stress_colors = StressColors(visuals.stress_scale)
         self._log_static(visuals)
 
     def log(self, frame: Frame) -> None:
@@ -154,9 +158,13 @@ class RerunRecorder:
         # body poses are sent as columns at each flush (one chunk per body, not one per pose: a
         # chunk costs ~1.5 kB, which made 20 of the 27 MB of a 30-s, 23-body recording)
         self._poses.append((frame.t, np.array(frame.W_r, float), xyzw_from_wxyz(quat_from_matrix(frame.R_WB))))
+        self._stress_colors.observe(frame.stress.values())
         for d in vis.deformables:
+            stress = frame.stress.get(d.name)
+            color = ({"albedo_factor": [*d.color.tolist(), 255]} if stress is None
+                     else {"vertex_colors": self._stress_colors(stress)})
             rec.log(f"/world/{d.name}", rr.Mesh3D(vertex_positions=frame.deformed[d.name], triangle_indices=d.faces,
-                                                  albedo_factor=[*d.color.tolist(), 255]))
+                                                  **color))
         if len(frame.contact_points):
             vectors = frame.contact_forces * self._force_scale(frame)
             rec.log("/world/contacts", rr.Arrows3D(origins=frame.contact_points, vectors=vectors, colors=[220, 30, 30]))

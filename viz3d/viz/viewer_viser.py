@@ -10,6 +10,12 @@ client's camera is pointed at the scene's box and the reach of what hangs from g
 from a distance where that fits the field of view, when it connects and when the scene changes.
 Plots are drawn in a unit with an SI prefix chosen so tick labels stay short (uPlot prints
 "40,000" or rounds 2e-8 to "0" otherwise).
+
+Flexible bodies are drawn coloured by their surface bending stress (``StressTube``; the "Colour by
+stress" toggle switches to their plain colour). viser 1.1.1's ``add_mesh_simple`` takes one colour
+per mesh; a GLB carries vertex colours, but a changed GLB is parsed again in the browser and its
+node drawn empty until the parse ends (a flicker every frame), so a tube's facets are instances of
+one unit quad in a batched mesh, which takes a colour per instance.
 """
 
 from __future__ import annotations
@@ -23,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.frames import Frame, SceneVisuals
+from viz3d.frames import DeformableVisual, Frame, SceneVisuals
 from viz3d.realtime import DISPLAY_RATE, SimRunner, Snapshot
 from viz3d.rotations import quat_from_matrix
+from viz3d.viz.colors import StressColors
 
 #: Plot refresh rate [Hz] and window [s of simulated time].
 PLOT_RATE = 8.0
@@ -44,6 +51,12 @@ SPEED_RANGE = (-6.0, 0.6)
 PREFIXES = {-12: "p", -9: "n", -6: "µ", -3: "m", 0: "", 3: "k", 6: "M", 9: "G", 12: "T"}
 #: Width of the plots' y axis [CSS px]: room for a label such as "-1,000".
 Y_AXIS_SIZE = 60
+#: The facet of a stress-coloured tube: a unit square in its xy plane, centred on its origin.
+QUAD_VERTICES = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]], np.float32)
+QUAD_FACES = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+#: Show-folder checkboxes: flag -> label.
+FLAG_LABELS = {"frames": "Frames", "joints": "Joints", "springs": "Springs", "forces": "Forces",
+               "stress": "Colour by stress"}
 
 
 class ServeError(OSError):
@@ -128,6 +141,48 @@ def with_prefix(title: str, prefix: str) -> str:
     return f"{head} [{prefix}{unit}]" if unit not in ("-", "") else f"{head} [1e{power}]"
 
 
+class StressTube:
+    """A deformable tube drawn coloured by stress: each facet between two neighbouring sections and
+    two neighbouring ring points (zero-width facets of repeated ring points left out) is an instance
+    of ``QUAD_VERTICES`` in one batched mesh, placed at its corners' mean, turned to its mean axial
+    and ring edges, scaled to their lengths (a rectangle: exact for an undeformed tube, a facet of
+    a bent one is a trapezoid whose sides differ by its width times the bend between sections) and
+    coloured by its corners' mean stress. Per frame: four arrays, whatever the facet count."""
+
+    def __init__(self, scene, d: DeformableVisual, visible: bool):
+        m = d.ring
+        P = np.asarray(d.vertices, float).reshape(-1, m, 3)
+        j = np.arange(m)
+        width = np.linalg.norm(P[:, (j + 1) % m] - P[:, j], axis=2).max(axis=0)         # (m,) [m]
+        j = j[width > 1e-6 * width.max()]
+        i = np.arange(len(P) - 1)[:, None]
+        #: (Q, 4) vertex indices of each facet: (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1)
+        self.corners = np.stack([i * m + j, i * m + (j + 1) % m, (i + 1) * m + j, (i + 1) * m + (j + 1) % m],
+                                axis=-1).reshape(-1, 4)
+        q = len(self.corners)
+        self.handle = scene.add_batched_meshes_simple(
+            f"/deformables/{d.name}_stress", QUAD_VERTICES, QUAD_FACES, np.tile([1.0, 0.0, 0.0, 0.0], (q, 1)),
+            np.zeros((q, 3)), batched_scales=np.ones((q, 3)), batched_colors=np.tile(d.color, (q, 1)), lod="off",
+            side="double", visible=visible)
+
+    def show(self, vertices: np.ndarray, stress: np.ndarray, colors: StressColors) -> None:
+        """Place and colour the facets from the tube's vertices (V, 3) [m] and stresses (V,) [Pa]."""
+        p = np.asarray(vertices, float)[self.corners]                                    # (Q, 4, 3)
+        along = 0.5 * (p[:, 2] - p[:, 0] + p[:, 3] - p[:, 1])
+        across = 0.5 * (p[:, 1] - p[:, 0] + p[:, 3] - p[:, 2])
+        a = np.maximum(np.linalg.norm(along, axis=1), 1e-12)
+        ex = along / a[:, None]
+        across -= np.sum(across * ex, axis=1)[:, None] * ex
+        b = np.maximum(np.linalg.norm(across, axis=1), 1e-12)
+        ey = across / b[:, None]
+        R = np.stack([ex, ey, np.cross(ex, ey)], axis=2)                                 # columns: facet axes
+        h = self.handle
+        h.batched_positions = p.mean(axis=1).astype(np.float32)
+        h.batched_wxyzs = quat_from_matrix(R).astype(np.float32)
+        h.batched_scales = np.column_stack([a, b, np.ones_like(a)]).astype(np.float32)
+        h.batched_colors = colors(np.asarray(stress, float)[self.corners].mean(axis=1))
+
+
 class SceneNodes:
     """The viser scene-tree nodes of one scene, updated from frames."""
 
@@ -157,6 +212,8 @@ class SceneNodes:
         self.deformables = {d.name: scene.add_mesh_simple(f"/deformables/{d.name}", d.vertices, d.faces,
                                                          color=tuple(int(c) for c in d.color))
                             for d in visuals.deformables}
+        self.stress_tubes = {d.name: StressTube(scene, d, visible=False) for d in visuals.deformables if d.ring}
+        self.stress_colors = StressColors(visuals.stress_scale)
         self.contacts = scene.add_arrows("/contacts", np.zeros((1, 2, 3), np.float32), colors=(220, 30, 30),
                                          shaft_radius=0.3 * w, head_radius=0.7 * w, head_length=0.2 * s, visible=False)
         self.peak_force = 0.0
@@ -222,9 +279,24 @@ class SceneNodes:
                 vec = frame.reaction_force * (2.0 * self.visuals.length_scale / self.visuals.force_scale)
                 self.forces.points = np.stack([frame.joint_points, frame.joint_points + vec], axis=1).astype(np.float32)
                 self.forces.visible = flags["forces"]
-            for name, handle in self.deformables.items():
-                handle.vertices = frame.deformed[name]
+            self._show_deformables(frame, flags["stress"])
             self._show_contacts(frame, flags["forces"])
+
+    def _show_deformables(self, frame: Frame, by_stress: bool) -> None:
+        """Deformed meshes, each as its stress-coloured tube (``by_stress``, when the frame has its
+        stresses) or in its plain colour; only what is shown is updated."""
+        if by_stress:
+            self.stress_colors.observe(frame.stress.values())
+        for name, handle in self.deformables.items():
+            tube = self.stress_tubes.get(name)
+            coloured = by_stress and tube is not None and name in frame.stress
+            if coloured:
+                tube.show(frame.deformed[name], frame.stress[name], self.stress_colors)
+            else:
+                handle.vertices = frame.deformed[name]
+            handle.visible = not coloured
+            if tube is not None:
+                tube.handle.visible = coloured
 
     def _show_contacts(self, frame: Frame, visible: bool) -> None:
         """Contact forces as arrows ending at the contact point; the largest force so far draws
@@ -273,7 +345,7 @@ class Viewer:
             self.port = self.server.get_port()
             self.url = f"http://{f'[{host}]' if ':' in host else host}:{self.port}"
             self.scenes_dir = scenes_dir or runner.scene.path.parent
-            self.flags = {"frames": False, "joints": True, "springs": True, "forces": False}
+            self.flags = {"frames": False, "joints": True, "springs": True, "forces": False, "stress": True}
             self.frames_shown = 0
             self._stop = threading.Event()
             self._nodes: SceneNodes | None = None
@@ -339,7 +411,7 @@ class Viewer:
             current = self.runner.scene.path.stem
             self.scene = gui.add_dropdown("Scene", scenes if current in scenes else (current, *scenes), initial_value=current)
         with gui.add_folder("Show"):
-            boxes = {key: gui.add_checkbox(key.capitalize(), initial_value=val) for key, val in self.flags.items()}
+            boxes = {key: gui.add_checkbox(FLAG_LABELS[key], initial_value=val) for key, val in self.flags.items()}
         self.plots: list = []
 
         def user(fn):
