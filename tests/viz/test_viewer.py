@@ -371,3 +371,20 @@ def test_posts_are_streamed_as_static_meshes():
     assert posts, "no post drawn"
     z = np.asarray(posts[-1]["props"]["vertices"]).reshape(-1, 3)[:, 2]
     assert z.min() == pytest.approx(0.0, abs=1e-6) and z.max() >= 1.8
+
+
+def test_adaptive_scene_shows_its_own_integrator_and_step_greyed_out():
+    """An adaptive run keeps its own settings: the controls show them (not rk4 at 1 ms), disabled."""
+    scene = viz3d.load_scene(SCENES / "flexible_slider_crank.toml")
+    sim = scene.data["sim"]
+    assert sim["integrator"] != "rk4" and "rtol" in sim
+    runner = SimRunner(scene)
+    viewer = Viewer(runner, port=0)
+    try:
+        viewer.start()
+        assert wait_for(lambda: viewer.integrator.disabled, timeout=30)   # set when the first frame is shown
+        assert viewer.integrator.value == sim["integrator"] and viewer.dt.value == sim["dt"]
+        assert viewer.integrator.disabled and viewer.dt.disabled and viewer.stabilization.disabled
+        assert viewer.stabilization.value == {v: k for k, v in viewer._stab.items()}[sim["formulation"]]
+    finally:
+        viewer.stop()

@@ -400,7 +400,7 @@ class Viewer:
             self.speed = gui.add_slider("log10 speed", min=min(SPEED_RANGE[0], log_speed),
                                         max=max(SPEED_RANGE[1], log_speed), step=0.1, initial_value=log_speed,
                                         hint="simulated seconds per wall-clock second, as a power of ten")
-            settings = {"integrator": "rk4", "dt": 1e-3, "formulation": "index1", **snap.settings}  # impact: none
+            settings = self._shown_settings(snap)
             self.integrator = gui.add_dropdown("Integrator", self.runner.options["integrator"],
                                                initial_value=settings["integrator"])
             self.dt = gui.add_number("dt [s]", initial_value=float(settings["dt"]), min=1e-7, step=1e-5)
@@ -459,6 +459,13 @@ class Viewer:
         self._nodes.show(snap.frame, self.flags)
         self.frames_shown += 1
 
+    def _shown_settings(self, snap: Snapshot) -> dict:
+        """The integrator, step and formulation the controls show: the run's when it can change them,
+        else (greyed out) the scene's own, e.g. an adaptive run's dopri5 (impact scenes have none)."""
+        sim = self.runner.scene.data.get("sim", {})
+        return {"integrator": "rk4", "dt": 1e-3, "formulation": "index1",
+                **{k: sim[k] for k in ("integrator", "dt", "formulation") if k in sim}, **snap.settings}
+
     def _sync_controls(self, snap: Snapshot) -> None:
         """Match the controls to a newly loaded scene: its plots, its speed, what can be changed."""
         self._echo = True
@@ -468,8 +475,8 @@ class Viewer:
             fixed_steps = bool(snap.settings)  # adaptive runs with contact events keep their own settings
             for handle in (self.integrator, self.dt, self.stabilization):
                 handle.disabled = not fixed_steps
-            if fixed_steps:
-                self.integrator.value, self.dt.value = snap.settings["integrator"], float(snap.settings["dt"])
+            settings = self._shown_settings(snap)
+            self.integrator.value, self.dt.value = settings["integrator"], float(settings["dt"])
             log_speed = _log_speed(snap.speed)
             self.speed.min, self.speed.max = min(SPEED_RANGE[0], log_speed), max(SPEED_RANGE[1], log_speed)
             self.speed.value = log_speed
