@@ -96,7 +96,7 @@ def test_kernel_reports_failures():
 
 
 def test_kernel_declines_what_it_does_not_cover():
-    _, system, _, form = _setup(SCENES / "double_pendulum.toml", "projection")
+    _, system, _, form = _setup(SCENES / "double_pendulum.toml", "ali3p")
     assert K.kernel_for(system, form) is None
 
 

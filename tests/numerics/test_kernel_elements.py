@@ -24,7 +24,7 @@ from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
-from viz3d.formulation import Baumgarte, Index1, Penalty
+from viz3d.formulation import Baumgarte, Index1, Penalty, Projection
 from viz3d.joints import JOINTS
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
@@ -210,10 +210,11 @@ def test_the_system_exercises_every_piece(setup):
     assert kinds == {True, False} and system.bodies.is_rigid.any()
 
 
-@pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0), Penalty(1e5, 1.0, 9.0)], ids=lambda f: f.name)
+@pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0), Penalty(1e5, 1.0, 9.0), Projection()],
+                         ids=lambda f: f.name)
 def test_compiled_equals_numpy_right_hand_side(setup, formulation):
     system, state = setup
-    assert set(FORMULATIONS) == {"index1", "baumgarte", "penalty"}
+    assert set(FORMULATIONS) == {"index1", "baumgarte", "penalty", "projection"}
     data = K.kernel_for(system, formulation)
     rhs = VectorField(system, formulation, state.chart, state.memory)
     for t in TIMES:

@@ -10,7 +10,8 @@ a compiled piece, a formulation or orientation coordinates the kernel lacks); su
 NumPy path and reports it. tests/numerics/test_kernel.py compares the two on a random system
 holding every registered element type.
 
-Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps).
+Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``projection``
+(the ``projection`` formulation's post-step projections), ``sampling`` (output samples).
 """
 
 from __future__ import annotations
@@ -20,12 +21,12 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.compiled import numba
-from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, gaps
+from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, rk_step, state_ok
 
-__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "KernelData", "kernel_for", "kernel_coverage",
+__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "KernelData", "kernel_for", "kernel_coverage",
            "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
 
 

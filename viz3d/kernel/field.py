@@ -27,8 +27,9 @@ except ImportError:  # pragma: no cover
     def literal_unroll(x):
         return x
 
-#: Status codes of ``evaluate`` and ``viz3d.kernel.stepping.advance``.
-OK, NONFINITE, SINGULAR, SPEED, ROTATION = 0, 1, 2, 3, 4
+#: Status codes of ``evaluate``, ``viz3d.kernel.stepping.advance`` and ``viz3d.kernel.projection.project``
+#: (``PROJECTION``: the position projection did not reach its tolerance).
+OK, NONFINITE, SINGULAR, SPEED, ROTATION, PROJECTION = 0, 1, 2, 3, 4, 5
 
 
 @jit
@@ -119,11 +120,20 @@ def _rigid_solve(mass_inv, inertia_inv, b, x, out):
 
 
 @inline
-def free_accelerations(m, v, w):
-    """``a = M^-1 Q`` (factorizing the flexible blocks); False if a block is not positive definite."""
+def factor_blocks(m, v, w):
+    """Factorize the flexible bodies' mass blocks at the current frames and elastic coordinates;
+    False if a block is not positive definite."""
     for fx in range(m.fx_i.shape[0]):
         if not factor(m.fx_i, m.fx_f, m.fx_pool, w.fx_work, w.fx_sc, fx, v.R[m.fx_i[fx, FX_BODY]], w.eta, v.v3, w.m3):
             return False
+    return True
+
+
+@inline
+def free_accelerations(m, v, w):
+    """``a = M^-1 Q`` (factorizing the flexible blocks); False if a block is not positive definite."""
+    if not factor_blocks(m, v, w):
+        return False
     for b in range(m.nb + 1):
         kind = m.body_kind[b]
         if kind == RIGID:
@@ -139,7 +149,7 @@ def free_accelerations(m, v, w):
 
 
 @inline
-def _row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
+def row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
     """``C_v[row] . x`` for per-body frame vectors ``x6`` (nb + 1, 6) and elastic ``xe`` (n_e,)."""
     acc = 0.0
     for s in range(2):
@@ -160,8 +170,20 @@ def _row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe)
 def constrain(m, v, w, t, rows):
     """Rows from the pieces, then ``(C M^-1 C^T + compliance I) lam = C a - gamma_s`` and
     ``a -= M^-1 C^T lam``; False if the matrix is not positive definite."""
-    n_c = m.row_body.shape[0]
-    for r in range(n_c):
+    fill_rows(m, v, t, rows)
+    twists(m, w)
+    _schur_rhs(m, v, w)
+    if not schur_solve(m, v, w, m.form[2]):
+        return False
+    correct(m, v, w)
+    return True
+
+
+@jit
+def fill_rows(m, v, t, rows):
+    """Every constraint row at time ``t`` from the pieces: ``C``, ``C_v`` (``J``, ``Je``), ``gamma``,
+    ``C_t`` and the rows that do not act, for the points' kinematics in ``v``."""
+    for r in range(m.row_body.shape[0]):
         v.C[r] = 0.0
         v.gam[r] = 0.0
         v.Ct[r] = 0.0
@@ -174,21 +196,49 @@ def constrain(m, v, w, t, rows):
     for d in literal_unroll(rows):
         if d.i.shape[0] > 0:
             row_piece(d, t, v)
+
+
+@inline
+def twists(m, w):
+    """``w.tw`` (nb + 1, 6) = every body's ``[W_v, B_omega]``: the velocities the rows act on."""
     for b in range(m.nb + 1):
         for i in range(3):
             w.tw[b, i] = w.vW[b, i]
             w.tw[b, 3 + i] = w.wB[b, i]
-    _schur_rhs(m, v, w)
+
+
+@jit
+def schur_solve(m, v, w, compliance):
+    """``(C M^-1 C^T + compliance I) lam = b`` in place (``b`` in ``w.lam``, row order), with ``W = M^-1
+    C^T`` in ``w.W6``, ``w.We``; rows that do not act get 1 on the diagonal (their ``b`` is 0, so
+    ``lam`` = 0). False if the matrix is not positive definite."""
+    n_c = m.row_body.shape[0]
     _schur_matrix(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, m.pair, v.J, v.Je, w.W6, w.We, w.ab)
     for i in range(n_c):
-        w.ab[m.kd * n_c + i] += m.form[2] + (1.0 if v.inactive[m.perm[i]] == 1 else 0.0)
+        w.ab[m.kd * n_c + i] += compliance + (1.0 if v.inactive[m.perm[i]] == 1 else 0.0)
         w.x[i] = w.lam[m.perm[i]]
     if not banded_cholesky_solve(w.ab, n_c, m.kd, w.x):
         return False
     for i in range(n_c):
         w.lam[m.perm[i]] = w.x[i]
-    _correct(m, v, w)
     return True
+
+
+@inline
+def mass_weighted_rows(m, v, w, r):
+    """``W = M^-1 C^T`` of row ``r``, both sides, into ``w.W6`` (frame) and ``w.We`` (elastic); the
+    flexible blocks factorized."""
+    for s in range(2):
+        b = m.row_body[r, s]
+        kind = m.body_kind[b]
+        if kind == RIGID:
+            _rigid_solve(m.mass_inv, m.inertia_inv, b, v.J[r, s], w.W6[r, s])
+        elif kind == GROUND:
+            for i in range(6):
+                w.W6[r, s, i] = 0.0
+        else:
+            j0 = v.row_je[r, s]
+            solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, m.body_flex[b], v.J[r, s], v.Je, j0, w.W6[r, s], w.We, j0)
 
 
 @inline
@@ -196,20 +246,10 @@ def _schur_rhs(m, v, w):
     """``W = M^-1 C^T`` per (row, side) and ``C a - gamma + 2 damping C_d + frequency^2 C`` into ``w.lam``
     (``C_d = C_v v + C_t``)."""
     for r in range(m.row_body.shape[0]):
-        for s in range(2):
-            b = m.row_body[r, s]
-            kind = m.body_kind[b]
-            if kind == RIGID:
-                _rigid_solve(m.mass_inv, m.inertia_inv, b, v.J[r, s], w.W6[r, s])
-            elif kind == GROUND:
-                for i in range(6):
-                    w.W6[r, s, i] = 0.0
-            else:
-                j0 = v.row_je[r, s]
-                solve(m.fx_i, m.fx_pool, w.fx_work, w.fx_sc, m.body_flex[b], v.J[r, s], v.Je, j0, w.W6[r, s], w.We, j0)
-        Ca = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.a, w.ae)
+        mass_weighted_rows(m, v, w, r)
+        Ca = row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.a, w.ae)
         if m.form[0] != 0.0:  # velocity feedback (baumgarte, penalty); index1 has none
-            C_d = _row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot) + v.Ct[r]
+            C_d = row_times(m.row_body, v.row_je, m.body_kind, m.body_flex, m.fx_i, v.J, v.Je, r, w.tw, w.eta_dot) + v.Ct[r]
             w.lam[r] = Ca - (v.gam[r] - 2.0 * m.form[0] * C_d - m.form[1] ** 2 * v.C[r])
         else:
             w.lam[r] = Ca - (v.gam[r] - m.form[1] ** 2 * v.C[r])
@@ -235,7 +275,7 @@ def _schur_matrix(row_body, row_je, body_kind, body_flex, fx_i, pair, J, Je, W6,
 
 
 @inline
-def _correct(m, v, w):
+def correct(m, v, w):
     """``a -= W lam`` (frame and elastic parts)."""
     for r in range(m.row_body.shape[0]):
         lam = w.lam[r]

@@ -32,7 +32,10 @@ FORMULATIONS = {
     "index1": lambda f: (0.0, 0.0, 0.0),
     "baumgarte": lambda f: (f.alpha, f.beta, 0.0),
     "penalty": lambda f: (f.xi * f.omega, f.omega, 1.0 / f.alpha),
+    "projection": lambda f: (0.0, 0.0, 0.0),  # index1's field; positions and velocities projected after each step
 }
+#: Formulations whose ``post_step`` the kernel makes after each step (``viz3d.kernel.projection``).
+PROJECTING = ("projection",)
 #: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-27 for
 #: pieces that call the ball joint's rows (``viz3d.joints``).
 N_V3 = 28
@@ -73,6 +76,9 @@ class Model(NamedTuple):
     centre: np.ndarray        # (3,) chart centre angles
     centre_R: np.ndarray      # (3, 3) its rotation
     n_aux: int                # work integrals in y
+    projects: int             # 1: project positions and velocities after each step (PROJECTING)
+    projection_tol: float     # its position tolerance, max |C| [m]
+    projection_iter: int      # its Newton corrections allowed
 
 
 class View(NamedTuple):
@@ -315,10 +321,20 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     model = Model(nb, kind, frame, flex, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
                   row_body, perm, pair, kd, form, int(isinstance(system.rotation, EulerSwitching)),
-                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux)
+                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux, *_projection(formulation))
     n_contacts = sum(c.k for c in system.contacts)
     return model, (nb, len(b.flexible), pt_s.shape[0], system.n_elastic, fx_work, row_body.shape[0], n_je, kd,
                    max(system.n_aux, n_contacts + 2), n_contacts), row_je
+
+
+def _projection(formulation) -> tuple[int, float, int]:
+    """``Model.projects``, ``projection_tol`` [m], ``projection_iter`` of ``formulation`` (what its
+    ``post_step`` passes to ``viz3d.stabilization.project_positions``)."""
+    from viz3d.stabilization import MAX_ITER
+
+    if formulation.name not in PROJECTING:
+        return 0, 0.0, 0
+    return 1, float(formulation.tol), MAX_ITER
 
 
 def _rows(system, flex) -> tuple:

@@ -1,5 +1,6 @@
-"""Explicit Runge-Kutta steps in the kernel, with the health checks and chart switches of
-``viz3d.simulate`` between steps (as ``viz3d.diagnosis.check_state`` makes them)."""
+"""Explicit Runge-Kutta steps in the kernel, with what ``viz3d.simulate`` does between steps: the
+``projection`` formulation's projections (``viz3d.kernel.projection``), the health checks (as
+``viz3d.diagnosis.check_state`` makes them) and the chart switches."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ import math
 from viz3d.compiled import entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import NONFINITE, OK, ROTATION, SPEED, evaluate, rotation
+from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, rotation
+from viz3d.kernel.projection import project
 
 
 @entry
@@ -17,8 +19,12 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, frames near
     gimbal lock are re-charted (``m.switching``) and counted in ``switches`` (per body); the run
     stops at the first failed evaluation, non-finite state, frame speed above ``max_speed``, or
-    orientation coordinates turning more than ``MAX_TURN`` rad in a step. On a failure ``y`` holds
-    the failed step's result."""
+    orientation coordinates turning more than ``MAX_TURN`` rad in a step. With ``m.projects``, each
+    step's end state is projected onto the constraints first (``viz3d.kernel.projection``: the
+    ``projection`` formulation's ``post_step``, in the order of ``viz3d.simulate``); a projection
+    that does not converge stops the run with ``PROJECTION``. On a failure ``y`` holds the failed
+    step's result; steps done counts it, except when the status is ``SINGULAR`` (an evaluation
+    or the projection's solve failed)."""
     n = y.shape[0]
     s = tb.shape[0]
     for step in range(n_steps):
@@ -31,14 +37,30 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
                 if tb[i] != 0.0:
                     acc += h * tb[i] * k[i, j]
             y[j] = acc
-        for j in range(n):
-            if not math.isfinite(y[j]):
+        if not _finite(y):
+            return step + 1, NONFINITE
+        if m.projects == 1:
+            status = project(t0 + (step + 1) * h, y, chart, m, v, w, rows)
+            if status == SINGULAR:
+                return step, status
+            if status != OK:
+                return step + 1, status
+            if not _finite(y):
                 return step + 1, NONFINITE
         status = _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y, chart, switches, h,
                               max_speed)
         if status != OK:
             return step + 1, status
     return n_steps, OK
+
+
+@inline
+def _finite(y):
+    """True when every entry of ``y`` is finite."""
+    for j in range(y.shape[0]):
+        if not math.isfinite(y[j]):
+            return False
+    return True
 
 
 @inline

@@ -1,0 +1,120 @@
+"""The ``projection`` formulation in the compiled kernel (``viz3d.kernel.projection``) takes the
+steps the NumPy path takes (``Projection.post_step``: ``viz3d.stabilization``), to round-off, and
+leaves the joints closed to the projection's tolerance."""
+
+import numpy as np
+import pytest
+
+import viz3d
+from viz3d import kernel as K
+from viz3d.constraints import constraint_rows
+from viz3d.diagnosis import SimulationFailure
+from viz3d.dynamics import body_state
+from viz3d.integrators import make_integrator
+from viz3d.integrators.tableaus import RK4
+from viz3d.scene.build import make_formulation
+from viz3d.simulate import Simulation
+
+from conftest import SCENES
+
+EPS = np.finfo(float).eps
+#: The kernel computes the NumPy formulas in another order: one step may differ by the step map's round-off,
+#: eps times its condition number, measured as the NumPy step's change under relative perturbations of eps of
+#: the state (max of SENSITIVITY_SAMPLES sign patterns); allowed: this many times that (test_kernel.py's factor).
+ROUNDOFF_FACTOR = 10.0
+SENSITIVITY_SAMPLES = 3
+#: Relative size of the perturbation that measures how the flow of N steps amplifies a difference (small enough
+#: to be linear, large enough to stand above round-off).
+GROWTH_PROBE = 1e-7
+#: The runs start this far off the constraints (random q and v offsets [m, rad, m/s, rad/s]): the first
+#: projection has work to do, and a run that skips it keeps |C| ~ this, far above the tolerance.
+OFF_CONSTRAINTS = 1e-6
+#: RK4 steps compared and their length [s] (1e-3 s: the NumPy projection costs ~1-2 ms a step).
+N_STEPS, DT = 100, 1e-3
+
+#: Rigid ball joints (heavy top), a 10-link chain (banded rows), a driven mechanism (C_t != 0: the velocity
+#: projection's explicit time rate, the drive's C(t)), a flexible body (elastic coordinates projected too).
+SCENE_NAMES = ["heavy_top", "chain", "slider_crank", "flexible_pendulum"]
+
+
+def _setup(name, overrides=None):
+    scene = viz3d.load_scene(SCENES / f"{name}.toml", {"sim.formulation": "projection", **(overrides or {})})
+    system, state = viz3d.build(scene)
+    rng = np.random.default_rng(3)
+    off = state.replace(q=state.q + OFF_CONSTRAINTS * rng.normal(size=state.q.shape),
+                        v=state.v + OFF_CONSTRAINTS * rng.normal(size=state.v.shape))
+    return system, off, make_formulation(scene.data["sim"])
+
+
+def _run(system, state, form, n, compiled):
+    sim = Simulation(system, state, make_integrator("rk4"), form, DT, compiled=compiled)
+    sim.steps(n)
+    return sim
+
+
+def _numpy_step(system, state, form):
+    return _run(system, state, form, 1, compiled=False).state.y
+
+
+def _step_roundoff(system, state, form):
+    """Round-off scale of one projected NumPy step from ``state``: max change of its result under relative
+    perturbations of eps of ``y`` (random signs), at least eps |y|."""
+    ref = _numpy_step(system, state, form)
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SENSITIVITY_SAMPLES, state.y.size))
+    change = max(np.abs(_numpy_step(system, _with_y(system, state, state.y * (1 + EPS * s)), form) - ref).max() for s in signs)
+    return max(change, EPS * np.abs(ref).max())
+
+
+def _growth(system, state, form, n):
+    """How much ``n`` projected kernel steps amplify a small difference of the initial state (max-norm ratio)."""
+    d = GROWTH_PROBE * np.abs(state.y).max() * np.random.default_rng(2).choice([-1.0, 1.0], size=state.y.size)
+    a = _run(system, state, form, n, compiled=True).state.y
+    b = _run(system, _with_y(system, state, state.y + d), form, n, compiled=True).state.y
+    return max(np.abs(a - b).max() / np.abs(d).max(), 1.0)
+
+
+def _with_y(system, state, y):
+    q, v, w = system.split_y(y)
+    return state.replace(q=q, v=v, w=w)
+
+
+def _max_abs_C(system, s):
+    return np.abs(constraint_rows(system.joints, body_state(system, s.q, s.v, s.chart, s.t), s.memory).C).max()
+
+
+@pytest.mark.parametrize("name", SCENE_NAMES)
+def test_compiled_projection_takes_the_numpy_steps_and_closes_the_joints(name):
+    """N steps both ways agree within N x (growth of a difference over N steps) x ROUNDOFF_FACTOR x (one step's
+    round-off); the compiled run's joints are closed to the projection's tolerance after every step."""
+    system, state, form = _setup(name)
+    assert K.kernel_coverage(system, form)[1] is None
+    compiled = Simulation(system, state, make_integrator("rk4"), form, DT)
+    assert compiled.kernel_note == "compiled kernel"
+    worst_C = 0.0
+    for _ in range(N_STEPS // 10):
+        compiled.steps(10)  # in the kernel: ten steps in one call
+        worst_C = max(worst_C, _max_abs_C(system, compiled.state))
+    numpy = _run(system, state, form, N_STEPS, compiled=False)
+    assert compiled.n_steps == numpy.n_steps == N_STEPS
+    bound = N_STEPS * _growth(system, state, form, N_STEPS) * ROUNDOFF_FACTOR * _step_roundoff(system, state, form)
+    diff = np.abs(compiled.state.y - numpy.state.y).max()
+    assert diff <= bound, f"mismatch: y after {N_STEPS} steps: {diff:.2e} > {bound:.2e}"
+    assert np.array_equal(compiled.state.chart, numpy.state.chart)
+    assert worst_C <= form.tol, f"max |C| after projection {worst_C:.2e} m > tol {form.tol:g} m"
+
+
+def test_projection_that_does_not_converge_stops_the_run_with_the_numpy_diagnosis():
+    """A tolerance below round-off cannot be met: the kernel reports ``PROJECTION`` after the first step, and
+    the run stops with the NumPy path's ``ProjectionError`` diagnosis, at the same time."""
+    system, state, form = _setup("heavy_top", {"sim.projection_tol": 1e-300})
+    data = K.kernel_for(system, form)
+    y, chart = state.y.copy(), state.chart.copy()
+    done, status = K.kernel_advance(data, RK4, 5, 0.0, DT, y, chart, np.zeros(system.n_bodies, np.int64), 1e4)
+    assert (done, status) == (1, K.PROJECTION)
+    messages = []
+    for compiled in (True, False):
+        with pytest.raises(SimulationFailure) as exc:
+            _run(system, state, form, 5, compiled)
+        messages.append(str(exc.value))
+    head = [m.split(" = ")[:2] for m in messages]  # "t = 0.001 s: position projection left max |C|", value
+    assert head[0] == head[1] and "position projection left max |C|" in messages[0], messages
