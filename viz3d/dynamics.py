@@ -163,13 +163,18 @@ def kineto_elastodynamic(system: System, formulation, cfg: Configuration, memory
     """``accelerations`` with the flexible bodies marked ``ked`` (seed 003's kineto-elastodynamics):
     the mechanism moves as if they were rigid — their frame forces, mass blocks and joint rows are
     those of the undeformed body (``undeformed``), without elastic columns — and their elastic
-    equations are driven by that motion, ``M_ee eta_ddot = Q_e - M_ef(eta) a_frame`` (no feedback)."""
+    equations are loaded by that rigid motion only: ``M_ee eta_ddot = Q_e(rigid) - K eta - C eta_dot
+    - M_ef(0) a_frame``, ``Q_e(rigid)`` the loads on the undeformed body at elastic rest (velocity
+    forces, gravity, applied). Neither the feedback on the frame nor the motion-dependent terms in
+    eta (centrifugal softening, Coriolis, Euler, geometric stiffening) are kept (docs/notation.md)."""
     rigid = undeformed(system, cfg)
     Q, Q_e = generalized_forces(system, cfg, memory, elements)
-    Q_r, _ = generalized_forces(system, rigid, memory, elements)
+    Q_r, Q_e_r = generalized_forces(system, rigid, memory, elements)
     ked = [(i, fb) for i, fb in enumerate(system.bodies.flexible) if fb.ked]
-    for _, fb in ked:
+    for i, fb in ked:
         Q[fb.index] = Q_r[fb.index]
+        sl = elastic_slices(system)[i]
+        Q_e[sl] = Q_e_r[sl] + ffr.elastic_forces(fb.bar, cfg.eta[i], cfg.eta_dot[i])
     rows = constraint_rows(system.joints, rigid, memory)
     Je = rows.Je.copy()
     for i, _ in ked:
@@ -178,7 +183,7 @@ def kineto_elastodynamic(system: System, formulation, cfg: Configuration, memory
     (a, a_e), lam = formulation.solve(system, system_mass(system, cfg), (Q, Q_e), rows, rigid)
     for i, fb in ked:
         if fb.floating:
-            M_ef = ffr.mass_matrix(fb.bar, cfg.pose.R_WB[fb.index], cfg.eta[i])[6:, :6]
+            M_ef = ffr.mass_matrix(fb.bar, cfg.pose.R_WB[fb.index], np.zeros(fb.n))[6:, :6]
             a_e[elastic_slices(system)[i]] -= fb.M_ee_inv @ (M_ef @ a[fb.index])
     return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
 
@@ -242,7 +247,7 @@ def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple
     damping = stiffening = 0.0
     for i, fb in enumerate(system.bodies.flexible):
         damping += float(cfg.eta_dot[i] @ fb.bar.C @ cfg.eta_dot[i])
-        if fb.floating:
+        if fb.floating and not fb.ked:  # (kineto-elastodynamics leaves the stiffening out)
             stiffening += ffr.stiffening_power(fb.bar, cfg.twist.B_omega[fb.index], cfg.eta[i], cfg.eta_dot[i])
     power_in = stiffening + drives
     for i, element in enumerate(system.forces):
