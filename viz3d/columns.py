@@ -111,6 +111,11 @@ class StateLog:
         system = sim.system
         self.nb, self.nj = system.n_bodies, len(system.joint_names)
 
+    @property
+    def room(self) -> int:
+        """States that can be recorded before the chunk is computed (at least 1)."""
+        return max(1, self.chunk - len(self.states))
+
     def record(self, state: State) -> None:
         """Keep ``state`` (an output instant); compute the chunk when it is full."""
         self.states.append(state)

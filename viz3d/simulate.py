@@ -273,6 +273,50 @@ class Simulation:
         self.n_samples += done
         self.state = _state_at(self.system, self.t0 + self.n_samples * self.dt, y, self.state.replace(chart=chart))
 
+    @property
+    def batches_frames(self) -> bool:
+        """True when ``output_states`` can take several output frames in one kernel call (fixed
+        explicit RK steps the kernel covers, no contacts)."""
+        return self._kernel_ready()
+
+    def output_states(self, n_frames: int, every: int) -> list[State]:
+        """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
+        states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
+        the states before the failing frame are returned (``state`` is the last); ``steps(every)``
+        then takes that frame and raises its diagnosis."""
+        from viz3d.kernel import OK
+
+        done, status = self._frames_run(n_frames, every)
+        if status != OK and done:  # keep the good frames (redone: the kernel is deterministic)
+            done, status = self._frames_run(done, every)
+        if status != OK:
+            return []
+        return self._frame_states
+
+    def _frames_run(self, n_frames: int, every: int) -> tuple[int, int]:
+        """``output_states``'s kernel call from the current state: (frames done, status); the state,
+        counters and chart switches move only when every frame succeeded."""
+        from viz3d.kernel import OK, SINGULAR
+
+        s, system = self.state, self.system
+        y, chart = s.y.copy(), s.chart.copy()
+        switches = np.zeros(system.n_bodies, np.int64)
+        Y, charts, done, partial, status = self._kernel.frames(n_frames, every, self.n_samples, self.t0, self.dt, y,
+                                                               chart, switches, self.blowup_speed)
+        if status != OK:  # the failed frame's evaluations count (a singular step stops inside its stages)
+            self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
+            return done, status
+        self.n_rhs += done * every * self._kernel.tableau.stages
+        nq, nv, n0 = system.n_q, system.n_v, self.n_samples
+        self._frame_states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
+                                    Y[f, nq + nv:], s.memory, s.element_memory) for f in range(done)]
+        self.state = self._frame_states[-1]
+        self.n_samples += done * every
+        self.n_steps += done * every
+        self.chart_switches += switches
+        self._f = None
+        return done, OK
+
     def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Up to ``n`` kernel steps from the current state: ``(y, chart, good steps, ok)``. The
         evaluations are counted (a failed step's too); steps and chart switches only when all
@@ -593,7 +637,17 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             emitter.open(scene)
             emitter.emit(output=True)
             n = 0
+            batched = not sinks and sim.batches_frames  # output frames a chunk at a time, in one kernel call
             while n < n_steps:  # to the next output frame in one call (every step for full-rate sinks)
+                if batched and n % every == 0 and n_steps - n >= every:
+                    want = min((n_steps - n) // every, log.room)
+                    states = sim.output_states(want, every)
+                    emitter.record(states)
+                    n += len(states) * every
+                    if bar is not None:
+                        bar.update(n)
+                    if len(states) == want:
+                        continue  # else the failing frame below, one step at a time, for its diagnosis
                 k = 1 if full_rate else min(every - n % every, n_steps - n)
                 sim.steps(k)
                 n += k
@@ -691,6 +745,12 @@ class _Emitter:
             for s in to:
                 s.log(frame)
             if output:
+                self.log.record(state)  # (may compute a chunk of frames and fail its checks)
+
+    def record(self, states: list[State]) -> None:
+        """Output states of a run without sinks, to the trajectory's log."""
+        with self.guard.held():
+            for state in states:
                 self.log.record(state)  # (may compute a chunk of frames and fail its checks)
 
     def announce(self, events: list[tuple[float, str]]) -> None:

@@ -24,7 +24,7 @@ from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.sampling import sample
-from viz3d.kernel.stepping import advance, rk_step, state_ok
+from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "KernelData", "kernel_for", "kernel_coverage",
            "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
@@ -253,8 +253,24 @@ class KernelStepper:
         v, w = self.ws
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
-        return advance(n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w, d.forces,
-                       d.rows, self._k, self._yi)
+        return self._call(advance, n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w,
+                          d.forces, d.rows, self._k, self._yi)
+
+
+    def frames(self, n_frames: int, every: int, n0: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
+               switches: np.ndarray, max_speed: float) -> tuple[np.ndarray, np.ndarray, int, int, int]:
+        """``n_frames`` times ``every`` steps of ``y``, ``chart`` in place, from step ``n0`` of a run
+        started at ``t0`` [s]: ``(Y, charts, frames done, steps done in the next frame, status)``,
+        ``Y`` (frames done, n) and ``charts`` the states after each frame."""
+        tab, d = self.tableau, self.data
+        v, w = self.ws
+        if _c(y) is not y or _c(chart) is not chart:
+            raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
+        Y, charts = np.empty((n_frames, y.shape[0])), np.empty((n_frames, *chart.shape))
+        done, partial, status = self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, tab.a, tab.b,
+                                           tab.c, max_speed, d.model, v, w, d.forces, d.rows, self._k, self._yi, Y,
+                                           charts)
+        return Y[:done], charts[:done], done, partial, status
 
 
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,

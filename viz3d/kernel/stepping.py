@@ -54,6 +54,28 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     return n_steps, OK
 
 
+@entry
+def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, k, yi,
+                   Y, charts):
+    """Up to ``n_frames`` calls of ``advance`` of ``every`` steps each, the first from step ``n0`` of
+    a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the time the run's
+    own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and ``charts[f]``.
+    Returns (frames done, steps done in the next frame, status): a run's output frames in one call,
+    free of the per-frame Python overhead. On a failure ``y`` holds the failed step's result."""
+    for f in range(n_frames):
+        done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w,
+                               forces, rows, k, yi)
+        if status != OK:
+            return f, done, status
+        for j in range(y.shape[0]):
+            Y[f, j] = y[j]
+        for b in range(chart.shape[0]):
+            for i in range(3):
+                for c in range(3):
+                    charts[f, b, i, c] = chart[b, i, c]
+    return n_frames, every, OK
+
+
 @inline
 def _finite(y):
     """True when every entry of ``y`` is finite."""
