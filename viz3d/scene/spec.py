@@ -172,7 +172,8 @@ BODY_TYPES = {
         "damping": Field(nonnegative, 0.0, "modal damping ratio of every mode"),
         "coupling": Field(one_of("coupled", "ked"), "coupled", "coupled: the floating frame and the deformation "
                           "act on each other; ked: kineto-elastodynamic (seed 003), the frame moves as the rigid "
-                          "body and drives the deformation without feedback (joints at the undeformed sections)"),
+                          "body (joints at the undeformed sections) and the structural equations are loaded by "
+                          "that rigid motion only, without feedback or motion-dependent stiffness (docs/notation.md)"),
         "geometric_stiffening": Field(boolean, False, "centrifugal stiffening of bending: the foreshortening's "
                                       "kinetic energy about the supported end (docs/notation.md); a bending bar"),
         "point_masses": Field(ArrayOf(POINT_MASS), list, "rigid point masses on the axis"),
