@@ -1,13 +1,15 @@
-"""viz3d, MuJoCo and Exudyn at equal accuracy on the problems of issue 14 (a benchmark, not a test).
+"""viz3d, MuJoCo, Exudyn and Pinocchio at equal accuracy on the problems of issue 14 (a benchmark, not a test).
 
-    pip install -e '.[peers]'   # MuJoCo and Exudyn; a peer that is not installed is skipped with a message
+    pip install -e '.[peers]'   # MuJoCo, Exudyn, Pinocchio; a peer that is not installed is skipped with a message
     python benchmarks/bench_peers.py [--problems heavy_top,torque_free,top_through_vertical,chain]
         [--chains 2,10,50,100,200] [--tol 1e-6] [--max-run 20] [--out docs/bench_peers.png]
 
 Problems (the shipped scenes, one model for all simulators, ``peers.rigid_tree``): the heavy top on
 a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, no gravity) over
 20 s, the top whose axis passes through theta = 0 over its scene's 3 s, and ball-joint chains of N
-links over their first second (``--chains``). The default run takes about 6 minutes on 2 cores.
+links over their first second (``--chains``). viz3d runs twice: RK4 with its default index-1
+formulation ("viz3d") and with coordinate projection ("viz3d+projection", compiled since the kernel
+projects); the ratio column takes the cheaper. The default run takes about 10 minutes on 2 cores.
 
 Each simulator runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...: about
 sqrt(2) apart, each dividing the frame interval), coarse to fine, until a run reaches
@@ -16,7 +18,9 @@ over the 100 Hz output frames, of any marker point (each body's centre of mass a
 0.1 m along its axes) from the reference: viz3d's own equations (maximal coordinates, Euler-angle
 charts) integrated by its adaptive DOP853 at rtol 1e-12 (``viz3d.bench.reference_run``). MuJoCo
 (minimal coordinates, quaternions, RK4) and Exudyn (Euler parameters, index-3 generalized-alpha;
-RK44 on rotation vectors for the free body) are independent formulations of the same model: the
+RK44 on rotation vectors for the free body) and Pinocchio (minimal coordinates, its articulated-body
+algorithm ``aba`` stepped by RK4 written in Python, as a user steps it: Pinocchio has no integrator)
+are independent formulations of the same model: the
 error they reach at small steps also bounds how well the models agree. Wall time: the whole run
 with its frames at 100 Hz: ``viz3d.simulate`` (build, run, frames, trajectory); MuJoCo stepping and
 reading the poses at every frame; Exudyn's ``SolveDynamic`` with its sensors (peer models are
@@ -33,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from peers import exudyn_run, markers, mujoco_run, rigid_tree
+from peers import exudyn_run, markers, mujoco_run, pinocchio_run, rigid_tree
 
 from viz3d.bench import reference_run
 from viz3d.scene.load import load_scene
@@ -91,9 +95,11 @@ def problems(names: list[str], chains: list[int], rtol: float) -> list[Problem]:
     return out
 
 
-def viz3d_run(p: Problem, dt: float) -> tuple[np.ndarray | None, float, int]:
-    """viz3d's default method (RK4, index-1, Euler-angle charts, compiled kernel) at step ``dt``."""
-    scene = load_scene(p.path, p.overrides + [f"sim.dt={dt!r}", f"sim.output_dt={OUTPUT_DT!r}"])
+def viz3d_run(p: Problem, dt: float, formulation: str = "index1") -> tuple[np.ndarray | None, float, int]:
+    """viz3d's RK4 with ``formulation`` (index-1, the default; or coordinate projection), Euler-angle
+    charts, compiled kernel, at step ``dt``."""
+    scene = load_scene(p.path, p.overrides + [f"sim.dt={dt!r}", f"sim.output_dt={OUTPUT_DT!r}",
+                                              f"sim.formulation={formulation}"])
     t0 = time.perf_counter()
     traj = simulate(scene, t_end=p.t_end)
     wall = time.perf_counter() - t0
@@ -110,12 +116,18 @@ def exudyn(p: Problem, dt: float):
     return r.position, r.wall, r.steps
 
 
+def pinocchio(p: Problem, dt: float):
+    r = pinocchio_run(p.tree, dt, p.t_end, OUTPUT_DT)
+    return r.position, r.wall, r.steps
+
+
 def simulators(wanted: list[str]) -> dict:
     """The runners of the installed simulators among ``wanted`` (a message for each one missing)."""
-    runners = {"viz3d": viz3d_run, "MuJoCo": mujoco, "Exudyn": exudyn}
+    runners = {"viz3d": viz3d_run, "viz3d+projection": lambda p, dt: viz3d_run(p, dt, "projection"), "MuJoCo": mujoco,
+               "Exudyn": exudyn, "Pinocchio": pinocchio}
     out = {}
     for name in wanted:
-        module = {"MuJoCo": "mujoco", "Exudyn": "exudyn"}.get(name)
+        module = {"MuJoCo": "mujoco", "Exudyn": "exudyn", "Pinocchio": "pinocchio"}.get(name)
         try:
             if module:
                 version = __import__(module).__version__
@@ -190,11 +202,12 @@ def summary(rows: list[Run], tol: float, sims: list[str]) -> str:
 
 
 def _ratio(best: dict, prob: str, sims: list[str]) -> str:
-    """viz3d's cheapest wall time over the fastest peer's, on ``prob``."""
-    peers = [best[prob, s].wall for s in sims if s != "viz3d" and (prob, s) in best]
-    if (prob, "viz3d") not in best:
+    """viz3d's cheapest wall time (either formulation) over the fastest peer's, on ``prob``."""
+    ours = [best[prob, s].wall for s in sims if s.startswith("viz3d") and (prob, s) in best]
+    peers = [best[prob, s].wall for s in sims if not s.startswith("viz3d") and (prob, s) in best]
+    if not ours:
         return "-"
-    return f"{best[prob, 'viz3d'].wall / min(peers):.2f}" if peers else "no peer reached it"
+    return f"{min(ours) / min(peers):.2f}" if peers else "no peer reached it"
 
 
 def all_runs(rows: list[Run]) -> str:
@@ -215,7 +228,7 @@ def chart(rows: list[Run], tol: float, path: Path) -> None:
     nrows = -(-len(probs) // cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(4 * cols, 3.4 * nrows), squeeze=False)
     for ax, prob in zip(axes.flat, probs):
-        for sim, marker in zip(dict.fromkeys(r.simulator for r in rows), "os^v"):
+        for sim, marker in zip(dict.fromkeys(r.simulator for r in rows), "osx^vD"):
             mine = [r for r in rows if r.problem == prob and r.simulator == sim and np.isfinite(r.error)]
             ax.loglog([r.wall for r in mine], [r.error for r in mine], marker + "-", label=sim)
         ax.axhline(tol, color="grey", lw=0.8, ls="--")
@@ -238,7 +251,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", default="heavy_top,torque_free,top_through_vertical,chain")
     ap.add_argument("--chains", default="2,10,50,100,200", help="chain lengths (links)")
-    ap.add_argument("--simulators", default="viz3d,MuJoCo,Exudyn")
+    ap.add_argument("--simulators", default="viz3d,viz3d+projection,MuJoCo,Exudyn,Pinocchio")
     ap.add_argument("--tol", type=float, default=1e-6, help="accuracy to reach [m]")
     ap.add_argument("--max-run", type=float, default=20.0, help="longest run tried [s]")
     ap.add_argument("--repeat", type=int, default=3)

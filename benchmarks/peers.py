@@ -2,9 +2,9 @@
 
 A ``RigidTree`` is read from a viz3d scene and the first frame of one of its runs: the bodies'
 masses and inertias, their initial poses and velocities, and the ball joints that connect them
-(a body without a joint floats free). ``mujoco_run`` and ``exudyn_run`` build the same tree in
-MuJoCo and Exudyn, run it at a fixed step and return the bodies' ``markers`` on a grid of output
-frames (recorded during the run, as viz3d's are). Each peer is optional: its import raises
+(a body without a joint floats free). ``mujoco_run``, ``exudyn_run`` and ``pinocchio_run`` build the
+same tree in MuJoCo, Exudyn and Pinocchio, run it at a fixed step and return the bodies' ``markers``
+on a grid of output frames (recorded during the run, as viz3d's are). Each peer is optional: its import raises
 ImportError when it is not installed (``pip install -e '.[peers]'``).
 """
 
@@ -214,6 +214,100 @@ def _exudyn_settings(exu, steps: int, t_end: float, output_dt: float):
     s.displayComputationTime = False
     s.displayStatistics = False
     return s
+
+
+# ---------------------------------------------------------------------------- Pinocchio
+
+
+def pinocchio_model(tree: RigidTree):
+    """``(pinocchio, model, q0, v0, lever)`` of ``tree``: a spherical joint (or a free flyer) per body,
+    each joint frame at its joint's centre turned as the body starts (so q0 is the identity rotation),
+    the body's inertia about its centre at ``lever`` (nb, 3) in joint axes [m]."""
+    import pinocchio as pin
+
+    model = pin.Model()
+    model.gravity = pin.Motion(np.asarray(tree.gravity, float), np.zeros(3))
+    nb = len(tree.mass)
+    origin = np.where((tree.parent == FREE)[:, None], tree.r, tree.point)  # each joint frame's origin
+    lever, joint = np.zeros((nb, 3)), np.zeros(nb, int)
+    q0, v0 = [], []
+    for i in range(nb):
+        p = int(tree.parent[i])
+        R_p, o_p = (tree.R[p], origin[p]) if p >= 0 else (np.eye(3), np.zeros(3))
+        placement = pin.SE3(R_p.T @ tree.R[i], R_p.T @ (origin[i] - o_p))
+        w_rel = tree.R[i].T @ (tree.w[i] - (tree.w[p] if p >= 0 else 0.0))
+        if p == FREE:
+            jm = pin.JointModelFreeFlyer()
+            q0 += [np.zeros(3), [0.0, 0.0, 0.0, 1.0]]
+            v0 += [tree.R[i].T @ tree.v[i], tree.R[i].T @ tree.w[i]]
+        else:
+            jm = pin.JointModelSpherical()
+            q0 += [[0.0, 0.0, 0.0, 1.0]]
+            v0 += [w_rel]
+        joint[i] = model.addJoint(int(joint[p]) if p >= 0 else 0, jm, placement, f"j{i}")
+        lever[i] = tree.R[i].T @ (tree.r[i] - origin[i])
+        model.appendBodyToJoint(int(joint[i]), pin.Inertia(float(tree.mass[i]), lever[i], tree.inertia[i]),
+                                pin.SE3.Identity())
+    return pin, model, np.concatenate(q0), np.concatenate(v0), lever, joint
+
+
+def pinocchio_run(tree: RigidTree, dt: float, t_end: float, output_dt: float) -> PeerRun:
+    """Run ``tree`` with Pinocchio's articulated-body algorithm (``aba``) and classic RK4 written here
+    (Pinocchio has no time integrator: this is how a user steps it), quaternions advanced by
+    ``q_dot = q (x) (omega/2, 0)`` as plain ODE coordinates and normalised after each step; poses read
+    by ``forwardKinematics`` every ``output_dt``. The model is built before the clock starts."""
+    pin, model, q, v, lever, joint = pinocchio_model(tree)
+    data = model.createData()
+    free = tree.parent == FREE
+    # index arrays of each joint's quaternion (x, y, z, w) and angular-velocity entries, and free flyers' positions
+    qi = np.array([model.joints[int(j)].idx_q + (3 if f else 0) for j, f in zip(joint, free)])
+    vi = np.array([model.joints[int(j)].idx_v + (3 if f else 0) for j, f in zip(joint, free)])
+    quat = qi[:, None] + np.arange(4)
+    omega = vi[:, None] + np.arange(3)
+    pos = np.array([model.joints[int(j)].idx_q for j in joint[free]], int)[:, None] + np.arange(3)
+    lin = np.array([model.joints[int(j)].idx_v for j in joint[free]], int)[:, None] + np.arange(3)
+    tau = np.zeros(model.nv)
+
+    def q_dot(q, v):
+        x, y, z, w = (q[quat[:, k]] for k in range(4))
+        wx, wy, wz = (v[omega[:, k]] for k in range(3))
+        out = np.zeros_like(q)
+        out[quat[:, 0]] = 0.5 * (w * wx + y * wz - z * wy)
+        out[quat[:, 1]] = 0.5 * (w * wy + z * wx - x * wz)
+        out[quat[:, 2]] = 0.5 * (w * wz + x * wy - y * wx)
+        out[quat[:, 3]] = -0.5 * (x * wx + y * wy + z * wz)
+        if pos.size:
+            for n, j in enumerate(joint[free]):
+                out[pos[n]] = data.oMi[int(j)].rotation @ v[lin[n]]  # oMi from the aba just called at q
+        return out
+
+    def f(q, v):
+        a = pin.aba(model, data, q, v, tau)
+        return q_dot(q, v), a.copy()
+
+    k, n = _steps_per_frame(dt, output_dt), round(t_end / output_dt)
+    r, R = np.empty((n + 1, len(joint), 3)), np.empty((n + 1, len(joint), 3, 3))
+
+    def poses(f_):
+        pin.forwardKinematics(model, data, q)
+        for b, j in enumerate(joint):
+            M = data.oMi[int(j)]
+            R[f_, b] = M.rotation
+            r[f_, b] = M.translation + M.rotation @ lever[b]
+
+    t0 = time.perf_counter()
+    poses(0)
+    for fr in range(1, n + 1):
+        for _ in range(k):
+            dq1, a1 = f(q, v)
+            dq2, a2 = f(q + 0.5 * dt * dq1, v + 0.5 * dt * a1)
+            dq3, a3 = f(q + 0.5 * dt * dq2, v + 0.5 * dt * a2)
+            dq4, a4 = f(q + dt * dq3, v + dt * a3)
+            q = q + dt / 6.0 * (dq1 + 2.0 * dq2 + 2.0 * dq3 + dq4)
+            v = v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            q[quat] /= np.linalg.norm(q[quat], axis=1, keepdims=True)
+        poses(fr)
+    return PeerRun(markers(r, R), time.perf_counter() - t0, n * k)
 
 
 # ---------------------------------------------------------------------------- helpers
