@@ -38,9 +38,10 @@ class Output(ABC):
 
 
 @dataclass(frozen=True)
-class StrainGauges(Output):
-    """Strain gauges on a flexible bar: the axial strain plus the bending surface strain on the fibre
-    at ``+depth/2`` of every field (``BarModel.strain``) at sections ``x``.
+class SectionGauges(Output):
+    """Gauges at sections ``x`` of a flexible bar whose readings are linear in its elastic
+    coordinates, ``rows @ eta``; subclasses give ``section_rows`` and their ``plot`` (its path prefix
+    names the keys, ``<prefix>/<name>``).
 
     Attributes
     ----------
@@ -50,11 +51,9 @@ class StrainGauges(Output):
     x : ndarray, shape (k,)
         Sections [m].
     rows : ndarray, shape (k, n)
-        Strain per unit elastic coordinate (derived from ``bar``).
+        Reading per unit elastic coordinate (``section_rows()``, from ``bar``).
     """
 
-    type_name = "strain_gauge"
-    plot = ("Gauge strain [-]", "strain")
     names: tuple[str, ...]
     flex: int
     x: FloatArray
@@ -62,72 +61,60 @@ class StrainGauges(Output):
     rows: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self):
-        rows = np.zeros((len(self.x), self.bar.n))
-        for model, sl in zip(self.bar.fields, self.bar.field_slices):
-            rows[:, sl] = model.strain(self.x)
-        object.__setattr__(self, "rows", rows)
+        object.__setattr__(self, "rows", self.section_rows())
 
-    def strains(self, cfg: Configuration) -> FloatArray:
-        """Strain at each gauge, shape (k,) [-]."""
+    def section_rows(self) -> FloatArray:
+        raise NotImplementedError
+
+    def readings(self, cfg: Configuration) -> FloatArray:
+        """Reading of each gauge at ``cfg``, shape (k,)."""
         return self.rows @ cfg.eta[self.flex]
 
     @property
     def keys(self):
-        return tuple(f"strain/{n}" for n in self.names)
+        return tuple(f"{self.plot[1]}/{n}" for n in self.names)
 
     def values(self, cfg, reactions=None):
-        return dict(zip(self.keys, map(float, self.strains(cfg))))
+        return dict(zip(self.keys, map(float, self.readings(cfg))))
 
 
 @dataclass(frozen=True)
-class DeflectionGauges(Output):
-    """Deflection gauges on a flexible bar: the transverse displacement of the axis at sections ``x``,
-    measured from the bar's reference frame, along its bending direction d (the first bending field's:
-    the direction of positive w).
+class StrainGauges(SectionGauges):
+    """Strain gauges: the axial strain plus the bending surface strain on the fibre at ``+depth/2``
+    of every field (``BarModel.strain``) [-]."""
+
+    type_name = "strain_gauge"
+    plot = ("Gauge strain [-]", "strain")
+
+    def section_rows(self) -> FloatArray:
+        rows = np.zeros((len(self.x), self.bar.n))
+        for model, sl in zip(self.bar.fields, self.bar.field_slices):
+            rows[:, sl] = model.strain(self.x)
+        return rows
+
+
+@dataclass(frozen=True)
+class DeflectionGauges(SectionGauges):
+    """Deflection gauges: the transverse displacement of the axis [m], measured from the bar's
+    reference frame, along its bending direction d (the first bending field's: the direction of
+    positive w).
 
     The frame is what the bar's shapes make it (``viz3d.flexible.floating``): for pinned-pinned
     shapes the chord through the pins, so a gauge at midspan reads the sag relative to the chord;
     clamped-free, the tangent at x = 0; free-free, the mean axes. Linear in eta:
     ``w(x) = d . U(x) eta`` (an axial field contributes nothing along d).
-
-    Attributes
-    ----------
-    names : tuple of str, length k
-    flex : int
-        The bar among ``Bodies.flexible``.
-    x : ndarray, shape (k,)
-        Sections [m].
-    rows : ndarray, shape (k, n)
-        Deflection per unit elastic coordinate [m per unit eta] (derived from ``bar``).
     """
 
     type_name = "deflection_gauge"
     plot = ("Deflection [m]", "deflection")
-    names: tuple[str, ...]
-    flex: int
-    x: FloatArray
-    bar: object = field(repr=False)
-    rows: FloatArray = field(init=False, repr=False)
 
-    def __post_init__(self):
+    def section_rows(self) -> FloatArray:
         from viz3d.flexible.floating_points import material_points
 
         bending = [d for d, m in zip(self.bar.directions, self.bar.fields) if m.kind == "bending"]
         if not bending:
             raise ValueError("a deflection gauge needs a bar with a bending field")
-        points = material_points(self.bar, self.x)
-        object.__setattr__(self, "rows", np.einsum("i,kin->kn", bending[0], points.N))
-
-    def deflections(self, cfg: Configuration) -> FloatArray:
-        """Deflection at each gauge, shape (k,) [m]."""
-        return self.rows @ cfg.eta[self.flex]
-
-    @property
-    def keys(self):
-        return tuple(f"deflection/{n}" for n in self.names)
-
-    def values(self, cfg, reactions=None):
-        return dict(zip(self.keys, map(float, self.deflections(cfg))))
+        return np.einsum("i,kin->kn", bending[0], material_points(self.bar, self.x).N)
 
 
 #: Gauge classes by the scene's ``gauges[i].quantity``.

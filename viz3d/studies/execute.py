@@ -18,15 +18,14 @@ import logging
 import math
 import os
 import pickle
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from viz3d.interrupts import InterruptGuard
 from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.studies import WORKER_TIMEOUT
@@ -129,28 +128,12 @@ def run_task(task: Task) -> dict:
     return {"status": "ok", **row}
 
 
-class InterruptWatch:
+class InterruptWatch(InterruptGuard):
     """Context manager noting whether SIGINT or SIGTERM arrived while it was entered (then handled
     as before: the handler it wraps is called). Only Python-callable handlers on the main thread are
     wrapped (``viz3d.interrupts.InterruptGuard``'s rule); elsewhere ``received`` stays False."""
 
-    def __init__(self):
-        self.received = False
-        self._previous: dict[int, Callable] = {}
-
-    def __enter__(self) -> InterruptWatch:
-        from viz3d.interrupts import SIGNALS
-
-        if threading.current_thread() is threading.main_thread():
-            for sig in SIGNALS:
-                if callable(signal.getsignal(sig)):
-                    self._previous[sig] = signal.signal(sig, self._receive)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-        self._previous.clear()
+    received = False
 
     def _receive(self, signum, frame) -> None:
         self.received = True
