@@ -9,7 +9,7 @@ a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, 
 20 s, the top whose axis passes through theta = 0 over its scene's 3 s, and ball-joint chains of N
 links over their first second (``--chains``). viz3d runs twice: RK4 with its default index-1
 formulation ("viz3d") and with coordinate projection ("viz3d+projection", compiled since the kernel
-projects); the ratio column takes the cheaper. The default run takes about 10 minutes on 2 cores.
+projects); the ratio column takes the cheaper. The default run takes about 15 minutes on 2 cores.
 
 Each simulator runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...: about
 sqrt(2) apart, each dividing the frame interval), coarse to fine, until a run reaches
