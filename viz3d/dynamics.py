@@ -171,20 +171,20 @@ def kineto_elastodynamic(system: System, formulation, cfg: Configuration, memory
     Q, Q_e = generalized_forces(system, cfg, memory, elements)
     Q_r, Q_e_r = generalized_forces(system, rigid, memory, elements)
     ked = [(i, fb) for i, fb in enumerate(system.bodies.flexible) if fb.ked]
+    slices = elastic_slices(system)
     for i, fb in ked:
         Q[fb.index] = Q_r[fb.index]
-        sl = elastic_slices(system)[i]
-        Q_e[sl] = Q_e_r[sl] + ffr.elastic_forces(fb.bar, cfg.eta[i], cfg.eta_dot[i])
+        Q_e[slices[i]] = Q_e_r[slices[i]] + ffr.elastic_forces(fb.bar, cfg.eta[i], cfg.eta_dot[i])
     rows = constraint_rows(system.joints, rigid, memory)
     Je = rows.Je.copy()
     for i, _ in ked:
-        Je[:, :, elastic_slices(system)[i]] = 0.0
+        Je[:, :, slices[i]] = 0.0
     rows = dataclasses.replace(rows, Je=Je)
     (a, a_e), lam = formulation.solve(system, system_mass(system, cfg), (Q, Q_e), rows, rigid)
     for i, fb in ked:
         if fb.floating:
             M_ef = ffr.mass_matrix(fb.bar, cfg.pose.R_WB[fb.index], np.zeros(fb.n))[6:, :6]
-            a_e[elastic_slices(system)[i]] -= fb.M_ee_inv @ (M_ef @ a[fb.index])
+            a_e[slices[i]] -= fb.M_ee_inv @ (M_ef @ a[fb.index])
     return Accelerations(flat_velocity(system, a, a_e), lam, rows, cfg)
 
 

@@ -286,36 +286,35 @@ class Simulation:
         then takes that frame and raises its diagnosis."""
         from viz3d.kernel import OK
 
-        done, status = self._frames_run(n_frames, every)
+        states, done, status = self._frames_run(n_frames, every)
         if status != OK and done:  # keep the good frames (redone: the kernel is deterministic)
-            done, status = self._frames_run(done, every)
-        if status != OK:
-            return []
-        return self._frame_states
+            states, done, status = self._frames_run(done, every)
+        return states
 
-    def _frames_run(self, n_frames: int, every: int) -> tuple[int, int]:
-        """``output_states``'s kernel call from the current state: (frames done, status); the state,
-        counters and chart switches move only when every frame succeeded."""
+    def _frames_run(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
+        """``output_states``'s kernel call from the current state: (the frames' states, frames done,
+        status); the states (none on a failure), counters and chart switches move only when every
+        frame succeeded."""
         from viz3d.kernel import OK, SINGULAR
 
         s, system = self.state, self.system
-        y, chart = s.y.copy(), s.chart.copy()
+        y, chart = s.y, s.chart.copy()  # (State.y is a new array)
         switches = np.zeros(system.n_bodies, np.int64)
         Y, charts, done, partial, status = self._kernel.frames(n_frames, every, self.n_samples, self.t0, self.dt, y,
                                                                chart, switches, self.blowup_speed)
         if status != OK:  # the failed frame's evaluations count (a singular step stops inside its stages)
             self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
-            return done, status
+            return [], done, status
         self.n_rhs += done * every * self._kernel.tableau.stages
         nq, nv, n0 = system.n_q, system.n_v, self.n_samples
-        self._frame_states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
+        states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
                                     Y[f, nq + nv:], s.memory, s.element_memory) for f in range(done)]
-        self.state = self._frame_states[-1]
+        self.state = states[-1]
         self.n_samples += done * every
         self.n_steps += done * every
         self.chart_switches += switches
         self._f = None
-        return done, OK
+        return states, done, OK
 
     def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Up to ``n`` kernel steps from the current state: ``(y, chart, good steps, ok)``. The
