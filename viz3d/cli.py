@@ -585,7 +585,7 @@ def summary(traj, out: Path) -> str:
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
         f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, "
         f"{1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",
-        *(contact_lines(traj) if len(x.get("contact_names", ())) else [_energy_line(traj, meta)]),
+        *(contact_lines(traj) if "approach_velocity" in x else [_energy_line(traj, meta)]),
         f"constraints max |C| = {traj.max_constraint_violation:.3e} m",
         f"charts      {int(traj.chart_switches.sum())} Euler-chart switches",
         f"kernel      {meta.get('kernel', 'n/a')}",

@@ -103,7 +103,7 @@ class Simulation:
         Current state.
     chart_switches : ndarray of int, shape (nb,)
     kernel_note : str
-        "compiled kernel", or "NumPy path: ..." with the reason.
+        "compiled kernel", or "NumPy path, ..." with the reason.
     n_steps, n_rejected, n_rhs : int
         Accepted and rejected integration steps, vector-field evaluations so far.
     """
@@ -527,15 +527,15 @@ class _Span:
 
 def _compiled(system, integrator, formulation):
     """``(KernelStepper, "compiled kernel")`` when the kernel covers this system and formulation, else
-    ``(None, "NumPy path: <why>")``. Its whole-step path serves fixed explicit RK steps; its
-    right-hand side serves every method."""
+    ``(None, "NumPy path, not covered by the compiled kernel: <why>")``. Its whole-step path serves
+    fixed explicit RK steps; its right-hand side serves every method."""
     from viz3d.kernel import KernelStepper, kernel_coverage
 
     if formulation.integrator is not None:
-        return None, f"NumPy path: formulation {formulation.name!r} steps itself"
+        return None, f"NumPy path, formulation {formulation.name!r} steps itself"
     data, why = kernel_coverage(system, formulation)
     if data is None:
-        return None, f"NumPy path: the compiled kernel lacks {why}"
+        return None, f"NumPy path, not covered by the compiled kernel: {why}"
     return KernelStepper(data, getattr(integrator, "tableau", None)), "compiled kernel"
 
 
