@@ -428,3 +428,21 @@ def test_any_run_command_answers_promptly_and_stops_cleanly(scene, flags, tmp_pa
     else:
         assert proc.returncode in (0, 1), (cmd, first, stdout, stderr)
         assert viz3d.Trajectory.load(out).t.size >= 1
+
+
+@pytest.mark.parametrize("depth, words", [("164193", ("ship:", "488678 chain links", "limits.max_bodies")),
+                                          ("1e300", ("ship:", "finite", "inf m"))])
+def test_a_ship_too_large_to_build_is_refused_before_its_chain_is_made(depth, words, capsys, monkeypatch):
+    """The fuzz test's case: a pocket 164 km deep made the generator lay out 488 678 links (2 min)
+    before the body limit refused them, and 1e300 m overflowed to a traceback. The generator checks
+    the chain's size first and a non-finite path is a scene error."""
+    from viz3d.scene import chainpath
+
+    def never(*args, **kwargs):
+        raise AssertionError("the chain was laid out")
+
+    monkeypatch.setattr(chainpath, "path_nodes", never)
+    monkeypatch.setattr("viz3d.scene.ship.path_nodes", never)
+    code, _, err = _run(["check", SCENES / "double_pendulum.toml", "--set", f"ship.pocket_depth={depth}"], capsys)
+    assert code == 2 and "Traceback" not in err, err
+    assert all(w in err for w in words), err

@@ -66,14 +66,20 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
+#: Signals that interrupted a command of this process (SIGTERM made an interrupt by ``main``).
+RECEIVED: list[int] = []
+
+
 def _terminate_like_interrupt():
     """Make SIGTERM (the default of ``kill`` and ``timeout``) raise ``KeyboardInterrupt`` in the main
-    thread, so a run stops the way Ctrl-C stops it: frames kept, files written. Returns the
-    previous handler (None when not on the main thread, where signals cannot be set)."""
+    thread, so a run stops the way Ctrl-C stops it: frames kept, files written; noted in
+    ``RECEIVED``. Returns the previous handler (None when not on the main thread, where signals
+    cannot be set)."""
     if threading.current_thread() is not threading.main_thread():
         return None
 
     def interrupt(signum, frame):
+        RECEIVED.append(signum)
         raise KeyboardInterrupt(f"signal {signum}")
 
     return signal.signal(signal.SIGTERM, interrupt)

@@ -61,6 +61,13 @@ def check_chain_size(raw_chain: dict, limits: dict, source: str) -> None:
         raise _over(source, "chain.n", f"at most {limits['max_bodies']} links", n, "max_bodies")
 
 
+def check_generated_bodies(n: int, limits: dict, source: str, key: str, what: str) -> None:
+    """Refuse a generator (``key``, e.g. ``ship``) whose parameters would make ``n`` bodies, more than
+    ``limits.max_bodies``, before it makes them; ``what`` says which parameters set ``n``."""
+    if n > limits["max_bodies"]:
+        raise _over(source, key, f"parameters giving at most {limits['max_bodies']} bodies ({what})", n, "max_bodies")
+
+
 def check_budget(data: dict, source: str) -> Estimate:
     """Estimate a validated scene's cost; raise ``SceneError`` on the key that breaks a limit."""
     limits = data["limits"]

@@ -32,8 +32,10 @@ import numpy as np
 
 from viz3d import anchoring
 from viz3d.rotations import euler_from_matrix, frame_with_z, matrix_from_rotation_vector
+from viz3d.scene.budget import LIMITS, check_generated_bodies
 from viz3d.scene.chainpath import path_nodes
-from viz3d.scene.schema import OPTIONAL, Field, SceneError, Table, boolean, nonnegative, number, positive, positive_int
+from viz3d.scene.schema import (OPTIONAL, Field, SceneError, Table, boolean, nonnegative, number, positive, positive_int,
+                                validate)
 
 STEEL_E, STEEL_NU, STEEL_RHO = 2.1e11, 0.3, 7850.0
 
@@ -140,8 +142,14 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     down = np.array([0.0, 0.0, -1.0])
     r_link = 1.8 * p["chain_diameter"]
     C = S @ np.array([0.0, -p["pocket_bottom"], p["pocket_depth"]])
-    T, V, m = bend_over(C, T, a, down, r_link * (1 + 1e-3), ell, f)
-    n_links = m + max(1, int(math.ceil(p["hang"] / ell)))
+    try:
+        T, V, m = bend_over(C, T, a, down, r_link * (1 + 1e-3), ell, f)
+    except ValueError as exc:
+        raise SceneError(source, "ship", f"a hull whose chain path from the windlass over the pocket's rim is finite "
+                         f"({exc})") from None
+    n_links = m + max(1, math.ceil(p["hang"] / ell))
+    check_generated_bodies(n_links + 4, validate(raw.get("limits", {}), LIMITS, source, "limits"), source, "ship",
+                           f"{n_links} chain links of {ell:.3g} m from the pipe, pocket and hang sizes, and 4 more")
     chain_len = n_links * ell
     path = [V, V + 4 * (chain_len + ell) * down]
     nodes_end = path_nodes(np.vstack([T, *path]), n_links, ell, source)[0][-1]
@@ -263,14 +271,17 @@ def bend_over(C: np.ndarray, T: np.ndarray, a: np.ndarray, down: np.ndarray, r: 
     ``V``, then along ``down``, passes a convex edge through ``C`` (along the unit ``edge``; None: a
     point) at distance ``r`` from both stretches (tangent to it; with a heeled or trimmed ship the
     edge is not normal to the chain's plane) with ``|V - T'|`` a whole number ``m`` of links ``ell``:
-    ``(T', V, m)`` [m]."""
+    ``(T', V, m)`` [m]. Raises ``ValueError`` when the path is not finite."""
     V, Tp, reach = C.copy(), T, r
     for _ in range(200):
         d1 = (V - Tp) / np.linalg.norm(V - Tp)
         turn = down - d1
         half = 0.5 * math.acos(float(np.clip(d1 @ down, -1.0, 1.0)))
         V_new = C - reach / math.cos(half) * turn / np.linalg.norm(turn)
-        m = int(math.ceil(np.linalg.norm(V_new - T) / ell))
+        links = float(np.linalg.norm(V_new - T)) / ell
+        if not math.isfinite(links):
+            raise ValueError(f"the windlass is {links * ell} m from the rim")
+        m = math.ceil(links)
         # T' on T's line a whole number of links from V
         w = V_new - T
         delta = (w @ a) + math.sqrt(max((w @ a) ** 2 - (w @ w) + (m * ell) ** 2, 0.0))
