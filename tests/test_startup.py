@@ -1,6 +1,7 @@
 """What starting viz3d imports (issue 14): the command line and the package load no viewer, recorder,
 plotting, study or mesh library, and a headless run of a small scene loads none of them either, nor
-the parts of scipy it does not use. Checked on ``sys.modules`` of a fresh interpreter, not by timing
+the parts of scipy it does not use, and loading its compiled kernel from numba's cache does not set up
+what numba needs only to compile. Checked on ``sys.modules`` of a fresh interpreter, not by timing
 (``benchmarks/bench_startup.py`` measures the time).
 """
 
@@ -16,6 +17,11 @@ ROOT = Path(__file__).resolve().parents[1]
 OPTIONAL = ("viser", "rerun", "matplotlib", "dask", "distributed", "trimesh", "coal", "pyarrow", "sympy", "websockets")
 #: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import).
 UNUSED_SCIPY = ("scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial", "scipy.stats")
+#: The modules of the other kinds of scene (a multibody scene's run needs none of them).
+OTHER_KINDS = ("viz3d.hydro", "viz3d.scene.hydro")
+#: Imported by numba's target refresh (the typing and lowering of all numba supports), which compiling
+#: needs and loading viz3d's kernel from the cache does not (``viz3d.compiled.LoadingCache``).
+NUMBA_TARGET = ("numba.np.linalg", "numba.np.arraymath", "numba.typed.typeddict", "numba.np.random.generator_core")
 
 
 def loaded_after(code: str) -> set[str]:
@@ -46,5 +52,16 @@ def test_a_headless_run_imports_only_what_it_uses(tmp_path):
     code = ("from viz3d.cli import main\n"
             f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0")
     modules = loaded_after(code)
-    assert not offending(modules, OPTIONAL + UNUSED_SCIPY)
+    assert not offending(modules, OPTIONAL + UNUSED_SCIPY + OTHER_KINDS)
     assert out.exists()
+
+
+def test_a_warm_run_loads_its_kernel_without_numbas_target_refresh(tmp_path):
+    pytest.importorskip("numba")
+    out = tmp_path / "top.npz"
+    run = ("from viz3d.cli import main\n"
+           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
+    loaded_after(run)  # warms numba's cache (compiles the kernel if it is cold)
+    modules = loaded_after(run + "from viz3d.kernel import stepping\n"
+                                 "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
+    assert not offending(modules, NUMBA_TARGET)

@@ -30,6 +30,11 @@ inlines it stale; here every compiled function of viz3d (and of registered piece
 keyed by one stamp of all those source files instead. Compiled with ``error_model="numpy"``: a
 division by zero gives inf or nan, which the step's health checks report (numba's default would
 raise out of the run and lose its frames).
+
+A cache hit skips numba's target refresh (``LoadingCache``): before every load numba imports and
+installs the typing and lowering of all it supports (NRT, typed containers, linear algebra and
+scipy.linalg, ...), 0.1-0.2 s at a run's start, in case the loaded code needs them. viz3d's does
+not (no NRT, no object mode); a miss compiles, and numba's compiler refreshes first.
 """
 
 from __future__ import annotations
@@ -67,7 +72,7 @@ def jit(fn):
     itself without numba)."""
     if numba is None:
         return fn
-    return numba.njit(**INNER_OPTIONS)(fn)
+    return _njit(fn, INNER_OPTIONS)
 
 
 def inline(fn):
@@ -75,14 +80,25 @@ def inline(fn):
     function taking the kernel's named tuples costs more to compile than its body)."""
     if numba is None:
         return fn
-    return numba.njit(inline="always", **INNER_OPTIONS)(fn)
+    return _njit(fn, dict(INNER_OPTIONS, inline="always"))
 
 
 def entry(fn):
     """``fn`` compiled by numba, callable from Python too (``JIT_OPTIONS``)."""
     if numba is None:
         return fn
-    return numba.njit(**JIT_OPTIONS)(fn)
+    return _njit(fn, JIT_OPTIONS)
+
+
+def _njit(fn, options: dict):
+    """``numba.njit(**options)(fn)``, cached on disk by a ``LoadingCache`` (``options["cache"]``)."""
+    dispatcher = numba.njit(**dict(options, cache=False))(fn)
+    if options.get("cache") and hasattr(dispatcher, "enable_caching"):  # not with NUMBA_DISABLE_JIT
+        if LoadingCache is None:  # pragma: no cover - another numba
+            dispatcher.enable_caching()
+        else:
+            dispatcher._cache = LoadingCache(dispatcher.py_func)  # what enable_caching does, our class
+    return dispatcher
 
 
 class Items(NamedTuple):
@@ -205,36 +221,6 @@ def registered(target) -> tuple[type[Items], ...]:
     return tuple(sorted(REGISTRY[target.__name__], key=lambda c: (c.__module__, c.__qualname__)))
 
 
-# ---------------------------------------------------------------------------- small 3-vector helpers
-
-
-@inline
-def cross3(a, b, out):
-    """``out = a x b`` (3,)."""
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-
-
-@inline
-def matvec3(A, x, out):
-    """``out = A x`` for A (3, 3)."""
-    for i in range(3):
-        out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
-
-
-@inline
-def tmatvec3(A, x, out):
-    """``out = A^T x`` for A (3, 3)."""
-    for i in range(3):
-        out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
-
-
-@inline
-def dot3(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 # ---------------------------------------------------------------------------- cache stamp
 
 
@@ -322,5 +308,59 @@ def _is_ours(py_file: str) -> bool:
     return PACKAGE in path.parents or str(path) in _SOURCES
 
 
+def _loading_cache():
+    """numba's cache of a function that loads a hit without refreshing the target first, or None
+    when this numba's cache lacks the private methods it builds on (the cache is numba's own then).
+
+    The refresh is for code that needs the target at run time: the NRT (viz3d compiles with
+    ``_nrt=False``), object-mode blocks (none here), typed containers. Compiling, the one thing
+    that needs the typing and lowering, refreshes first in numba's compiler."""
+    try:
+        from numba.core.caching import FunctionCache
+    except ImportError:  # pragma: no cover
+        return None
+    if not all(hasattr(FunctionCache, m) for m in ("_load_overload", "_guard_against_spurious_io_errors")):
+        return None  # pragma: no cover
+
+    class LoadingCache(FunctionCache):
+        def load_overload(self, sig, target_context):
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+
+    return LoadingCache
+
+
+LoadingCache = None
 if numba is not None:
     _install_stamp_locators()
+    LoadingCache = _loading_cache()
+
+
+# ---------------------------------------------------------------------------- small 3-vector helpers
+
+
+@inline
+def cross3(a, b, out):
+    """``out = a x b`` (3,)."""
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@inline
+def matvec3(A, x, out):
+    """``out = A x`` for A (3, 3)."""
+    for i in range(3):
+        out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
+
+
+@inline
+def tmatvec3(A, x, out):
+    """``out = A^T x`` for A (3, 3)."""
+    for i in range(3):
+        out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
+
+
+@inline
+def dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]

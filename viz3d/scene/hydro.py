@@ -44,8 +44,6 @@ from viz3d.scene.schema import (
 )
 from viz3d.scene.spec import SCENE
 
-#: The table that makes a scene file a hydrodynamics scene.
-KIND_TABLE = "reservoir"
 #: Largest sizes a scene may ask for (a sweep of 20 000 frequencies takes seconds; grids of 200 x 200
 #: points are more than a browser draws smoothly).
 MAX_FREQUENCIES, MAX_POINTS, MAX_GRID, MAX_DAM_MODES = 20_000, 10_001, 200, 60

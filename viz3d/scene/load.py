@@ -18,7 +18,7 @@ import numpy as np
 
 from viz3d.geometry import contact_spheres
 from viz3d.rotations import euler_from_matrix, frame_with_z
-from viz3d.scene import hydro, ship, shorthand, spec
+from viz3d.scene import ship, shorthand, spec
 from viz3d.scene.budget import LIMITS, check_budget, check_chain_size
 from viz3d.scene.chainpath import normal_to, path_nodes
 from viz3d.scene.schema import Invalid, SceneError, allowed_path, validate
@@ -65,8 +65,9 @@ class Scene:
         return f"{self.path} (with --set {' --set '.join(self.overrides)})"
 
 
-#: Tables that make a scene file another kind than "multibody" (each kind has its own schema).
-KIND_TABLES = {hydro.KIND_TABLE: "hydro"}
+#: Tables that make a scene file another kind than "multibody" (each kind has its own schema, in its
+#: module, imported only for a file of that kind: ``[reservoir]``, ``viz3d.scene.hydro``).
+KIND_TABLES = {"reservoir": "hydro"}
 
 
 def kind_of(tables: Mapping) -> str:
@@ -108,6 +109,8 @@ def load_scene(path: str | Path, overrides: Iterable[str] | Mapping[str, Any] | 
         _set_path(raw, key, value, source)
     allowed = tuple(Path(d) for d in mesh_dirs)
     if kind_of(raw) == "hydro":  # its own tables (viz3d.scene.hydro): no bodies, nothing to expand
+        from viz3d.scene import hydro
+
         data = validate(raw, hydro.HYDRO_FILE, source)
         hydro.check_consistency(data, source)
         return Scene(path, data, texts, allowed)
