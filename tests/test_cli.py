@@ -60,7 +60,8 @@ def test_check_and_list(write_scene, capsys):
 
 def test_failed_run_exits_1_and_still_writes_the_frames(tmp_path, capsys):
     out = tmp_path / "fail.npz"
-    code = main(["run", str(SCENES / "top_through_vertical.toml"), "--set", "sim.rotation=euler_zxz", "--out", str(out)])
+    code = main(["run", str(SCENES / "top_through_vertical.toml"), "--set", "sim.rotation=euler_zxz", "--set",
+                 "sim.formulation=index1", "--out", str(out)])
     assert code == 1
     traj = viz3d.Trajectory.load(out)
     assert "gimbal lock" in traj.status and len(traj.t) > 5

@@ -65,7 +65,7 @@ def parse_method(method: str) -> dict[str, str]:
     if own is not None:
         out.setdefault("sim.integrator", own)
     if "sim.integrator" in out:
-        check_combination(out["sim.integrator"], out.get("sim.formulation", "index1"), out.get("sim.rotation"))
+        check_combination(out["sim.integrator"], out.get("sim.formulation"), out.get("sim.rotation"))
     return out
 
 
@@ -78,7 +78,8 @@ def check_combination(integrator, formulation, rotation=None, rtol: float | None
     """Raise ``MethodError`` unless the methods can run together.
 
     ``integrator``, ``formulation``, ``rotation`` are registry names or the objects (an
-    ``Integrator``, a formulation, ``RotationCoordinates``; classes work for the last two).
+    ``Integrator``, a formulation, ``RotationCoordinates``; classes work for the last two);
+    ``formulation`` and ``rotation`` may be None (the scene's own).
     Rules: a formulation that steps itself (``ali3p``) runs only with its own integrator;
     adaptive stepping (a tolerance ``rtol``, scene key ``sim.rtol``) needs an integrator with an
     embedded error estimate; Lie-group methods need rotation coordinates that implement
@@ -88,7 +89,7 @@ def check_combination(integrator, formulation, rotation=None, rtol: float | None
     formulation = FORMULATIONS[formulation] if isinstance(formulation, str) else formulation
     rotation = ROTATIONS[rotation] if isinstance(rotation, str) else rotation
     rotation = rotation if rotation is None or isinstance(rotation, type) else type(rotation)
-    own = formulation.integrator
+    own = getattr(formulation, "integrator", None)
     if own is not None and integrator.name != own:
         raise MethodError("sim.integrator", f"{own!r} with sim.formulation = {formulation.name!r} (it does its own "
                           f"{own} stepping; method string {formulation.name!r})", integrator.name)

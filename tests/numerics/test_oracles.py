@@ -98,7 +98,8 @@ def test_top_exactly_through_the_pole():
 
 
 def test_plain_euler_angles_fail_at_the_pole_with_a_diagnosis():
-    traj = viz3d.simulate(SCENES / "top_through_vertical.toml", ["sim.rotation=euler_zxz"])
+    # index-1: its joint drift carries the axis to 2.4e-3 rad of the pole (see test_bench_stability)
+    traj = viz3d.simulate(SCENES / "top_through_vertical.toml", ["sim.rotation=euler_zxz", "sim.formulation=index1"])
     assert not traj.ok
     assert "'top'" in traj.status and "gimbal lock" in traj.status and "t = 0.1" in traj.status, traj.status
     assert 0.05 < traj.t[-1] < 0.12  # frames up to the failure are kept

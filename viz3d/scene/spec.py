@@ -58,7 +58,7 @@ SIM = Table({
     "dt": Field(positive, 1e-3, "fixed integration step [s] (with sim.rtol: interval between the dense-output samples)"),
     "output_dt": Field(positive, OPTIONAL, "interval between stored frames [s] (default: 0.01 s, at least dt)"),
     "integrator": Field(one_of(*INTEGRATORS), "rk4", f"one of {list(INTEGRATORS)}"),
-    "formulation": Field(one_of(*FORMULATIONS), "index1", f"one of {list(FORMULATIONS)}"),
+    "formulation": Field(one_of(*FORMULATIONS), "projection", f"one of {list(FORMULATIONS)}"),
     "rotation": Field(one_of(*ROTATIONS), "euler_switching", f"one of {list(ROTATIONS)}"),
     "gravity": Field(vec3, [0.0, 0.0, -9.81], "gravitational acceleration [m/s^2]"),
     "baumgarte_alpha": Field(nonnegative, 10.0, "Baumgarte damping rate [1/s] (formulation = baumgarte)"),

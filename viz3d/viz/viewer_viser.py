@@ -462,9 +462,11 @@ class Viewer:
     def _shown_settings(self, snap: Snapshot) -> dict:
         """The integrator, step and formulation the controls show: the run's when it can change them,
         else (greyed out) the scene's own, e.g. an adaptive run's dopri5 (impact scenes have none)."""
+        from viz3d.scene.spec import SIM
+
         sim = self.runner.scene.data.get("sim", {})
-        return {"integrator": "rk4", "dt": 1e-3, "formulation": "index1",
-                **{k: sim[k] for k in ("integrator", "dt", "formulation") if k in sim}, **snap.settings}
+        return {**{k: sim.get(k, SIM.fields[k].default) for k in ("integrator", "dt", "formulation")},
+                **snap.settings}
 
     def _sync_controls(self, snap: Snapshot) -> None:
         """Match the controls to a newly loaded scene: its plots, its speed, what can be changed."""
