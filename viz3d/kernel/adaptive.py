@@ -244,8 +244,6 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
     Returns (frames done, samples done in the next frame, status); on a status other than ``OK``
     nothing of the step or sample that stopped the call is committed."""
     s = tb.shape[0]
-    nf = chart.shape[0]
-    n = y.shape[0]
     t_s = 0.0
     for frame in range(n_frames):
         for sample in range(every):
@@ -264,29 +262,18 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
                     return frame, sample, status
             if contact_mode and abs(times[T] - target) <= slack:
                 t_s = times[T]
-                for j in range(n):
-                    ys[j] = y[j]
-                for b in range(nf):
-                    for i in range(3):
-                        for c in range(3):
-                            chart1[b, i, c] = chart[b, i, c]
+                _copy(ys, y)
+                _copy_chart(chart1, chart)
             else:
                 t_s = target
                 status = _span_sample(contact_mode, target, max_speed, P, c_extra, a_extra, reuse, s, m, v, w,
                                       forces, rows, times, flags, counts, y0, chart0, K, Q, f1, yi, ys)
                 if status != OK:
                     return frame, sample, status
-                for b in range(nf):
-                    for i in range(3):
-                        for c in range(3):
-                            chart1[b, i, c] = chart0[b, i, c]
+                _copy_chart(chart1, chart0)
         Ts[frame] = t_s
-        for j in range(n):
-            Y[frame, j] = ys[j]
-        for b in range(nf):
-            for i in range(3):
-                for c in range(3):
-                    charts[frame, b, i, c] = chart1[b, i, c]
+        _copy(Y[frame], ys)
+        _copy_chart(charts[frame], chart1)
     return n_frames, every, OK
 
 
@@ -321,7 +308,6 @@ def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, 
                  k, yi, y1, err, chart1, sw, gap_out, g0, g1):
     """One accepted step from the inner state, then what ``Simulation._accept`` does after it;
     committed to the carry only when nothing needs Python (see the module docstring)."""
-    n, s, nf = y.shape[0], tb.shape[0], chart.shape[0]
     t = times[T]
     if flags[HAS_F] == 0:
         status = evaluate(t, y, chart, m, v, w, forces, rows, f)
@@ -329,79 +315,113 @@ def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, 
             return status
         flags[HAS_F] = 1  # the field at the inner state, kept whatever follows (as Simulation._f)
         counts[EVALS] += 1
-    n_evals = 0
     h, h_next, n_rejected, status = accepted_step(t, y, chart, f, min(times[H], ctrl[2]), ctrl, ta, tb, te, tc, m, v,
                                                   w, forces, rows, k, yi, y1, err)
     if status != OK:
         return status
-    n_evals += (n_rejected + 1) * (s - 1)
-    t1 = t + h
+    n_evals = (n_rejected + 1) * (tb.shape[0] - 1)
     if fsal:
-        for j in range(n):
-            f1[j] = k[s - 1, j]
+        _copy(f1, k[tb.shape[0] - 1])
     else:
         n_evals += 1
-        status = evaluate(t1, y1, chart, m, v, w, forces, rows, f1)
+        status = evaluate(t + h, y1, chart, m, v, w, forces, rows, f1)
         if status != OK:
             return status
-    if contact_mode and ev_kind.shape[0] > 0:
-        status = event_values(t, y, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out, yi,
-                              g0)
+    if contact_mode:
+        status = _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows,
+                                geometry, gap_out, yi, g0, g1)
         if status != OK:
             return status
-        status = event_values(t1, y1, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out,
-                              yi, g1)
-        if status != OK:
-            return status
-        for e in range(ev_kind.shape[0]):
-            if crosses(ev_dir[e], g0[e], g1[e]):
-                return EVENT
-    # the step's end state after projection, checks and chart switch, in scratch until all pass
-    for b in range(nf):
-        for i in range(3):
-            for c in range(3):
-                chart1[b, i, c] = chart[b, i, c]
-    for j in range(n):
-        yi[j] = y1[j]
+    status = _settled(t + h, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
+    if status != OK:
+        return status
+    _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, flags, counts, switches, y0, chart0,
+            K, f1, k, yi, chart1, sw)
+    return OK
+
+
+@jit
+def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, gap_out,
+                   scratch, g0, g1):
+    """``EVENT`` when an event function changes sign (``crosses``) between ``(t, y)`` and
+    ``(t + h, y1)``, both in the step's ``chart`` (as ``Simulation._event_step`` evaluates them);
+    else ``OK``, or the status of a failed evaluation."""
+    if ev_kind.shape[0] == 0:
+        return OK
+    status = event_values(t, y, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out, scratch,
+                          g0)
+    if status != OK:
+        return status
+    status = event_values(t + h, y1, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out,
+                          scratch, g1)
+    if status != OK:
+        return status
+    for e in range(ev_kind.shape[0]):
+        if crosses(ev_dir[e], g0[e], g1[e]):
+            return EVENT
+    return OK
+
+
+@jit
+def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
+    """The step's end state ``y1`` after the projection (``m.projects``), the health checks and the
+    chart switches, into ``y_end`` and ``chart_end`` (switches per body into ``sw``); the status of
+    the first that fails."""
+    _copy(y_end, y1)
+    _copy_chart(chart_end, chart)
     for b in range(sw.shape[0]):
         sw[b] = 0
     if m.projects == 1:
-        status = project(t1, yi, chart1, m, v, w, rows)
+        status = project(t1, y_end, chart_end, m, v, w, rows)
         if status != OK:
             return status
-    for j in range(m.n_q + m.n_v):
-        if not math.isfinite(yi[j]):
+    for j in range(m.n_q + m.n_v):  # (what check_state checks: positions and velocities)
+        if not math.isfinite(y_end[j]):
             return NONFINITE
-    status = _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], yi, chart1, sw, h,
-                           max_speed)
-    if status != OK:
-        return status
+    return _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y_end, chart_end, sw, h,
+                         max_speed)
+
+
+@jit
+def _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, flags, counts, switches, y0, chart0, K,
+            f1, k, y_end, chart_end, sw):
+    """The accepted step into the carry: its span (start, stages, length), the settled end state as
+    the inner state, the next step (``min(h_next, turn_limit)``), the field kept when the end state
+    is the step's own (no projection, no chart switch: ``Simulation._settle``), the counters."""
     switched = False
     for b in range(sw.shape[0]):
         switches[b] += sw[b]
         switched = switched or sw[b] != 0
-    times[T0], times[T1], times[SPAN_H] = t, t1, h
-    for j in range(n):
-        y0[j] = y[j]
-        y[j] = yi[j]
-    for i in range(s):
-        for j in range(n):
-            K[i, j] = k[i, j]
-    for b in range(nf):
-        for i in range(3):
-            for c in range(3):
-                chart0[b, i, c] = chart[b, i, c]
-                chart[b, i, c] = chart1[b, i, c]
-    times[T] = t1
+    times[T0], times[T1], times[SPAN_H] = t, t + h, h
+    _copy(y0, y)
+    _copy(y, y_end)
+    for i in range(k.shape[0]):
+        _copy(K[i], k[i])
+    _copy_chart(chart0, chart)
+    _copy_chart(chart, chart_end)
+    times[T] = t + h
     times[H] = min(h_next, turn_limit(m.frame_body.shape[0], f1, max_turn))
-    if m.projects == 1 or switched:
-        flags[HAS_F] = 0
-    else:
-        flags[HAS_F] = 1
-        for j in range(n):
-            f[j] = f1[j]
+    keep = m.projects != 1 and not switched
+    flags[HAS_F] = 1 if keep else 0
+    if keep:
+        _copy(f, f1)
     flags[SPAN], flags[DENSE] = 1, 0
     counts[STEPS] += 1
     counts[REJECTED] += n_rejected
     counts[EVALS] += n_evals
-    return OK
+
+
+@inline
+def _copy(dst, src):
+    """``dst[:] = src`` (n,) without numba's overlap check, which would allocate."""
+    for j in range(dst.shape[0]):
+        dst[j] = src[j]
+
+
+@inline
+def _copy_chart(dst, src):
+    """``dst[:] = src`` (nf, 3, 3)."""
+    for b in range(dst.shape[0]):
+        for i in range(3):
+            for c in range(3):
+                dst[b, i, c] = src[b, i, c]
