@@ -159,6 +159,19 @@ class ContactRecord:
 # ---------------------------------------------------------------------------- the stepping
 
 
+@dataclass(frozen=True)
+class EventRow:
+    """One contact event function as data: ``kind`` "gap" (``alpha - floor`` of contact ``index``,
+    over all sets), "gap_rate" (its ``alpha_dot``) or "multiplier" (of constraint row ``index``)
+    [m, m/s or N]; ``direction`` as ``Event.direction``."""
+
+    name: str
+    kind: str
+    index: int
+    floor: float
+    direction: int
+
+
 class ContactStepping:
     """Events, handlers, step bound and checks of a system's contacts (one per run).
 
@@ -239,20 +252,37 @@ class ContactStepping:
         return tuple(out)
 
     def _contact_events(self, state: State, k: int, i: int) -> list[Event]:
-        c, phase = self.system.contacts[k], state.memory[k][i]
-        floor = self._crater(state, k, i)
-
-        def alpha(t, y):
-            return self._probe(t, y, state)[self._k0[k] + i, 0] - floor
-
-        if not phase.touching:
-            return [Event(f"onset:{k}:{i}", alpha, +1)]
-        if c.models[i] == "rigid":
-            return [Event(f"separation:{k}:{i}", lambda t, y: self._probe(t, y, state, k, i), -1)]
-        out = [Event(f"separation:{k}:{i}", alpha, -1)]
-        if c.laws[i].kind == "elastoplastic":
-            out.append(Event(f"max_indentation:{k}:{i}", lambda t, y: self._probe(t, y, state)[self._k0[k] + i, 1], -1))
+        out = []
+        for row in self._event_rows(state, k, i):
+            if row.kind == "multiplier":
+                out.append(Event(row.name, lambda t, y, k=k, i=i: self._probe(t, y, state, k, i), row.direction))
+            else:
+                column = 0 if row.kind == "gap" else 1
+                out.append(Event(row.name, lambda t, y, r=row, c=column: self._probe(t, y, state)[r.index, c] - r.floor,
+                                 row.direction))
         return out
+
+    def event_rows(self, state: State) -> tuple["EventRow", ...]:
+        """What ``events`` evaluates, as data (the compiled adaptive driver checks their signs)."""
+        return tuple(row for k, c in enumerate(self.system.contacts) if c.located
+                     for i in range(c.k) for row in self._event_rows(state, k, i))
+
+    def _event_rows(self, state: State, k: int, i: int) -> list["EventRow"]:
+        c, phase = self.system.contacts[k], state.memory[k][i]
+        at = int(self._k0[k] + i)
+        if not phase.touching:
+            return [EventRow(f"onset:{k}:{i}", "gap", at, self._crater(state, k, i), +1)]
+        if c.models[i] == "rigid":
+            return [EventRow(f"separation:{k}:{i}", "multiplier", _row_index(self.system, k, i), 0.0, -1)]
+        out = [EventRow(f"separation:{k}:{i}", "gap", at, self._crater(state, k, i), -1)]
+        if c.laws[i].kind == "elastoplastic":
+            out.append(EventRow(f"max_indentation:{k}:{i}", "gap_rate", at, 0.0, -1))
+        return out
+
+    def law_contact_under_way(self, state: State) -> bool:
+        """True while a law contact touches (``after_step`` and ``step_bound`` may act then)."""
+        return any(phase.touching and c.models[i] == "law"
+                   for k, c in enumerate(self.system.contacts) for i, phase in enumerate(state.memory[k]))
 
     def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
         """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``_gap_values``, or with

@@ -33,6 +33,8 @@ from viz3d.dynamics import VectorField, body_state, element_memory
 from viz3d.extras import element_fields, joint_fields, ledger_fields, run_extras
 from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
+from viz3d.integrators.base import StepResult
+from viz3d.integrators.explicit_rk import DenseInterpolant
 from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite
 from viz3d.interrupts import InterruptGuard
 from viz3d.methods import MethodError, check_combination
@@ -88,9 +90,11 @@ class Simulation:
     controller : adaptive.Controller, optional
         Error control of adaptive steps.
     compiled : bool
-        Evaluate the vector field, and take fixed explicit Runge-Kutta steps, in the compiled
-        kernel (``viz3d.kernel``) when it covers the system and formulation; the NumPy path
-        otherwise (``kernel_note`` says which, and why).
+        Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
+        their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
+        when it covers the system and formulation; the NumPy path otherwise (``kernel_note`` says
+        which, and why). Adaptive steps at contact events, during law contacts and with force
+        elements that remember are taken in Python.
 
     Raises
     ------
@@ -122,6 +126,7 @@ class Simulation:
         self._inner = state     # adaptive: state at the last accepted step (may be ahead of .state)
         self._span = None       # adaptive: the last accepted step, for dense output
         self._h = None          # adaptive: next step to try [s]
+        self._carry = None      # adaptive: the kernel's carry while the kernel owns the adaptive state (else None)
         self._fields: list[VectorField] = []
         self._kernel, self.kernel_note = (_compiled(system, integrator, formulation) if compiled
                                           else (None, "NumPy path (compiled = false)"))
@@ -197,6 +202,11 @@ class Simulation:
     def step(self) -> State:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
         cannot go on."""
+        if self._adaptive_kernel_covers():
+            states = self._kernel_samples(1, 1)
+            if states:
+                return states[0]
+        self._to_python()
         target = self.t0 + (self.n_samples + 1) * self.dt
         check_chart(self.system, self._inner if self.controller is not None else self.state)
         try:
@@ -225,6 +235,8 @@ class Simulation:
         goal = self.n_samples + n
         if n > 1 and self._kernel_ready():
             self._kernel_steps(n)
+        elif n > 1 and self._adaptive_kernel_covers():
+            self._kernel_samples(1, n)
         while self.n_samples < goal:
             self.step()
         return self.state
@@ -275,17 +287,21 @@ class Simulation:
 
     @property
     def batches_frames(self) -> bool:
-        """True when ``output_states`` can take several output frames in one kernel call (fixed
-        explicit RK steps the kernel covers, no contacts)."""
-        return self._kernel_ready()
+        """True when ``output_states`` can take several output frames in one kernel call: fixed
+        explicit RK steps the kernel covers, no contacts; adaptive ones the kernel covers
+        (``_adaptive_kernel_covers``)."""
+        return self._kernel_ready() or self._adaptive_kernel_covers()
 
     def output_states(self, n_frames: int, every: int) -> list[State]:
         """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
         states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
         the states before the failing frame are returned (``state`` is the last); ``steps(every)``
-        then takes that frame and raises its diagnosis."""
+        then takes that frame and raises its diagnosis. Adaptive runs: ``_kernel_samples`` (no
+        states while Python takes the steps, e.g. at a contact event)."""
         from viz3d.kernel import OK
 
+        if self.controller is not None:
+            return self._kernel_samples(n_frames, every) or []
         states, done, status = self._frames_run(n_frames, every)
         if status != OK and done:  # keep the good frames (redone: the kernel is deterministic)
             states, done, status = self._frames_run(done, every)
@@ -382,8 +398,7 @@ class Simulation:
         hit = first_event(events, g0, s.t, s.y, f0, t1, res.y, f1, fresh)
         if hit is None:
             self._solver = solver
-            self._span = _Span(s.t, t1, s, system, lambda: method.interpolant(rhs, s.t, s.y, h, res, f1)) \
-                if self.controller is not None else None
+            self._span = self._rk_span(rhs, s, t1, h, res, f1) if self.controller is not None else None
             new = contacts.after_step(self._accept(_state_at(system, t1, res.y, s), f1, h), res.error)
             self._fired = None
             if self.controller is not None:
@@ -396,8 +411,8 @@ class Simulation:
             raise SimulationFailure(res_ev.status.message)
         self._solver = res_ev.state
         f_ev = res_ev.f1 if res_ev.f1 is not None else rhs(t_ev, res_ev.y)
-        self._span = _Span(s.t, t_ev, s, system, lambda: hermite_interpolant(s.t, s.y, f0, t_ev, res_ev.y, f_ev)) \
-            if self.controller is not None else None
+        self._span = _Span(s.t, t_ev, s, system, lambda: hermite_interpolant(s.t, s.y, f0, t_ev, res_ev.y, f_ev),
+                           h=t_ev - s.t) if self.controller is not None else None
         reached = contacts.after_step(self._accept(_state_at(system, t_ev, res_ev.y, s), None, t_ev - s.t), res_ev.error)
         new = contacts.handle(name, reached)
         self._fired, self._f = name, None
@@ -436,10 +451,129 @@ class Simulation:
             t1 = s.t + acc.h
             f1 = acc.res.f1 if acc.res.f1 is not None else rhs(t1, acc.res.y)
         self.n_rejected += acc.n_rejected
-        self._span = _Span(s.t, t1, s, system, lambda: method.interpolant(rhs, s.t, s.y, acc.h, acc.res, f1))
+        self._span = self._rk_span(rhs, s, t1, acc.h, acc.res, f1)
         raw = _state_at(system, t1, acc.res.y, s)
         self._inner = self._accept(raw, f1, acc.h)
         self._h = min(acc.h_next, self._turn_limit(f1))
+
+    # ------------------------------------------------------------------ adaptive steps in the kernel
+
+    def _adaptive_kernel_covers(self) -> bool:
+        """Adaptive runs whose steps the kernel takes (``viz3d.kernel.adaptive``): an explicit RK
+        method with a continuous extension, no force element with memory (updated in Python
+        between steps)."""
+        k = self._kernel
+        return (self.controller is not None and k is not None and k.tableau is not None and k.tableau.dense is not None
+                and not self._remembers)
+
+    def _adaptive_kernel_now(self) -> bool:
+        """The kernel may take the next samples: the last step was not cut at an event (its span is
+        an RK step's), and with contacts, no event was just handled and no law contact is under
+        way (Python checks those steps: ``ContactStepping.after_step``, ``step_bound``)."""
+        if self._carry is not None:
+            return True
+        if self._span is not None and self._span.stages is None:
+            return False
+        c, s = self._contacts, self._inner
+        return c is None or (self._fired is None and not c.law_contact_under_way(s) and c.step_bound(s) == np.inf)
+
+    def _kernel_samples(self, n_frames: int, every: int) -> list[State] | None:
+        """Up to ``n_frames`` output states ``every`` samples apart, the adaptive steps and dense
+        output in one kernel call: the states, counters and chart switches of as many ``step``
+        calls. None when the kernel cannot take the next sample now; fewer states when it stopped
+        at a step that needs Python (an event, a failure: the Python path then redoes that step
+        from the same state and locates the event, or raises the diagnosis)."""
+        from viz3d.kernel import OK
+        from viz3d.kernel.adaptive import EVALS, REJECTED, STEPS
+
+        if not self._adaptive_kernel_now():
+            return None
+        try:
+            carry = self._to_kernel()
+            start = carry.copy() if every > 1 else None
+            Ts, Y, charts, done, partial, status = self._adaptive_call(carry, n_frames, every)
+            if status != OK and partial and start is not None:  # stopped inside a frame: keep the good frames only
+                carry = start
+                Ts, Y, charts, done, partial, status = self._adaptive_call(carry, done, every)
+        finally:
+            self.n_rhs += sum(f.n_evals for f in self._fields)
+            self._fields.clear()
+        self._carry = carry  # (the counters of the last call only: a redone call's first try is not a step taken)
+        self.n_rhs += int(carry.counts[EVALS])
+        self.n_steps += int(carry.counts[STEPS])
+        self.n_rejected += int(carry.counts[REJECTED])
+        self.chart_switches += carry.switches
+        like = self._inner
+        states = [_state_at(self.system, float(Ts[f]), Y[f], like.replace(chart=charts[f])) for f in range(done)]
+        self.n_samples += done * every
+        if states:
+            self.state = states[-1]
+        if status != OK:
+            self._to_python()
+        return states
+
+    def _adaptive_call(self, carry, n_frames: int, every: int) -> tuple:
+        """The kernel's ``adaptive`` call from ``carry`` (its counters zeroed first)."""
+        carry.counts[:], carry.switches[:] = 0, 0
+        s, contacts = self._inner, self._contacts
+        events = contacts.event_rows(s) if contacts is not None else ()
+        return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self.controller, events,
+                                     s.memory, contacts is not None, self.blowup_speed, ADAPTIVE_MAX_TURN)
+
+    def _to_kernel(self):
+        """The adaptive state as the kernel's carry (the first step chosen here, as the Python path
+        does, when the run has none yet)."""
+        from viz3d.kernel import AdaptiveCarry
+        from viz3d.kernel.adaptive import DENSE, H, HAS_F, SPAN, SPAN_H, T, T0, T1
+
+        if self._carry is not None:
+            return self._carry
+        s = self._inner
+        if self._h is None:
+            rhs = self._field(s.chart, s.memory, s.element_memory)
+            self._f = rhs(s.t, s.y) if self._f is None else self._f
+            self._h = min(self.controller.first_step(rhs, s.t, s.y, self._f, error_order(self.integrator)),
+                          self._turn_limit(self._f))
+        c = AdaptiveCarry.empty(s.y.shape[0], s.chart.shape[0], self.system.n_bodies, self._kernel.tableau)
+        c.y[:], c.chart[:], c.times[T], c.times[H] = s.y, s.chart, s.t, self._h
+        if self._f is not None:
+            c.f[:], c.flags[HAS_F] = self._f, 1
+        span = self._span
+        if span is not None:
+            c.times[T0], c.times[T1], c.times[SPAN_H] = span.t0, span.t1, span.h
+            c.y0[:], c.chart0[:] = span.start.y, span.start.chart
+            c.K[: span.stages.shape[0]], c.f1[:], c.flags[SPAN] = span.stages, span.f1, 1
+            if isinstance(span.interpolant, DenseInterpolant):
+                c.Q[:], c.flags[DENSE] = span.interpolant.Q, 1
+        return c
+
+    def _to_python(self) -> None:
+        """Hand the adaptive state from the kernel's carry back to the Python path (no-op when it
+        has it)."""
+        from viz3d.kernel.adaptive import DENSE, H, HAS_F, SPAN, SPAN_H, T, T0, T1
+
+        c, self._carry = self._carry, None
+        if c is None:
+            return
+        like, system = self._inner, self.system
+        self._inner = _state_at(system, float(c.times[T]), c.y.copy(), like.replace(chart=c.chart.copy()))
+        self._f = c.f.copy() if c.flags[HAS_F] else None
+        self._h = float(c.times[H])
+        if not c.flags[SPAN]:
+            return
+        t0, t1 = float(c.times[T0]), float(c.times[T1])
+        start = _state_at(system, t0, c.y0.copy(), like.replace(chart=c.chart0.copy()))
+        stages, h = c.K[: len(self._kernel.tableau.b)].copy(), float(c.times[SPAN_H])
+        rhs = self._field(start.chart, start.memory, start.element_memory)
+        self._span = self._rk_span(rhs, start, t1, h, StepResult(None, f0=stages[0], stages=stages), c.f1.copy())
+        if c.flags[DENSE]:
+            self._span.interpolant = DenseInterpolant(t0, start.y, h, c.Q.copy())
+
+    def _rk_span(self, rhs, s: State, t1: float, h: float, res: StepResult, f1: np.ndarray) -> "_Span":
+        """The span of an accepted step ``res`` of length ``h`` from ``s`` to ``t1`` (its interpolant
+        built on first use)."""
+        method = self.integrator
+        return _Span(s.t, t1, s, self.system, lambda: method.interpolant(rhs, s.t, s.y, h, res, f1), res.stages, f1)
 
     # ------------------------------------------------------------------ between steps
 
@@ -505,13 +639,18 @@ def _state_at(system: System, t: float, y: np.ndarray, like: State) -> State:
 
 
 class _Span:
-    """One accepted adaptive step ``[t0, t1]`` from ``start`` (its chart and contact phases); its
-    interpolant is built on first use (a continuous extension may cost extra evaluations, e.g.
-    three for DOP853)."""
+    """One accepted adaptive step ``[t0, t1]`` of length ``h`` from ``start`` (its chart and contact
+    phases); its interpolant is built on first use (a continuous extension may cost extra
+    evaluations, e.g. three for DOP853). ``stages`` (s, n) and ``f1`` (n,): the step's RK stages
+    and the field at its end, which the kernel's adaptive driver takes over (None for a step cut
+    at an event, sampled by cubic Hermite)."""
 
-    def __init__(self, t0: float, t1: float, start: State, system: System, make_interpolant: Callable):
+    def __init__(self, t0: float, t1: float, start: State, system: System, make_interpolant: Callable,
+                 stages: np.ndarray | None = None, f1: np.ndarray | None = None, h: float | None = None):
         self.t0, self.t1, self.start, self.system = t0, t1, start, system
-        self._make, self._interp = make_interpolant, None
+        self.h = t1 - t0 if h is None else h
+        self.stages, self.f1 = stages, f1
+        self._make, self.interpolant = make_interpolant, None
 
     @property
     def chart(self) -> np.ndarray:
@@ -519,10 +658,10 @@ class _Span:
 
     def sample(self, t: float) -> State:
         """The interpolated state at ``t0 <= t <= t1`` (chart and phases of the step)."""
-        if self._interp is None:
+        if self.interpolant is None:
             with np.errstate(all="ignore"):
-                self._interp = self._make()
-        return _state_at(self.system, t, self._interp(t), self.start)
+                self.interpolant = self._make()
+        return _state_at(self.system, t, self.interpolant(t), self.start)
 
 
 def _compiled(system, integrator, formulation):

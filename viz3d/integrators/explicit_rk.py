@@ -61,21 +61,53 @@ class ExplicitRK(Integrator):
                     f1: FloatArray) -> Callable[[float], FloatArray]:
         """``y(t_s)`` for ``t <= t_s <= t + h`` inside the step that produced ``res``.
 
-        Uses the tableau's continuous extension (evaluating its extra stages now, e.g. three for
-        DOP853), else cubic Hermite on ``(y, f0)`` and ``(res.y, f1)``; ``f1 = rhs(t + h, res.y)``.
+        Uses the tableau's continuous extension (``DenseInterpolant``, evaluating its extra stages
+        now, e.g. three for DOP853), else cubic Hermite on ``(y, f0)`` and ``(res.y, f1)``;
+        ``f1 = rhs(t + h, res.y)``.
         """
-        dense = self.tableau.dense
-        if dense is None or res.stages is None:
+        if self.tableau.dense is None or res.stages is None:
             return lambda ts: hermite(t, y, res.f0, t + h, res.y, f1, ts)
-        K = list(res.stages)
+        return DenseInterpolant(t, y, h, self.dense_coefficients(rhs, t, y, h, res.stages, f1))
+
+    def dense_coefficients(self, rhs, t: float, y: FloatArray, h: float, stages: FloatArray,
+                           f1: FloatArray) -> FloatArray:
+        """``Q = h P^T K`` (degree, n_y) of the continuous extension of the step of ``stages``
+        (s, n_y) from ``(t, y)``: the extra stages ``K_{s+i}`` evaluated now (the one at the step's
+        end is ``f1``, known already)."""
+        dense = self.tableau.dense
+        K = list(stages)
         for c, row in zip(dense.c_extra, dense.a_extra):
-            if c == 1.0 and np.array_equal(row[: len(self.tableau.b)], self.tableau.b) and not np.any(row[len(self.tableau.b):]):
-                K.append(f1)  # the stage at the step's end: f(t + h, y1), known already
+            if is_end_stage(self.tableau, row):
+                K.append(f1)
                 continue
             K.append(rhs(t + c * h, y + h * np.tensordot(row[: len(K)], np.asarray(K), axes=1)))
-        Q = h * (dense.P.T @ np.asarray(K))                # (degree, n_y)
-        powers = np.arange(1, dense.P.shape[1] + 1)
-        return lambda ts: y + ((ts - t) / h) ** powers @ Q
+        return h * (dense.P.T @ np.asarray(K))
 
     def __repr__(self):
         return f"ExplicitRK({self.tableau.name})"
+
+
+def is_end_stage(tableau: ButcherTableau, row: FloatArray) -> bool:
+    """True when the extra stage of ``row`` (of ``tableau.dense.a_extra``) is ``f(t + h, y1)``."""
+    s = len(tableau.b)
+    return bool(np.array_equal(row[:s], tableau.b) and not np.any(row[s:]))
+
+
+class DenseInterpolant:
+    """``y(t_s) = y0 + sum_d ((t_s - t0) / h)^(d + 1) Q[d]``: a step's continuous extension.
+
+    Attributes
+    ----------
+    t0, h : float
+        The step's start and length [s].
+    y0 : ndarray, shape (n_y,)
+    Q : ndarray, shape (degree, n_y)
+        ``h P^T K`` (``ExplicitRK.dense_coefficients``).
+    """
+
+    def __init__(self, t0: float, y0: FloatArray, h: float, Q: FloatArray):
+        self.t0, self.y0, self.h, self.Q = t0, y0, h, Q
+        self._powers = np.arange(1, Q.shape[0] + 1)
+
+    def __call__(self, ts):
+        return self.y0 + ((ts - self.t0) / self.h) ** self._powers @ self.Q

@@ -10,8 +10,9 @@ a compiled piece, a formulation or orientation coordinates the kernel lacks); su
 NumPy path and reports it. tests/numerics/test_kernel.py compares the two on a random system
 holding every registered element type.
 
-Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``projection``
-(the ``projection`` formulation's post-step projections), ``sampling`` (output samples).
+Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
+(adaptive runs: error control, dense output, event sign checks), ``projection`` (the
+``projection`` formulation's post-step projections), ``sampling`` (output samples).
 """
 
 from __future__ import annotations
@@ -23,11 +24,12 @@ import numpy as np
 from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
+from viz3d.kernel.adaptive import EVENT, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, adaptive_frames
 from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
-__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "KernelData", "kernel_for", "kernel_coverage",
-           "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper"]
+__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "KernelData", "kernel_for", "kernel_coverage",
+           "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper", "AdaptiveCarry"]
 
 
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
@@ -104,6 +106,51 @@ class CompiledField:
         return y1, (err if tableau.embedded else None), k
 
 
+class AdaptiveCarry(NamedTuple):
+    """What an adaptive run carries from one compiled call to the next (``viz3d.kernel.adaptive``,
+    whose module docstring describes each field; updated in place).
+
+    y, f, y0, f1 : (n,)
+    chart, chart0 : (nf, 3, 3)
+    times : (5,) [s]
+    flags : (3,) int64
+    counts : (3,) int64
+    switches : (nb,) int64
+        Chart switches per body during the calls.
+    K : (s + m, n)
+    Q : (degree, n)
+    """
+
+    y: np.ndarray
+    chart: np.ndarray
+    f: np.ndarray
+    times: np.ndarray
+    flags: np.ndarray
+    counts: np.ndarray
+    switches: np.ndarray
+    y0: np.ndarray
+    chart0: np.ndarray
+    K: np.ndarray
+    Q: np.ndarray
+    f1: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int, n_frames: int, n_bodies: int, tableau) -> "AdaptiveCarry":
+        """A carry for states of ``n`` entries and ``tableau``'s stages (and extra dense stages)."""
+        z = np.zeros
+        dense = tableau.dense
+        return cls(z(n), z((n_frames, 3, 3)), z(n), z(5), z(3, np.int64), z(3, np.int64), z(n_bodies, np.int64),
+                   z(n), z((n_frames, 3, 3)), z((len(tableau.b) + len(dense.c_extra), n)), z((dense.P.shape[1], n)),
+                   z(n))
+
+    def copy(self) -> "AdaptiveCarry":
+        return AdaptiveCarry(*(a.copy() for a in self))
+
+
+#: Event kinds of ``viz3d.events.EventRow`` as the compiled driver numbers them.
+EVENT_KINDS = {"gap": GAP, "gap_rate": GAP_RATE, "multiplier": MULTIPLIER}
+
+
 class Samples(NamedTuple):
     """Output samples of N states (``KernelStepper.sample``; nb + 1 bodies, ground last).
 
@@ -164,6 +211,7 @@ class KernelStepper:
         self.ws = workspace(data)
         self._entries: dict = {}
         self._memory_id, self._view = None, self.ws[0]
+        self._method = None  # the tableau and controller as the adaptive driver takes them
         n = data.model.n_q + data.model.n_v + data.model.n_aux
         stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
         self._k, self._yi = np.empty((stages, n)), np.empty(n)
@@ -271,6 +319,48 @@ class KernelStepper:
                                            tab.c, max_speed, d.model, v, w, d.forces, d.rows, self._k, self._yi, Y,
                                            charts)
         return Y[:done], charts[:done], done, partial, status
+
+    def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,
+                 controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,
+                 max_turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, int]:
+        """Up to ``n_frames`` output frames of an adaptive run, ``every`` samples ``dt`` apart, the
+        first after sample ``n0`` of a run started at ``t_start`` [s], advancing ``carry`` in place
+        (``viz3d.kernel.adaptive.adaptive_frames``) under ``controller`` (``adaptive.Controller``),
+        with the contacts' ``events`` (``viz3d.events.EventRow``) and memory ``memory``. Returns
+        ``(Ts, Y, charts, frames done, samples done in the next frame, status)``, the first three
+        over the frames done: times (N,) [s], states (N, n), charts (N, nf, 3, 3)."""
+        d, tab = self.data, self.tableau
+        if self._method is None or self._method[0] != controller:
+            self._method = controller, _adaptive_method(tab, controller)
+        n, nf = carry.y.shape[0], carry.chart.shape[0]
+        kind = np.array([EVENT_KINDS[e.kind] for e in events], np.int64)
+        index = np.array([e.index for e in events], np.int64)
+        floor = np.array([e.floor for e in events], float)
+        direction = np.array([e.direction for e in events], np.int64)
+        z = np.empty
+        scratch = (z(n), z(n), z(n), z(n), z((nf, 3, 3)), np.zeros(carry.switches.shape[0], np.int64),
+                   z((d.n_contacts, 11)), z(len(events)), z(len(events)))
+        Ts, Y, charts = z(n_frames), z((n_frames, n)), z((n_frames, nf, 3, 3))
+        done, partial, status = self._call(
+            adaptive_frames, n_frames, every, n0, t_start, dt, int(contact_mode), max_speed, max_turn,
+            *self._method[1], kind, index, floor, direction, d.model, self.view(memory), self.ws[1], d.forces,
+            d.rows, d.geometry, *carry, self._k, *scratch, Y, charts, Ts)
+        return Ts[:done], Y[:done], charts[:done], done, partial, status
+
+
+def _adaptive_method(tableau, controller) -> tuple:
+    """The tableau and controller as the compiled adaptive driver takes them."""
+    from viz3d.integrators.adaptive import FAC_MAX, FAC_MIN, SAFETY
+    from viz3d.integrators.explicit_rk import is_end_stage
+
+    dense, c = tableau.dense, np.ascontiguousarray
+    error_order = tableau.error_order or tableau.order - 1
+    ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, error_order, SAFETY,
+                     FAC_MIN, FAC_MAX], float)
+    a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
+    reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
+    return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),
+            c(dense.c_extra), c(a_extra), reuse)
 
 
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,

@@ -1,0 +1,134 @@
+"""Adaptive runs (dopri5, dop853) through the compiled adaptive driver against the Python adaptive loop
+(issue 14): whole-run wall time and cost per accepted step, on shipped scenes (a benchmark, not a test).
+
+    python benchmarks/bench_adaptive.py [--repeat 3] [--out docs/bench_adaptive.md]
+
+Every scene runs headless (``viz3d.simulate.run``: output frames and their checks included, the build
+of the system not) both ways, the two interleaved in each repeat so that both see the same load: with
+the compiled driver (``viz3d.kernel.adaptive``: the default), and with the Python adaptive loop it
+replaced (``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events,
+during law contacts and for systems the kernel does not cover), its right-hand side compiled as
+before. Wall time is the least of the repeats (the load of a shared machine only adds); an untimed
+warm-up run of each first (numba's cache loads). Both runs must take the same steps (the table
+says so). Prints a Markdown table and writes it to ``--out``. Wall times of this machine under its
+load at the time (quoted): compare the ratios of one run, not machines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import platform
+import time
+from pathlib import Path
+
+import viz3d
+from viz3d.kernel import KernelStepper
+from viz3d.kernel.adaptive import STEPS
+from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
+from viz3d.scene.load import with_sim
+from viz3d.simulate import Simulation, run
+
+ROOT = Path(__file__).resolve().parents[1]
+#: label -> (scene file stem, overrides, simulated time [s]).
+SCENES = {
+    "flexible_pendulum": ("flexible_pendulum", [], 2.0),
+    "flexible_pendulum dop853": ("flexible_pendulum", ["sim.integrator=dop853"], 2.0),
+    "ball_on_flexible_beam": ("ball_on_flexible_beam", [], 0.12),
+    "pendulum_strikes_bar": ("pendulum_strikes_bar", [], 1e-3),
+    "impact_free_bar": ("impact_free_bar", [], 1.6e-4),
+}
+
+
+@contextlib.contextmanager
+def python_loop(on: bool, kernel_steps: list):
+    """Adaptive steps in the Python loop (``on``) instead of the compiled driver; the steps the
+    compiled driver takes are appended to ``kernel_steps``."""
+    covers, adaptive = Simulation._adaptive_kernel_covers, KernelStepper.adaptive
+
+    def counted(self, carry, *args, **kwargs):
+        out = adaptive(self, carry, *args, **kwargs)
+        kernel_steps.append(int(carry.counts[STEPS]))
+        return out
+
+    KernelStepper.adaptive = counted
+    if on:
+        Simulation._adaptive_kernel_covers = lambda self: False
+    try:
+        yield
+    finally:
+        Simulation._adaptive_kernel_covers, KernelStepper.adaptive = covers, adaptive
+
+
+def one_run(label: str, python: bool) -> dict:
+    """One headless run of ``label``: wall time [s], accepted and rejected steps, evaluations, status."""
+    stem, overrides, t_end = SCENES[label]
+    scene = with_sim(viz3d.load_scene(ROOT / "scenes" / f"{stem}.toml", overrides), t_end=t_end)
+    system, state = viz3d.build(scene)
+    cfg = scene.data["sim"]
+    sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"], cfg["blowup_speed"],
+                     make_controller(cfg))
+    kernel_steps: list[int] = []
+    with python_loop(python, kernel_steps):
+        t0 = time.perf_counter()
+        traj = run(sim, scene)
+        wall = time.perf_counter() - t0
+    return dict(wall=wall, steps=sim.n_steps, rejected=sim.n_rejected, rhs=sim.n_rhs, status=traj.status,
+                kernel_steps=sum(kernel_steps))
+
+
+def measure(repeat: int) -> dict:
+    """label -> {"kernel": best run, "python": best run}, interleaved repeats after a warm-up."""
+    best: dict = {}
+    for label in SCENES:
+        for python in (False, True):
+            one_run(label, python)  # warm-up: numba's cache, scipy imports
+    for r in range(repeat):
+        for label in SCENES:
+            for way, python in (("kernel", False), ("python", True)):
+                res = one_run(label, python)
+                if way not in best.setdefault(label, {}) or res["wall"] < best[label][way]["wall"]:
+                    best[label][way] = res
+                print(f"  repeat {r + 1}: {label:<26} {way:<6} {res['wall']:.3f} s  {res['steps']} steps", flush=True)
+    return best
+
+
+def table(best: dict) -> str:
+    lines = ["| scene | steps (rejected) | evaluations | same steps | steps in the compiled driver | Python loop [s] "
+             "| compiled driver [s] | per step: Python [us] | per step: compiled [us] | speed-up |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for label, ways in best.items():
+        k, p = ways["kernel"], ways["python"]
+        same = (k["steps"], k["rejected"], k["rhs"], k["status"]) == (p["steps"], p["rejected"], p["rhs"], p["status"])
+        lines.append(f"| {label} | {k['steps']} ({k['rejected']}) | {k['rhs']} | {'yes' if same else 'NO'} "
+                     f"| {100 * k['kernel_steps'] / k['steps']:.0f} % | {p['wall']:.3f} | {k['wall']:.3f} | {1e6 * p['wall'] / p['steps']:.0f} "
+                     f"| {1e6 * k['wall'] / k['steps']:.0f} | {p['wall'] / k['wall']:.2f}x |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_adaptive.md")
+    args = ap.parse_args()
+    load0 = os.getloadavg()
+    best = measure(args.repeat)
+    load1 = os.getloadavg()
+    text = table(best)
+    print(text)
+    header = (f"Generated by `python benchmarks/bench_adaptive.py` on {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}: "
+              f"whole headless runs (output frames and checks included, build excluded), least wall time of "
+              f"{args.repeat} interleaved repeats; {platform.machine()} with {os.cpu_count()} cores, load average "
+              f"before {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f}, after {load1[0]:.1f} / {load1[1]:.1f} / "
+              f"{load1[2]:.1f} (1 / 5 / 15 min). Simulated: "
+              + ", ".join(f"{label} {t_end:g} s" for label, (_, _, t_end) in SCENES.items())
+              + ". Per step: wall time over accepted steps. The steps of law contacts (the impact scenes' "
+              "contact phases) and at contact events are the Python loop's in both columns (the compiled "
+              "driver's share of the steps is given).\n")
+    args.out.write_text(header + "\n" + text + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

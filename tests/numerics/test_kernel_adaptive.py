@@ -1,0 +1,161 @@
+"""The compiled adaptive driver (viz3d.kernel.adaptive) against the Python adaptive loop it replaces
+(``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events, law contacts
+and failures): the same accepted and rejected steps, evaluations, contact events, chart switches and
+diagnoses, and the same states to round-off.
+
+The two paths run the same compiled stages, and the kernel adds the controller's error norm in
+numpy's order (``pairwise_sum``), so the steps agree to the last bit; only the dense output (a
+polynomial of degree <= 7 summed in another order) and the NumPy projection and chart switch of the
+Python path round differently.
+"""
+
+import numpy as np
+import pytest
+
+import viz3d
+from viz3d.compiled import numba
+from viz3d.integrators.adaptive import Controller
+from viz3d.kernel import KernelStepper
+from viz3d.kernel.adaptive import pairwise_sum
+from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
+from viz3d.scene.load import with_sim
+from viz3d.simulate import Simulation, run
+
+from conftest import SCENES
+
+EPS = np.finfo(float).eps
+njit = numba.njit if numba is not None else (lambda fn: fn)
+#: Round-off of a dense-output sample, relative to the largest value of the quantity over the run:
+#: the two paths sum the (degree + 1) <= 8 terms of the step's polynomial in different orders, a
+#: rounding per term each (the terms are at most the size of the state: they add up to the change
+#: over a step), twice: 2 x 8 eps; and once more for the frame quantities computed from the state.
+SAMPLE_ROUNDOFF = 3 * 8 * EPS
+#: The Python path's NumPy projection and chart switch round differently from the compiled ones, and
+#: the next steps carry that on: a difference of a few eps of the state, grown over the steps of a
+#: short run (measured growth of a difference over 0.2 s of the flexible pendulum < 10).
+STEPPED_ROUNDOFF = 100 * SAMPLE_ROUNDOFF
+#: The heavy top (spherical joint off its centre of mass, Euler chart switches) with DOPRI5 at a
+#: tolerance at which each step drifts off the joint by far more than round-off.
+HEAVY_TOP_PROJECTION = ("sim.integrator=dopri5", "sim.formulation=projection", "sim.rtol=1e-5", "sim.atol=1e-7",
+                        "sim.dt=0.01")
+#: Scenes with shipped adaptive settings whose runs the kernel covers, and a short t_end [s]: a few
+#: contact events each (flight, onset, law contact in Python, separation), or a swing.
+SCENES_T_END = {"pendulum_strikes_bar": 4e-4, "impact_bronze_ball": 4e-4, "impact_free_bar": 1.6e-4,
+                "bouncing_sphere": 0.08, "flexible_pendulum": 0.2, "ball_on_flexible_beam": 0.024}
+
+
+def _run(name: str, t_end: float, compiled_driver: bool, overrides=(), controller: Controller | None = None,
+         blowup_speed: float | None = None, monkeypatch=None):
+    """A headless run (``simulate.run``) through the compiled adaptive driver or the Python adaptive loop;
+    ``(sim, trajectory, kernel calls)``."""
+    scene = with_sim(viz3d.load_scene(SCENES / f"{name}.toml", list(overrides)), t_end=t_end)
+    system, state = viz3d.build(scene)
+    cfg = scene.data["sim"]
+    sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"],
+                     blowup_speed or cfg["blowup_speed"], controller or make_controller(cfg))
+    calls = []
+    adaptive = KernelStepper.adaptive
+    monkeypatch.setattr(KernelStepper, "adaptive", lambda self, *a, **k: calls.append(1) or adaptive(self, *a, **k))
+    if not compiled_driver:
+        monkeypatch.setattr(Simulation, "_adaptive_kernel_covers", lambda self: False)
+    traj = run(sim, scene)
+    monkeypatch.undo()
+    return sim, traj, len(calls)
+
+
+def _assert_same_run(a, b, tol_factor):
+    (sa, ta, calls), (sb, tb, calls_python) = a, b
+    assert calls > 0 and calls_python == 0
+    assert ta.status == tb.status
+    assert (sa.n_steps, sa.n_rejected, sa.n_rhs) == (sb.n_steps, sb.n_rejected, sb.n_rhs), "mismatch: step counts"
+    assert np.array_equal(sa.chart_switches, sb.chart_switches), "mismatch: chart switches"
+    np.testing.assert_allclose(ta.t, tb.t, rtol=4 * EPS, atol=0, err_msg="mismatch: t")
+    for field in ("position", "velocity", "omega", "euler"):
+        x, y = getattr(ta, field), getattr(tb, field)
+        bound = tol_factor * max(np.abs(y).max(), EPS)
+        assert np.abs(x - y).max() <= bound, f"mismatch: {field}: {np.abs(x - y).max():.2e} > {bound:.2e}"
+    if sb.contacts is not None:
+        assert [text for _, text in sa.contacts.log] == [text for _, text in sb.contacts.log], "mismatch: events"
+        t_a, t_b = np.array([t for t, _ in sa.contacts.log]), np.array([t for t, _ in sb.contacts.log])
+        np.testing.assert_allclose(t_a, t_b, rtol=4 * EPS, atol=0, err_msg="mismatch: event times")
+
+
+@pytest.mark.parametrize("name", sorted(SCENES_T_END))
+def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
+    """Each shipped adaptive scene the kernel covers: the same steps, rejections, evaluations, events
+    and states to round-off, with and without the compiled driver."""
+    a = _run(name, SCENES_T_END[name], True, monkeypatch=monkeypatch)
+    b = _run(name, SCENES_T_END[name], False, monkeypatch=monkeypatch)
+    if name == "flexible_pendulum":
+        assert a[0].n_rejected > 0  # the controller has rejections to reproduce
+    else:
+        assert len(b[0].contacts.log) >= 2  # contact events, located by the Python loop both ways
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+@pytest.mark.parametrize("name, t_end, overrides, tol", [
+    ("flexible_pendulum", 0.2, ("sim.integrator=dop853",), SAMPLE_ROUNDOFF),
+    ("flexible_pendulum", 0.2, ("sim.formulation=projection",), STEPPED_ROUNDOFF),
+    ("heavy_top", 1.0, HEAVY_TOP_PROJECTION, STEPPED_ROUNDOFF),
+    ("flexible_pendulum", 0.2, ("sim.formulation=baumgarte",), SAMPLE_ROUNDOFF)])
+def test_compiled_adaptive_methods_and_formulations(name, t_end, overrides, tol, monkeypatch):
+    """DOP853 (its continuous extension costs three evaluations per sampled step), the projection
+    formulation (projected after every step and at every sample: the flexible pendulum's pin is
+    linear in the coordinates, which the steps keep to round-off; the heavy top's spherical joint
+    at a loose tolerance is not) and Baumgarte."""
+    a = _run(name, t_end, True, overrides, monkeypatch=monkeypatch)
+    b = _run(name, t_end, False, overrides, monkeypatch=monkeypatch)
+    _assert_same_run(a, b, tol)
+    if "sim.formulation=projection" in overrides:  # the state the next step starts from is on the joints
+        tol_C = a[0].formulation.tol
+        for sim in (a[0], b[0]):
+            assert _inner_violation(sim) <= tol_C, f"max |C| at the last accepted step {_inner_violation(sim):.2e} m"
+
+
+def _inner_violation(sim) -> float:
+    """max |C| [m] at a run's last accepted step (ahead of its last sample: the adaptive state, handed
+    back to the Python loop first when the kernel has it)."""
+    sim._to_python()
+    s = sim._inner
+    return float(np.abs(sim._kernel.solved_rows(s.t, s.y, s.chart, s.memory)[1]).max())
+
+
+def test_events_inside_output_frames(monkeypatch):
+    """Five samples per output frame: a call that stops at an event inside a frame keeps the frames
+    before it only, and the Python loop takes the rest of that frame (the kernel's work on it is
+    neither counted nor kept)."""
+    a = _run("ball_on_flexible_beam", 0.024, True, ("sim.output_dt=5e-4",), monkeypatch=monkeypatch)
+    b = _run("ball_on_flexible_beam", 0.024, False, ("sim.output_dt=5e-4",), monkeypatch=monkeypatch)
+    assert len(b[0].contacts.log) >= 2
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+def test_step_size_underflow_is_diagnosed_as_in_python(monkeypatch):
+    """A min_step the tolerance cannot be met above: the kernel stops at the underflow and the Python
+    path writes the same diagnosis at the same time, after the same frames."""
+    ctrl = Controller(rtol=1e-13, atol=1e-16, min_step=2e-4)
+    a = _run("flexible_pendulum", 0.2, True, controller=ctrl, monkeypatch=monkeypatch)
+    b = _run("flexible_pendulum", 0.2, False, controller=ctrl, monkeypatch=monkeypatch)
+    assert "below min_step" in b[1].status
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+def test_blow_up_is_diagnosed_as_in_python(monkeypatch):
+    """A speed limit the falling sphere exceeds before it lands (0.63 m/s after 0.02 m): the same
+    diagnosis (body, time, speed) after the same frames."""
+    a = _run("bouncing_sphere", 0.08, True, blowup_speed=0.3, monkeypatch=monkeypatch)
+    b = _run("bouncing_sphere", 0.08, False, blowup_speed=0.3, monkeypatch=monkeypatch)
+    assert "exceeds sim.blowup_speed" in b[1].status
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+@pytest.mark.parametrize("n", [1, 7, 8, 9, 128, 129, 200, 1003, 5000])
+def test_pairwise_sum_adds_in_numpys_order(n):
+    """The error norm's sum, bit for bit (numpy's pairwise order; a plain loop differs at n > 8)."""
+    x = np.random.default_rng(n).standard_normal(n) ** 2
+    assert _sum(x) == np.sum(x)
+
+
+@njit
+def _sum(x):
+    return pairwise_sum(x, 0, x.shape[0])
