@@ -9,6 +9,8 @@ polynomial of degree <= 7 summed in another order) and the NumPy projection and 
 Python path round differently.
 """
 
+import re
+
 import numpy as np
 import pytest
 
@@ -24,6 +26,8 @@ from viz3d.simulate import Simulation, run
 from conftest import SCENES
 
 EPS = np.finfo(float).eps
+#: A number in an event's text.
+NUMBER = r"[-+]?\d+(\.\d*)?(e[-+]?\d+)?"
 njit = numba.njit if numba is not None else (lambda fn: fn)
 #: Round-off of a dense-output sample, relative to the largest value of the quantity over the run:
 #: the two paths sum the (degree + 1) <= 8 terms of the step's polynomial in different orders, a
@@ -69,15 +73,19 @@ def _assert_same_run(a, b, tol_factor):
     assert ta.status == tb.status
     assert (sa.n_steps, sa.n_rejected, sa.n_rhs) == (sb.n_steps, sb.n_rejected, sb.n_rhs), "mismatch: step counts"
     assert np.array_equal(sa.chart_switches, sb.chart_switches), "mismatch: chart switches"
-    np.testing.assert_allclose(ta.t, tb.t, rtol=4 * EPS, atol=0, err_msg="mismatch: t")
+    # frame times are on the grid or at events, located on the step's polynomial: its round-off
+    np.testing.assert_allclose(ta.t, tb.t, rtol=tol_factor, atol=0, err_msg="mismatch: t")
     for field in ("position", "velocity", "omega", "euler"):
         x, y = getattr(ta, field), getattr(tb, field)
         bound = tol_factor * max(np.abs(y).max(), EPS)
         assert np.abs(x - y).max() <= bound, f"mismatch: {field}: {np.abs(x - y).max():.2e} > {bound:.2e}"
     if sb.contacts is not None:
-        assert [text for _, text in sa.contacts.log] == [text for _, text in sb.contacts.log], "mismatch: events"
+        # the events' kinds and order (their texts without numbers: a separation speed is 0 to round-off,
+        # 1.7e-16 m/s one way, 4.6e-69 m/s the other on impact_free_bar); their times below
+        kinds = [[re.sub(NUMBER, "#", text) for _, text in log] for log in (sa.contacts.log, sb.contacts.log)]
+        assert kinds[0] == kinds[1], "mismatch: events"
         t_a, t_b = np.array([t for t, _ in sa.contacts.log]), np.array([t for t, _ in sb.contacts.log])
-        np.testing.assert_allclose(t_a, t_b, rtol=4 * EPS, atol=0, err_msg="mismatch: event times")
+        np.testing.assert_allclose(t_a, t_b, rtol=tol_factor, atol=0, err_msg="mismatch: event times")
 
 
 @pytest.mark.parametrize("name", sorted(SCENES_T_END))
@@ -90,7 +98,8 @@ def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
         assert a[0].n_rejected > 0  # the controller has rejections to reproduce
     else:
         assert len(b[0].contacts.log) >= 2  # contact events, located by the Python loop both ways
-    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+    # the scenes' default formulation projects after every step (a no-op without constraint rows)
+    _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
 
 
 @pytest.mark.parametrize("name, t_end, overrides, tol", [
