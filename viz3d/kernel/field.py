@@ -1,9 +1,10 @@
 """The compiled vector field ``y_dot = f(t, y)``: the recipe of ``viz3d.dynamics.accelerations``,
 generic over the elements, which act through their compiled pieces (``viz3d.compiled``).
 
-    frames (ZXZ Euler angles in charts or Euler parameters) -> material points -> force elements and contacts (pieces) -> generalized forces
-    (gyroscopic, flexible velocity and elastic forces) -> free accelerations M^-1 Q ->
-    constraint rows (pieces) -> Schur complement, banded Cholesky -> accelerations -> rates
+    frames (Euler angles in charts or Euler parameters) -> material points -> force elements and
+    contacts (pieces) -> generalized forces (gyroscopic, flexible velocity and elastic forces) ->
+    free accelerations M^-1 Q -> constraint rows (pieces) -> Schur complement, banded Cholesky ->
+    accelerations -> rates
 
 Nothing is allocated during an evaluation (allocation, not arithmetic, dominated the cost of small
 systems): ``m``, ``v``, ``w`` are the model, view and workspace of ``viz3d.kernel.model``. Stages
