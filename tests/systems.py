@@ -7,12 +7,14 @@ derivative test also exercises points on flexible bodies.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from viz3d.bodies import Bodies, FlexibleBody
 from viz3d.constraints import build_layout
-from viz3d.coordinates import EulerSwitching
+from viz3d.coordinates import EulerSwitching, Quaternion
 from viz3d.dynamics import body_state, retract
 from viz3d.flexible import Material, Section, analytic_modes, fe_model, reduce
 from viz3d.flexible.floating import floating_bar
@@ -149,6 +151,19 @@ def _mode_scale(fb):
 def _elastic_amplitudes(system, rng):
     parts = [rng.normal(size=fb.n) * _mode_scale(fb) for fb in system.bodies.flexible]
     return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def with_quaternions(system, state, seed: int = 0):
+    """``(system, state)`` in Euler parameters (``sim.rotation = "quaternion"``): every frame's
+    ``R_WB`` as a quaternion times a random norm in [0.5, 2] (``R(p)`` must normalise, the kinematics
+    take ``p`` as stored), charts the identity; positions, elastic coordinates, velocities unchanged."""
+    rng = np.random.default_rng(seed)
+    W_r, theta = system.split_q(state.q)
+    R = system.rotation.matrix(theta, state.chart)
+    p = Rotation.from_matrix(R).as_quat(scalar_first=True) * rng.uniform(0.5, 2.0, (len(R), 1))
+    quat = dataclasses.replace(system, rotation=Quaternion())
+    q = quat.join_q(W_r, p, system.elastic_part(state.q, system.n_frames * system.n_q_body))
+    return quat, state.replace(q=q, chart=np.broadcast_to(np.eye(3), state.chart.shape).copy())
 
 
 def configuration(system, state):

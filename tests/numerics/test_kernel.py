@@ -151,18 +151,19 @@ def test_fixed_steps_with_contacts_locate_every_event_on_the_compiled_path(tmp_p
     np.testing.assert_allclose(a["contact_force"], b["contact_force"], rtol=STEP_TOL, atol=STEP_TOL * np.abs(b["contact_force"]).max())
 
 
-@pytest.mark.parametrize("rotation", ["euler_switching", "euler_zxz"])
+@pytest.mark.parametrize("rotation", ["euler_switching", "euler_zxz", "quaternion"])
 def test_compiled_state_check_passes_exactly_what_check_state_passes(rotation):
     """Adaptive steps skip the NumPy ``check_state`` when the compiled ``state_ok`` passes: it must
     never pass a state the NumPy check refuses (non-finite values, speed, turn per step, plain Euler
-    angles at the pole), and pass the ordinary ones. Random states, half of them broken one way."""
+    angles at the pole; Euler parameters of any norm), and pass the ordinary ones. Random states,
+    half of them broken one way."""
     from viz3d.diagnosis import SimulationFailure, check_state
 
     scene = viz3d.load_scene(SCENES / "chain.toml", {"chain.n": 3, "sim.rotation": rotation})
     system, state = viz3d.build(scene)
     stepper = K.KernelStepper(K.kernel_for(system, make_formulation(scene.data["sim"])), None)
     rng = np.random.default_rng(5)
-    nq, nf = system.n_q, system.n_frames
+    nq, nf, nqb = system.n_q, system.n_frames, system.n_q_body
     outcomes = set()
     for trial in range(400):
         y = state.y.copy()
@@ -175,10 +176,12 @@ def test_compiled_state_check_passes_exactly_what_check_state_passes(rotation):
             y[rng.integers(nq + system.n_v)] = rng.choice([np.nan, np.inf])
         elif kind == 2:
             y[nq + 6 * f] = 2e4  # beyond the speed limit below
+        elif kind == 3 and rotation == "quaternion":
+            y[nqb * f + 3:nqb * f + 7] *= 10.0 ** rng.uniform(-3, 3)  # p's rates scale with |p|
         elif kind == 3:
-            y[6 * f + 4] = rng.choice([0.0, np.pi, 1e-13, -1e-13])  # at the pole
-        elif kind == 4:
-            y[6 * f + 4] = -abs(y[6 * f + 4])  # negative sin(theta): the signed rate map
+            y[nqb * f + 4] = rng.choice([0.0, np.pi, 1e-13, -1e-13])  # at the pole
+        elif kind == 4 and rotation != "quaternion":
+            y[nqb * f + 4] = -abs(y[nqb * f + 4])  # negative sin(theta): the signed rate map
         s = state.replace(q=y[:nq], v=y[nq:nq + system.n_v])
         try:
             with np.errstate(all="ignore"):  # the rate map divides by sin(theta) = 0 at the pole

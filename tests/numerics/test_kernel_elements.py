@@ -5,7 +5,9 @@ laws, contact treatments, time functions, body kinds), and ``test_the_system_exe
 fails when a registered compiled piece has no item in it, so a new element type must be added
 here (one line in ``ELEMENT_BUILDERS`` or in the contact table). The right-hand sides (positions,
 velocities, accelerations, the ledger's work rates) must agree to the computation's round-off at
-several times (every branch of every time function) and for every formulation the kernel covers.
+several times (every branch of every time function) and for every formulation the kernel covers,
+with the frames' orientations in re-charted Euler angles and in Euler parameters (every test of the
+module runs on both: ``setup``).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
-from systems import _sides, configuration, drive_set, random_state, random_system
+from systems import _sides, configuration, drive_set, random_state, random_system, with_quaternions
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
 #: computation's round-off, eps times its condition number, measured as the NumPy result's change
@@ -176,9 +178,11 @@ def _contacts(rng, system, state):
     return (located, stepped), (tuple(phases), stepped.initial_phases())
 
 
-def every_element_system(seed: int = 3):
-    """(system, state, memory) with every registered element type, on rigid bodies and flexible
-    bars on floating and fixed frames (``tests.systems.random_system(flexible=True)``)."""
+def every_element_system(seed: int = 3, rotation: str = "euler_switching"):
+    """(system, state) with every registered element type, on rigid bodies and flexible bars on
+    floating and fixed frames (``tests.systems.random_system(flexible=True)``); ``rotation``
+    "quaternion": the same system and state in Euler parameters of random norms
+    (``tests.systems.with_quaternions``)."""
     rng = np.random.default_rng(seed)
     base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS))  # every joint type on rigid bodies
     state = random_state(base, seed=seed + 1)
@@ -189,12 +193,12 @@ def every_element_system(seed: int = 3):
     system = System(base.bodies, build_layout(joints, base.bodies), forces, base.rotation, contacts)
     n_aux = system.n_aux
     state = state.replace(w=rng.normal(size=n_aux), memory=memory)
-    return system, state
+    return with_quaternions(system, state, seed) if rotation == "quaternion" else (system, state)
 
 
-@pytest.fixture(scope="module")
-def setup():
-    return every_element_system()
+@pytest.fixture(scope="module", params=["euler_switching", "quaternion"])
+def setup(request):
+    return every_element_system(rotation=request.param)
 
 
 def test_the_system_exercises_every_piece(setup):

@@ -4,6 +4,7 @@ leaves the joints closed to the projection's tolerance."""
 
 import numpy as np
 import pytest
+from kernel_runs import agreement_bound, off_constraints, run
 
 import viz3d
 from viz3d import kernel as K
@@ -17,15 +18,6 @@ from viz3d.simulate import Simulation
 
 from conftest import SCENES
 
-EPS = np.finfo(float).eps
-#: The kernel computes the NumPy formulas in another order: one step may differ by the step map's round-off,
-#: eps times its condition number, measured as the NumPy step's change under relative perturbations of eps of
-#: the state (max of SENSITIVITY_SAMPLES sign patterns); allowed: this many times that (test_kernel.py's factor).
-ROUNDOFF_FACTOR = 10.0
-SENSITIVITY_SAMPLES = 3
-#: Relative size of the perturbation that measures how the flow of N steps amplifies a difference (small enough
-#: to be linear, large enough to stand above round-off).
-GROWTH_PROBE = 1e-7
 #: The runs start this far off the constraints (random q and v offsets [m, rad, m/s, rad/s]): the first
 #: projection has work to do, and a run that skips it keeps |C| ~ this, far above the tolerance.
 OFF_CONSTRAINTS = 1e-6
@@ -40,42 +32,11 @@ SCENE_NAMES = ["heavy_top", "chain", "slider_crank", "flexible_pendulum"]
 def _setup(name, overrides=None):
     scene = viz3d.load_scene(SCENES / f"{name}.toml", {"sim.formulation": "projection", **(overrides or {})})
     system, state = viz3d.build(scene)
-    rng = np.random.default_rng(3)
-    off = state.replace(q=state.q + OFF_CONSTRAINTS * rng.normal(size=state.q.shape),
-                        v=state.v + OFF_CONSTRAINTS * rng.normal(size=state.v.shape))
-    return system, off, make_formulation(scene.data["sim"])
+    return system, off_constraints(state, OFF_CONSTRAINTS), make_formulation(scene.data["sim"])
 
 
 def _run(system, state, form, n, compiled):
-    sim = Simulation(system, state, make_integrator("rk4"), form, DT, compiled=compiled)
-    sim.steps(n)
-    return sim
-
-
-def _numpy_step(system, state, form):
-    return _run(system, state, form, 1, compiled=False).state.y
-
-
-def _step_roundoff(system, state, form):
-    """Round-off scale of one projected NumPy step from ``state``: max change of its result under relative
-    perturbations of eps of ``y`` (random signs), at least eps |y|."""
-    ref = _numpy_step(system, state, form)
-    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SENSITIVITY_SAMPLES, state.y.size))
-    change = max(np.abs(_numpy_step(system, _with_y(system, state, state.y * (1 + EPS * s)), form) - ref).max() for s in signs)
-    return max(change, EPS * np.abs(ref).max())
-
-
-def _growth(system, state, form, n):
-    """How much ``n`` projected kernel steps amplify a small difference of the initial state (max-norm ratio)."""
-    d = GROWTH_PROBE * np.abs(state.y).max() * np.random.default_rng(2).choice([-1.0, 1.0], size=state.y.size)
-    a = _run(system, state, form, n, compiled=True).state.y
-    b = _run(system, _with_y(system, state, state.y + d), form, n, compiled=True).state.y
-    return max(np.abs(a - b).max() / np.abs(d).max(), 1.0)
-
-
-def _with_y(system, state, y):
-    q, v, w = system.split_y(y)
-    return state.replace(q=q, v=v, w=w)
+    return run(system, state, form, n, DT, compiled)
 
 
 def _max_abs_C(system, s):
@@ -85,7 +46,8 @@ def _max_abs_C(system, s):
 @pytest.mark.parametrize("name", SCENE_NAMES)
 def test_compiled_projection_takes_the_numpy_steps_and_closes_the_joints(name):
     """N steps both ways agree within N x (growth of a difference over N steps) x ROUNDOFF_FACTOR x (one step's
-    round-off); the compiled run's joints are closed to the projection's tolerance after every step."""
+    round-off) (``kernel_runs.agreement_bound``); the compiled run's joints are closed to the projection's
+    tolerance after every step."""
     system, state, form = _setup(name)
     assert K.kernel_coverage(system, form)[1] is None
     compiled = Simulation(system, state, make_integrator("rk4"), form, DT)
@@ -96,7 +58,7 @@ def test_compiled_projection_takes_the_numpy_steps_and_closes_the_joints(name):
         worst_C = max(worst_C, _max_abs_C(system, compiled.state))
     numpy = _run(system, state, form, N_STEPS, compiled=False)
     assert compiled.n_steps == numpy.n_steps == N_STEPS
-    bound = N_STEPS * _growth(system, state, form, N_STEPS) * ROUNDOFF_FACTOR * _step_roundoff(system, state, form)
+    bound = agreement_bound(system, state, form, N_STEPS, DT)
     diff = np.abs(compiled.state.y - numpy.state.y).max()
     assert diff <= bound, f"mismatch: y after {N_STEPS} steps: {diff:.2e} > {bound:.2e}"
     assert np.array_equal(compiled.state.chart, numpy.state.chart)

@@ -44,11 +44,14 @@ def _richardson_rk4(t_coarse, y_coarse, t_fine, y_fine):
     return 16 / 15 * np.abs(y_coarse - y_fine[common]).max()
 
 
-def test_heavy_top_matches_quaternion_reference_and_converges_at_fourth_order():
+@pytest.mark.parametrize("rotation", ["euler_switching", "quaternion"])
+def test_heavy_top_matches_quaternion_reference_and_converges_at_fourth_order(rotation):
+    """Both regular parametrizations, in the compiled kernel."""
     runs, errors = [], []
     for dt in (1e-3, 5e-4):
-        traj = viz3d.simulate(SCENES / "heavy_top.toml", t_end=2.0, dt=dt)
+        traj = viz3d.simulate(SCENES / "heavy_top.toml", [f"sim.rotation={rotation}"], t_end=2.0, dt=dt)
         assert traj.ok, traj.status
+        assert traj.scene["run"]["kernel"] == "compiled kernel"
         runs.append(traj)
         errors.append(_compare_top(traj, [0.0, 0.0, -0.15])[:2])
     for i, field in enumerate(("position", "rotation")):
@@ -106,17 +109,20 @@ def test_plain_euler_angles_fail_at_the_pole_with_a_diagnosis():
     assert np.all(np.isfinite(traj.position))
 
 
-def test_torque_free_body_follows_jacobi_elliptic_solution():
-    """The distance to the closed form is RK4's error (Richardson) and the angular momentum drift is
-    truncation error too (falls like dt^4). Steps 8x and 4x the scene's: this run passes close to the
-    separatrix, where omega(t) is ~5e3 times as sensitive to its data as |omega|; double-precision
-    evaluations of the closed form (against mpmath) and any integrator at any step (dop853 at rtol
-    1e-12 included) agree with it only to ~3e-8 rad/s. At these steps RK4's error (~1e-5 rad/s) is 300x
-    that floor, which RICHARDSON_TOL then covers."""
+@pytest.mark.parametrize("rotation", ["euler_switching", "quaternion"])
+def test_torque_free_body_follows_jacobi_elliptic_solution(rotation):
+    """Both regular parametrizations, in the compiled kernel. The distance to the closed form is RK4's
+    error (Richardson) and the angular momentum drift is truncation error too (falls like dt^4). Steps 8x
+    and 4x the scene's: this run passes close to the separatrix, where omega(t) is ~5e3 times as sensitive
+    to its data as |omega|; double-precision evaluations of the closed form (against mpmath) and any
+    integrator at any step (dop853 at rtol 1e-12 included) agree with it only to ~3e-8 rad/s. At these
+    steps RK4's error (~1e-5 rad/s) is 300x that floor, which RICHARDSON_TOL then covers."""
     runs, errors, drifts = [], [], []
     for dt in (4e-3, 2e-3):
-        traj = viz3d.simulate(SCENES / "torque_free.toml", ["sim.output_dt=0.02"], t_end=3.0, dt=dt)
+        traj = viz3d.simulate(SCENES / "torque_free.toml", ["sim.output_dt=0.02", f"sim.rotation={rotation}"], t_end=3.0,
+                              dt=dt)
         assert traj.ok, traj.status
+        assert traj.scene["run"]["kernel"] == "compiled kernel"
         I = traj.inertia_body[0]
         assert np.abs(I - np.diag(np.diag(I))).max() > 1e-6, "the scene should have products of inertia"
         moments, axes = np.linalg.eigh(I)

@@ -5,10 +5,12 @@ the same quantities with compiled loops, because for small systems NumPy's per-c
 dominates. It is composed, not copied: the generic parts (bodies' kinematics and mass blocks, rigid
 or flexible; the constraint assembly and banded solve; the RK loop) live here and in
 ``viz3d.flexible.floating_kernel``, and each element type adds its compiled piece next to its NumPy
-code (``viz3d.compiled``). ``kernel_coverage`` says why a system is not covered (an element without
-a compiled piece, a formulation or orientation coordinates the kernel lacks); such a run takes the
-NumPy path and reports it. tests/numerics/test_kernel.py compares the two on a random system
-holding every registered element type.
+code (``viz3d.compiled``). Every orientation coordinate set of ``viz3d.coordinates`` is covered:
+ZXZ Euler angles, plain or re-charted, and Euler parameters (normalised between steps).
+``kernel_coverage`` says why a system is not covered (an element without a compiled piece, a
+formulation the kernel lacks); such a run takes the NumPy path and reports it.
+tests/numerics/test_kernel_elements.py compares the two on a random system holding every registered
+element type.
 
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
 (adaptive runs: error control, dense output, event sign checks), ``projection`` (the
@@ -246,7 +248,8 @@ class KernelStepper:
         """True when ``viz3d.diagnosis.check_state`` passes ``y`` after a step ``h`` (compiled);
         False means: run that check for its diagnosis."""
         m = self.data.model
-        return bool(self._call(state_ok, m.n_q, m.n_v, m.switching, m.frame_body.shape[0], _c(y), h, max_speed))
+        return bool(self._call(state_ok, m.n_q, m.n_v, m.n_rot, m.switching, m.frame_body.shape[0], _c(y), h,
+                               max_speed))
 
     def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple:
         """``(lam, C, J)`` at ``(t, y)``: the multipliers (n_c,), residuals (n_c,) and frame Jacobian

@@ -1,9 +1,10 @@
 """The compiled vector field ``y_dot = f(t, y)``: the recipe of ``viz3d.dynamics.accelerations``,
 generic over the elements, which act through their compiled pieces (``viz3d.compiled``).
 
-    frames -> material points -> force elements and contacts (pieces) -> generalized forces
-    (gyroscopic, flexible velocity and elastic forces) -> free accelerations M^-1 Q ->
-    constraint rows (pieces) -> Schur complement, banded Cholesky -> accelerations -> rates
+    frames (Euler angles in charts or Euler parameters) -> material points -> force elements and
+    contacts (pieces) -> generalized forces (gyroscopic, flexible velocity and elastic forces) ->
+    free accelerations M^-1 Q -> constraint rows (pieces) -> Schur complement, banded Cholesky ->
+    accelerations -> rates
 
 Nothing is allocated during an evaluation (allocation, not arithmetic, dominated the cost of small
 systems): ``m``, ``v``, ``w`` are the model, view and workspace of ``viz3d.kernel.model``. Stages
@@ -49,9 +50,68 @@ def rotation(chart, a, out):
 
 
 @inline
+def quaternion_rotation(chart, p, out):
+    """``out = chart @ R(p / |p|)`` (Euler parameters ``p = (w, x, y, z)``, scalar first, normalised
+    first as ``viz3d.rotations.matrix_from_quat`` does; docs/notation.md). Inlined: a compiled call
+    in ``frames``' branch, even never taken, made every evaluation of Euler-angle systems 0.4 us
+    slower (the heavy top's RK4 step 3.4 -> 4.3 us)."""
+    n = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3])
+    qw, qx, qy, qz = p[0] / n, p[1] / n, p[2] / n, p[3] / n
+    r00, r01, r02 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
+    r10, r11, r12 = 2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)
+    r20, r21, r22 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
+    for i in range(3):
+        x, y, z = chart[i, 0], chart[i, 1], chart[i, 2]
+        out[i, 0] = x * r00 + y * r10 + z * r20
+        out[i, 1] = x * r01 + y * r11 + z * r21
+        out[i, 2] = x * r02 + y * r12 + z * r22
+
+
+@inline
+def frame_rotation(n_rot, chart, y, i0, out):
+    """``out = R_WB`` of the orientation coordinates ``y[i0:i0 + n_rot]`` in ``chart`` (3, 3): ZXZ
+    Euler angles (``n_rot`` 3) or Euler parameters (4)."""
+    if n_rot == 4:
+        quaternion_rotation(chart, y[i0:i0 + 4], out)
+    else:
+        rotation(chart, y[i0:i0 + 3], out)
+
+
+@inline
+def coordinate_rates(n_rot, y, i0, w1, w2, w3):
+    """``theta_dot`` of the orientation coordinates ``y[i0:i0 + n_rot]`` for ``B_omega = (w1, w2, w3)``
+    [rad/s], as a 4-tuple: the ZXZ rates of ``viz3d.rotations.euler_rates_from_body_omega`` (last entry
+    0), or ``p_dot = 1/2 p (x) (0, B_omega)`` (Hamilton product, ``viz3d.coordinates.Quaternion.rates``;
+    ``p`` as stored, not normalised)."""
+    if n_rot == 4:
+        pw, px, py, pz = y[i0], y[i0 + 1], y[i0 + 2], y[i0 + 3]
+        return (0.5 * -(px * w1 + py * w2 + pz * w3), 0.5 * (pw * w1 + (py * w3 - pz * w2)),
+                0.5 * (pw * w2 + (pz * w1 - px * w3)), 0.5 * (pw * w3 + (px * w2 - py * w1)))
+    s2, c2 = math.sin(y[i0 + 1]), math.cos(y[i0 + 1])
+    s3, c3 = math.sin(y[i0 + 2]), math.cos(y[i0 + 2])
+    psi_d = (w1 * s3 + w2 * c3) / s2
+    return psi_d, w1 * c3 - w2 * s3, w3 - psi_d * c2, 0.0
+
+
+@inline
+def turn_quaternion(y, i0, d1, d2, d3):
+    """``p = y[i0:i0 + 4]`` turned by the body-frame rotation vector ``(d1, d2, d3)`` [rad] in place:
+    ``p (x) (cos(a/2), sin(a/2) d / a)``, ``a = |d|`` (``viz3d.coordinates.Quaternion.advance``; below
+    1e-4 rad ``sin(a/2) / a`` by its series ``1/2 - a^2/48``). Keeps ``|p|``."""
+    a = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+    s = 0.5 - a * a / 48.0 if a < 1e-4 else math.sin(0.5 * a) / a
+    qw, qx, qy, qz = math.cos(0.5 * a), s * d1, s * d2, s * d3
+    pw, px, py, pz = y[i0], y[i0 + 1], y[i0 + 2], y[i0 + 3]
+    y[i0] = pw * qw - (px * qx + py * qy + pz * qz)
+    y[i0 + 1] = pw * qx + qw * px + (py * qz - pz * qy)
+    y[i0 + 2] = pw * qy + qw * py + (pz * qx - px * qz)
+    y[i0 + 3] = pw * qz + qw * pz + (px * qy - py * qx)
+
+
+@inline
 def frames(m, v, w, y, chart):
     """Poses and twists of every body (fixed frames and ground at rest) and the elastic coordinates."""
-    nf = m.frame_body.shape[0]
+    nf, nqb = m.frame_body.shape[0], 3 + m.n_rot
     for b in range(m.nb + 1):
         k = m.body_frame[b]
         if k < 0:
@@ -63,14 +123,14 @@ def frames(m, v, w, y, chart):
                 for j in range(3):
                     v.R[b, i, j] = m.R0[b, i, j]
             continue
-        rotation(chart[k], y[6 * k + 3:6 * k + 6], v.R[b])
+        frame_rotation(m.n_rot, chart[k], y, nqb * k + 3, v.R[b])
         for i in range(3):
-            w.r[b, i] = y[6 * k + i]
+            w.r[b, i] = y[nqb * k + i]
             w.vW[b, i] = y[m.n_q + 6 * k + i]
             w.wB[b, i] = y[m.n_q + 6 * k + 3 + i]
         matvec3(v.R[b], w.wB[b], v.wW[b])
     for e in range(m.n_e):
-        w.eta[e] = y[6 * nf + e]
+        w.eta[e] = y[nqb * nf + e]
         w.eta_dot[e] = y[m.n_q + 6 * nf + e]
 
 
@@ -327,23 +387,20 @@ def banded_cholesky_solve(ab, n, kd, b):
 @inline
 def rates(m, v, w, y, ydot):
     """``y_dot = [W_v, theta_dot(theta, B_omega), eta_dot, v_dot, work rates]``."""
-    nf = m.frame_body.shape[0]
+    nf, nqb = m.frame_body.shape[0], 3 + m.n_rot
     n_q = m.n_q
     for k in range(nf):
         b = m.frame_body[k]
         for i in range(3):
-            ydot[6 * k + i] = w.vW[b, i]
+            ydot[nqb * k + i] = w.vW[b, i]
             ydot[n_q + 6 * k + i] = w.a[b, i]
             ydot[n_q + 6 * k + 3 + i] = w.a[b, 3 + i]
-        s2, c2 = math.sin(y[6 * k + 4]), math.cos(y[6 * k + 4])
-        s3, c3 = math.sin(y[6 * k + 5]), math.cos(y[6 * k + 5])
-        w1, w2, w3 = w.wB[b, 0], w.wB[b, 1], w.wB[b, 2]
-        psi_d = (w1 * s3 + w2 * c3) / s2
-        ydot[6 * k + 3] = psi_d
-        ydot[6 * k + 4] = w1 * c3 - w2 * s3
-        ydot[6 * k + 5] = w3 - psi_d * c2
+        d = coordinate_rates(m.n_rot, y, nqb * k + 3, w.wB[b, 0], w.wB[b, 1], w.wB[b, 2])
+        ydot[nqb * k + 3], ydot[nqb * k + 4], ydot[nqb * k + 5] = d[0], d[1], d[2]
+        if m.n_rot == 4:
+            ydot[nqb * k + 6] = d[3]
     for e in range(m.n_e):
-        ydot[6 * nf + e] = w.eta_dot[e]
+        ydot[nqb * nf + e] = w.eta_dot[e]
         ydot[n_q + 6 * nf + e] = w.ae[e]
     for k in range(m.n_aux):
         ydot[n_q + m.n_v + k] = w.aux[k]

@@ -8,8 +8,9 @@ constraint row of a row provider, the first global index of a contact set (its m
 power slots in the ledger). An element without a compiled piece makes ``pack`` raise
 ``Unsupported`` naming it: the run then takes the NumPy path and says so.
 
-Layout of ``y = [q, v, w]`` as in ``viz3d.system``: nf floating frames ``[W_r, theta (3)]`` and
-``[W_v, B_omega]``, then the stacked elastic coordinates and rates, then the ledger's work integrals.
+Layout of ``y = [q, v, w]`` as in ``viz3d.system``: nf floating frames ``[W_r, theta (n_rot)]`` (ZXZ
+Euler angles in a chart, n_rot = 3, or Euler parameters, n_rot = 4) and ``[W_v, B_omega]``, then the
+stacked elastic coordinates and rates, then the ledger's work integrals.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.compiled import Items, concat, energy_piece, force_piece, gap_piece, items, registered, row_piece, target_of
-from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ
+from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ, Quaternion
 from viz3d.flexible.floating_kernel import pack_flexible
 from viz3d.rotations import matrix_from_euler
 
@@ -72,6 +73,7 @@ class Model(NamedTuple):
     pair: np.ndarray          # (n_pairs, 5) int: row, side, row, side, slot in Work.ab
     kd: int                   # half-bandwidth of the Schur complement in solve order
     form: np.ndarray          # (3,): damping, frequency, compliance (FORMULATIONS)
+    n_rot: int                # orientation coordinates per floating frame: 3 (ZXZ Euler angles), 4 (Euler parameters)
     switching: int            # Euler charts re-centred near gimbal lock
     centre: np.ndarray        # (3,) chart centre angles
     centre_R: np.ndarray      # (3, 3) its rotation
@@ -264,7 +266,7 @@ def _slices(sizes: list[int]) -> tuple[slice, ...]:
 def _check(system, formulation) -> None:
     if formulation.name not in FORMULATIONS or getattr(formulation, "integrator", None) is not None:
         raise Unsupported(f"formulation {formulation.name!r}")
-    if type(system.rotation) not in (EulerSwitching, EulerZXZ):
+    if type(system.rotation) not in (EulerSwitching, EulerZXZ, Quaternion):
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
     if any(fb.ked for fb in system.bodies.flexible):
         raise Unsupported("kineto-elastodynamic flexible bodies (coupling = 'ked')")
@@ -320,7 +322,7 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     mass_inv = np.append(b.M_inv[:nb, 0, 0], 0.0).astype(float)
     model = Model(nb, kind, frame, flex, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
-                  row_body, perm, pair, kd, form, int(isinstance(system.rotation, EulerSwitching)),
+                  row_body, perm, pair, kd, form, system.rotation.n_q, int(isinstance(system.rotation, EulerSwitching)),
                   CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux, *_projection(formulation))
     n_contacts = sum(c.k for c in system.contacts)
     return model, (nb, len(b.flexible), pt_s.shape[0], system.n_elastic, fx_work, row_body.shape[0], n_je, kd,

@@ -4,21 +4,21 @@ formulation's ``post_step``), on the field's own rows, mass blocks and banded Sc
 on chains.
 
 Positions: Newton iterations on ``C(q, t) = 0`` with the correction ``dx = -M^-1 C_v^T (C_v M^-1
-C_v^T)^-1 C`` in velocity space, applied as ``W_r += dW_r``, the Euler angles moved by the rates of
-the small body-frame rotation ``B_dphi`` (``RotationCoordinates.correct``) and ``eta += d_eta``;
+C_v^T)^-1 C`` in velocity space, applied as ``W_r += dW_r``, the orientation coordinates moved by the
+small body-frame rotation ``B_dphi`` as ``RotationCoordinates.correct`` moves them (Euler angles by its
+rates, Euler parameters by ``p (x) exp(B_dphi / 2)``) and ``eta += d_eta``;
 until ``max |C| <= tol`` (``Model.projection_tol``) or ``Model.projection_iter`` corrections.
 Velocities, at the projected positions: ``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 (C_v v + C_t)``.
 """
 
 from __future__ import annotations
 
-import math
-
 from viz3d.compiled import inline, jit
 from viz3d.kernel.field import (
     OK,
     PROJECTION,
     SINGULAR,
+    coordinate_rates,
     correct,
     factor_blocks,
     fill_rows,
@@ -26,6 +26,7 @@ from viz3d.kernel.field import (
     mass_weighted_rows,
     row_times,
     schur_solve,
+    turn_quaternion,
     twists,
 )
 from viz3d.points import kinematics
@@ -107,21 +108,23 @@ def _min_norm_correction(m, v, w):
 @inline
 def _move_positions(m, w, y):
     """``q`` moved by the velocity-space increment in ``w.a``, ``w.ae``: ``W_r += dW_r``, Euler angles
-    by the ZXZ rates of ``B_dphi`` (``viz3d.rotations.euler_rates_from_body_omega``), ``eta += d_eta``."""
-    nf = m.frame_body.shape[0]
+    by the ZXZ rates of ``B_dphi`` (``viz3d.rotations.euler_rates_from_body_omega``), Euler parameters
+    by the finite rotation ``B_dphi`` (``turn_quaternion``), ``eta += d_eta``."""
+    nf, nqb = m.frame_body.shape[0], 3 + m.n_rot
     for k in range(nf):
         b = m.frame_body[k]
+        q0 = nqb * k
         for i in range(3):
-            y[6 * k + i] += w.a[b, i]
-        s2, c2 = math.sin(y[6 * k + 4]), math.cos(y[6 * k + 4])
-        s3, c3 = math.sin(y[6 * k + 5]), math.cos(y[6 * k + 5])
-        w1, w2, w3 = w.a[b, 3], w.a[b, 4], w.a[b, 5]
-        psi_d = (w1 * s3 + w2 * c3) / s2
-        y[6 * k + 3] += psi_d
-        y[6 * k + 4] += w1 * c3 - w2 * s3
-        y[6 * k + 5] += w3 - psi_d * c2
+            y[q0 + i] += w.a[b, i]
+        if m.n_rot == 4:
+            turn_quaternion(y, q0 + 3, w.a[b, 3], w.a[b, 4], w.a[b, 5])
+        else:
+            d = coordinate_rates(3, y, q0 + 3, w.a[b, 3], w.a[b, 4], w.a[b, 5])
+            y[q0 + 3] += d[0]
+            y[q0 + 4] += d[1]
+            y[q0 + 5] += d[2]
     for e in range(m.n_e):
-        y[6 * nf + e] += w.ae[e]
+        y[nqb * nf + e] += w.ae[e]
 
 
 @inline

@@ -1,6 +1,7 @@
-"""Explicit Runge-Kutta steps in the kernel, with what ``viz3d.simulate`` does between steps: the
-``projection`` formulation's projections (``viz3d.kernel.projection``), the health checks (as
-``viz3d.diagnosis.check_state`` makes them) and the chart switches."""
+"""Explicit Runge-Kutta steps in the kernel, with what ``viz3d.simulate`` does between steps, in its
+order: the ``projection`` formulation's projections (``viz3d.kernel.projection``), the health checks
+(as ``viz3d.diagnosis.check_state`` makes them), then per frame the normalisation of Euler parameters
+(``Quaternion.normalize``) or the chart switch of Euler angles (``EulerSwitching.rechart``)."""
 
 from __future__ import annotations
 
@@ -9,15 +10,16 @@ import math
 from viz3d.compiled import entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, evaluate, rotation
+from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, rotation
 from viz3d.kernel.projection import project
 
 
 @entry
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
-    ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, frames near
-    gimbal lock are re-charted (``m.switching``) and counted in ``switches`` (per body); the run
+    ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, Euler parameters
+    are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
+    counted in ``switches`` (per body); the run
     stops at the first failed evaluation, non-finite state, frame speed above ``max_speed``, or
     orientation coordinates turning more than ``MAX_TURN`` rad in a step. With ``m.projects``, each
     step's end state is projected onto the constraints first (``viz3d.kernel.projection``: the
@@ -47,8 +49,8 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
                 return step + 1, status
             if not _finite(y):
                 return step + 1, NONFINITE
-        status = _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y, chart, switches, h,
-                              max_speed)
+        status = _check_frames(m.n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y, chart,
+                               switches, h, max_speed)
         if status != OK:
             return step + 1, status
     return n_steps, OK
@@ -104,39 +106,45 @@ def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
 
 
 @inline
-def _frame_health(nq, switching, y, f, h, max_speed):
+def _frame_health(nq, n_rot, switching, y, f, h, max_speed):
     """``(status, |sin theta|)`` of floating frame ``f`` of ``y`` after a step ``h``, as
     ``viz3d.diagnosis.check_state`` judges it: ``SPEED`` above ``max_speed``, ``ROTATION`` when its
-    Euler angles turn more than ``MAX_TURN`` (the rate map of ``euler_rates_from_body_omega``, signed
-    sin) or a plain Euler chart sits at its gimbal lock, else ``OK``."""
+    orientation coordinates turn more than ``MAX_TURN`` (their rates ``coordinate_rates``: the signed
+    Euler-angle rate map, or ``1/2 p (x) (0, B_omega)`` of the stored Euler parameters) or a plain
+    Euler chart sits at its gimbal lock, else ``OK`` (``|sin theta|`` 1 for Euler parameters)."""
     v = nq + 6 * f
     if math.sqrt(y[v] ** 2 + y[v + 1] ** 2 + y[v + 2] ** 2) > max_speed:
         return SPEED, 0.0
-    s2 = math.sin(y[6 * f + 4])
-    st = abs(s2)
-    if not st > 0.0:
-        return ROTATION, st
-    s3, c3 = math.sin(y[6 * f + 5]), math.cos(y[6 * f + 5])
-    w1, w2, w3 = y[v + 3], y[v + 4], y[v + 5]
-    psi_d = (w1 * s3 + w2 * c3) / s2
-    turn = max(abs(psi_d), abs(w1 * c3 - w2 * s3), abs(w3 - psi_d * math.cos(y[6 * f + 4]))) * h
-    if not turn <= MAX_TURN or (switching == 0 and st < SINGULAR_SIN):
+    i0 = (3 + n_rot) * f + 3
+    st = 1.0
+    if n_rot == 3:
+        st = abs(math.sin(y[i0 + 1]))
+        if not st > 0.0:
+            return ROTATION, st
+    d = coordinate_rates(n_rot, y, i0, y[v + 3], y[v + 4], y[v + 5])
+    turn = max(abs(d[0]), abs(d[1]), abs(d[2]), abs(d[3])) * h
+    if not turn <= MAX_TURN or (n_rot == 3 and switching == 0 and st < SINGULAR_SIN):
         return ROTATION, st
     return OK, st
 
 
 @jit
-def _check_frames(nq, switching, frame_body, centre, centre_R, R, y, chart, switches, h, max_speed):
+def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, chart, switches, h, max_speed):
     for f in range(frame_body.shape[0]):
-        status, st = _frame_health(nq, switching, y, f, h, max_speed)
+        status, st = _frame_health(nq, n_rot, switching, y, f, h, max_speed)
         if status != OK:
             return status
-        if switching == 1 and st < SWITCH_SIN:
-            rotation(chart[f], y[6 * f + 3:6 * f + 6], R)
+        i0 = (3 + n_rot) * f + 3
+        if n_rot == 4:  # p / |p| (Quaternion.normalize)
+            n = math.sqrt(y[i0] * y[i0] + y[i0 + 1] * y[i0 + 1] + y[i0 + 2] * y[i0 + 2] + y[i0 + 3] * y[i0 + 3])
+            for i in range(4):
+                y[i0 + i] = y[i0 + i] / n
+        elif switching == 1 and st < SWITCH_SIN:
+            rotation(chart[f], y[i0:i0 + 3], R)
             for i in range(3):
                 for j in range(3):  # chart = R @ R_centre^T
                     chart[f, i, j] = R[i, 0] * centre_R[j, 0] + R[i, 1] * centre_R[j, 1] + R[i, 2] * centre_R[j, 2]
-            y[6 * f + 3], y[6 * f + 4], y[6 * f + 5] = centre[0], centre[1], centre[2]
+            y[i0], y[i0 + 1], y[i0 + 2] = centre[0], centre[1], centre[2]
             switches[frame_body[f]] += 1
     return OK
 
@@ -168,7 +176,7 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
 
 
 @entry
-def state_ok(n_q, n_v, switching, n_frames, y, h, max_speed):
+def state_ok(n_q, n_v, n_rot, switching, n_frames, y, h, max_speed):
     """True when ``viz3d.diagnosis.check_state`` would pass ``y`` after a step ``h``: finite
     positions and velocities and every frame's ``_frame_health`` ``OK`` (the NumPy check then runs
     only to write the diagnosis)."""
@@ -176,6 +184,6 @@ def state_ok(n_q, n_v, switching, n_frames, y, h, max_speed):
         if not math.isfinite(y[j]):
             return False
     for f in range(n_frames):
-        if _frame_health(n_q, switching, y, f, h, max_speed)[0] != OK:
+        if _frame_health(n_q, n_rot, switching, y, f, h, max_speed)[0] != OK:
             return False
     return True

@@ -1,0 +1,67 @@
+"""Runs through the compiled kernel against the NumPy path, and the bound they must agree to.
+
+The kernel computes the NumPy formulas in another order, so one step may differ by the step map's
+round-off: eps times its condition number, measured as the NumPy step's change under relative
+perturbations of eps of the state (``step_roundoff``). Over N steps each step's difference is carried
+by the flow, which amplifies a difference at most by ``growth`` (measured on the kernel with a small
+perturbation); so after N steps ``|y_kernel - y_numpy| <= N growth factor step_roundoff``, ``factor``
+covering the sampling of the round-off (``ROUNDOFF_FACTOR``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viz3d.integrators import make_integrator
+from viz3d.simulate import Simulation
+
+EPS = np.finfo(float).eps
+#: Allowed multiple of the measured round-off of a step (test_kernel.py's factor).
+ROUNDOFF_FACTOR = 10.0
+#: Sign patterns the round-off of a step is measured with.
+SENSITIVITY_SAMPLES = 3
+#: Relative size of the perturbation that measures how the flow of N steps amplifies a difference (small enough
+#: to be linear, large enough to stand above round-off).
+GROWTH_PROBE = 1e-7
+
+
+def run(system, state, form, n: int, dt: float, compiled: bool, method: str = "rk4") -> Simulation:
+    """``n`` steps of ``method`` from ``state`` (through the kernel's many-steps call when ``compiled``)."""
+    sim = Simulation(system, state, make_integrator(method), form, dt, compiled=compiled)
+    sim.steps(n)
+    return sim
+
+
+def with_y(system, state, y):
+    """``state`` with ``y = [q, v, w]``."""
+    q, v, w = system.split_y(y)
+    return state.replace(q=q, v=v, w=w)
+
+
+def off_constraints(state, size: float, seed: int = 3):
+    """``state`` with random offsets of ``size`` on q and v [m, rad or -, m/s, rad/s]."""
+    rng = np.random.default_rng(seed)
+    return state.replace(q=state.q + size * rng.normal(size=state.q.shape), v=state.v + size * rng.normal(size=state.v.shape))
+
+
+def step_roundoff(system, state, form, dt: float) -> float:
+    """Round-off scale of one NumPy step from ``state``: max change of its result under relative
+    perturbations of eps of ``y`` (random signs), at least eps |y|."""
+    ref = run(system, state, form, 1, dt, compiled=False).state.y
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SENSITIVITY_SAMPLES, state.y.size))
+    change = max(np.abs(run(system, with_y(system, state, state.y * (1 + EPS * s)), form, 1, dt, compiled=False).state.y
+                        - ref).max() for s in signs)
+    return max(change, EPS * np.abs(ref).max())
+
+
+def growth(system, state, form, n: int, dt: float) -> float:
+    """How much ``n`` kernel steps amplify a small difference of the initial state (max-norm ratio, at least 1)."""
+    d = GROWTH_PROBE * np.abs(state.y).max() * np.random.default_rng(2).choice([-1.0, 1.0], size=state.y.size)
+    a = run(system, state, form, n, dt, compiled=True).state.y
+    b = run(system, with_y(system, state, state.y + d), form, n, dt, compiled=True).state.y
+    return max(np.abs(a - b).max() / np.abs(d).max(), 1.0)
+
+
+def agreement_bound(system, state, form, n: int, dt: float) -> float:
+    """Bound on ``max |y_kernel - y_numpy|`` after ``n`` steps of ``dt`` from ``state`` (module docstring)."""
+    return n * growth(system, state, form, n, dt) * ROUNDOFF_FACTOR * step_roundoff(system, state, form, dt)
