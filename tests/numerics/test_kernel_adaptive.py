@@ -106,7 +106,10 @@ def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
     ("flexible_pendulum", 0.2, ("sim.integrator=dop853",), SAMPLE_ROUNDOFF),
     ("flexible_pendulum", 0.2, ("sim.formulation=projection",), STEPPED_ROUNDOFF),
     ("heavy_top", 1.0, HEAVY_TOP_PROJECTION, STEPPED_ROUNDOFF),
-    ("flexible_pendulum", 0.2, ("sim.formulation=baumgarte",), SAMPLE_ROUNDOFF)])
+    ("flexible_pendulum", 0.2, ("sim.formulation=baumgarte",), SAMPLE_ROUNDOFF),
+    # Euler parameters, normalised after each step and at each sample (NumPy and compiled round apart)
+    ("flexible_pendulum", 0.2, ("sim.rotation=quaternion", "sim.formulation=index1"), STEPPED_ROUNDOFF),
+    ("heavy_top", 1.0, HEAVY_TOP_PROJECTION + ("sim.rotation=quaternion",), STEPPED_ROUNDOFF)])
 def test_compiled_adaptive_methods_and_formulations(name, t_end, overrides, tol, monkeypatch):
     """DOP853 (its continuous extension costs three evaluations per sampled step), the projection
     formulation (projected after every step and at every sample: the flexible pendulum's pin is

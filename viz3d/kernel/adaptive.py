@@ -120,13 +120,13 @@ def next_step(h, norm, q, safety, fac_min, fac_max):
 
 
 @inline
-def turn_limit(n_frames, f, max_turn):
-    """``Simulation._turn_limit``: the longest step turning no Euler angle by more than
-    ``max_turn`` [rad] at the rates in ``f``."""
+def turn_limit(n_frames, n_rot, f, max_turn):
+    """``Simulation._turn_limit``: the longest step turning no orientation coordinate (``n_rot`` per
+    frame: Euler angles or parameters) by more than ``max_turn`` at the rates in ``f``."""
     fastest = 0.0
     for fr in range(n_frames):
-        for i in range(3):
-            fastest = max(fastest, abs(f[6 * fr + 3 + i]))
+        for i in range(n_rot):
+            fastest = max(fastest, abs(f[(3 + n_rot) * fr + 3 + i]))
     return max_turn / fastest if fastest > 0.0 else math.inf
 
 
@@ -291,15 +291,28 @@ def _span_sample(contact_mode, target, max_speed, P, c_extra, a_extra, reuse, s,
         counts[EVALS] += n_evals
         flags[DENSE] = 1
     dense_sample(target, t0, h, y0, Q, ys)
-    if contact_mode:
-        return OK
-    if m.projects == 1:
-        status = project(target, ys, chart0, m, v, w, rows)
-        if status != OK:
-            return status
-    if not state_ok(m.n_q, m.n_v, m.switching, m.frame_body.shape[0], ys, times[T1] - t0, max_speed):
-        return NONFINITE  # or another failed check: Python's check_state names it
+    if not contact_mode:
+        if m.projects == 1:
+            status = project(target, ys, chart0, m, v, w, rows)
+            if status != OK:
+                return status
+        if not state_ok(m.n_q, m.n_v, m.n_rot, m.switching, m.frame_body.shape[0], ys, times[T1] - t0, max_speed):
+            return NONFINITE  # or another failed check: Python's check_state names it
+    _unit_parameters(m.n_rot, m.frame_body.shape[0], ys)
     return OK
+
+
+@inline
+def _unit_parameters(n_rot, n_frames, y):
+    """Euler parameters (``n_rot`` 4) of every frame of ``y`` divided by their norm, as the Python
+    path's samples (``rotation.normalize``); Euler angles are left alone."""
+    if n_rot != 4:
+        return
+    for f in range(n_frames):
+        i0 = 7 * f + 3
+        n = math.sqrt(y[i0] * y[i0] + y[i0 + 1] * y[i0 + 1] + y[i0 + 2] * y[i0 + 2] + y[i0 + 3] * y[i0 + 3])
+        for i in range(4):
+            y[i0 + i] = y[i0 + i] / n
 
 
 @jit
@@ -378,7 +391,7 @@ def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
     for j in range(m.n_q + m.n_v):  # (what check_state checks: positions and velocities)
         if not math.isfinite(y_end[j]):
             return NONFINITE
-    return _check_frames(m.n_q, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y_end, chart_end, sw, h,
+    return _check_frames(m.n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y_end, chart_end, sw, h,
                          max_speed)
 
 
@@ -387,7 +400,8 @@ def _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, 
             f1, k, y_end, chart_end, sw):
     """The accepted step into the carry: its span (start, stages, length), the settled end state as
     the inner state, the next step (``min(h_next, turn_limit)``), the field kept when the end state
-    is the step's own (no projection, no chart switch: ``Simulation._settle``), the counters."""
+    is the step's own (no projection, no chart switch, no Euler parameters to normalise:
+    ``Simulation._settle``), the counters."""
     switched = False
     for b in range(sw.shape[0]):
         switches[b] += sw[b]
@@ -400,8 +414,8 @@ def _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, 
     _copy_chart(chart0, chart)
     _copy_chart(chart, chart_end)
     times[T] = t + h
-    times[H] = min(h_next, turn_limit(m.frame_body.shape[0], f1, max_turn))
-    keep = m.projects != 1 and not switched
+    times[H] = min(h_next, turn_limit(m.frame_body.shape[0], m.n_rot, f1, max_turn))
+    keep = m.projects != 1 and not switched and m.n_rot != 4  # (Euler parameters are normalised: a new state)
     flags[HAS_F] = 1 if keep else 0
     if keep:
         _copy(f, f1)
