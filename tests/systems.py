@@ -84,6 +84,22 @@ def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=Fa
     return System(bodies, build_layout(joints, bodies), tuple(forces), EulerSwitching())
 
 
+def sections_tree(kind, seed=0):
+    """Joints of type ``kind`` on sections of the bars of ``flexible_bars``, in a tree (no loop: the
+    rows are independent at any state): ground - f0 (side 0 on a section), f0 - f1 (both sides on
+    sections of bars on floating frames), f1 - r0 (side 1 on a section), f2 (a bar on a fixed frame)
+    - r1 (side 1); rigid bodies r0, r1, gravity. Random sections, section offsets and joint frames."""
+    rng = np.random.default_rng(seed)
+    bars, floats = flexible_bars(rng)
+    R0 = Rotation.random(3, random_state=seed + 7).as_matrix()
+    flex = tuple(FlexibleBody(2 + i, bar, fl, rng.normal(size=3), R0[i]) for i, (bar, fl) in enumerate(zip(bars, floats)))
+    bodies = Bodies(("r0", "r1", "f0", "f1", "f2"), np.concatenate([rng.uniform(0.5, 2.0, 2), [b.mass for b in bars]]),
+                    np.concatenate([random_inertia(rng, 2), [b.J0 for b in bars]]), flex)
+    joints = (_joints(rng, bodies, [(2, 5), (3, 2), (0, 3), (1, 4)], kind),)
+    gravity = Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), flex, sum(fb.n for fb in flex))
+    return System(bodies, build_layout(joints, bodies), (gravity,), EulerSwitching())
+
+
 def _sides(rng, bodies, pairs):
     """Random attachment points of both sides: offsets on rigid bodies, sections (and small section
     offsets) on flexible ones."""

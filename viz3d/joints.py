@@ -26,7 +26,7 @@ from viz3d._typing import FloatArray, IntArray
 from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece, tmatvec3
 from viz3d.joint_axes import SideAxes, side_axes, unit
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, add_row, bias, rigid_points
+from viz3d.points import BodyPoints, add_row, add_turn, bias, rigid_points
 from viz3d.rotations import cross
 from viz3d.timefunctions import profile, profile_value
 
@@ -218,8 +218,8 @@ class FramedJoint(RowsJoint):
     Rows are ordered point, perpendicular, on-plane. A side may be a section of a flexible body: its
     point is the section's material point and its axes turn with the section (``viz3d.joint_axes``:
     ``a = R (A + theta x A)``, ``theta = P eta``), which adds elastic columns to every row and the
-    section's rotation rate to the axes' rates; the formulas above are the rigid case. The compiled
-    kernel takes rigid sides only (a system with a framed joint on a flexible section runs on NumPy).
+    section's rotation rate to the axes' rates; the formulas above are the rigid case (the compiled
+    piece ``_framed`` evaluates the general ones, with the sections' rotations from ``viz3d.points``).
 
     Attributes
     ----------
@@ -357,8 +357,6 @@ class FramedJoint(RowsJoint):
         return any(s.flex for s in self.sides)
 
     def compiled(self, pack) -> Items:
-        if self.on_flexible:
-            raise pack.Unsupported(f"{self.type_name} joints on sections of flexible bodies")
         n = self.n_joints
         rows = pack.row_start(self) + self.n_eq * np.arange(n)
         code = np.zeros((n, 11), np.int64)
@@ -508,54 +506,72 @@ def coordinate_of(v, f, code, q1, q2, p1, p2, u):
     return -math.atan2(sine, cosine), rate
 
 
+@inline
+def _section_axis(v, f, side, p, i, alpha, a):
+    """Axis ``i`` of side ``side`` (packed in ``f``, ``FramedItems``) at point ``p``: ``alpha = R A[:, i]``
+    and ``a = alpha + theta x alpha`` (``theta = R P eta``, world: zero on rigid sides; ``SideAxes.a``)."""
+    _world_axis(v, f, side, v.pt_i[p, 0], i, alpha)
+    cross3(v.pth[p], alpha, a)
+    for c in range(3):
+        a[c] += alpha[c]
+
+
+@inline
+def _axis_motion(v, p, a, alpha, rate, acc, s, t):
+    """``SideAxes.motion`` of the axis ``a`` (undeformed ``alpha``) at point ``p``: ``rate = w x a + s``
+    and ``acc = w x (w x a) + 2 w x s``, ``s = Omega x alpha`` (``s``, ``t``: scratch)."""
+    w = v.wW[v.pt_i[p, 0]]
+    cross3(w, a, rate)
+    cross3(w, rate, acc)
+    cross3(v.pom[p], alpha, s)
+    cross3(w, s, t)
+    for c in range(3):
+        rate[c] += s[c]
+        acc[c] += 2.0 * t[c]
+
+
 @compiled_piece(row_piece, FramedItems)
 def _framed(d, t, v):
-    A, B, n, u, t1, t2, t3, b1, b2 = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21], v.v3[22], v.v3[23], v.v3[24]
+    A, A0, B, B0, n = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20]
+    A_d, A_b, B_d, B_b, s = v.v3[21], v.v3[22], v.v3[23], v.v3[24], v.v3[25]
+    b1, b2, t = v.v3[26], v.v3[27], v.v3[28]
     for k in range(d.i.shape[0]):
         r, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
         f = d.f[k]
-        q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
         if d.i[k, 3] == 1:
             point_rows(v, r, p1, p2)
             r += 3
-        for e in range(d.i[k, 4]):
-            _world_axis(v, f, 0, q1, d.i[k, 6 + 2 * e], A)
-            _world_axis(v, f, 1, q2, d.i[k, 7 + 2 * e], B)
-            cross3(A, B, n)
+        for e in range(d.i[k, 4]):  # a1_i . a2_j = 0
+            _section_axis(v, f, 0, p1, d.i[k, 6 + 2 * e], A0, A)
+            _section_axis(v, f, 1, p2, d.i[k, 7 + 2 * e], B0, B)
             v.C[r] = dot3(A, B)
-            tmatvec3(v.R[q1], n, u)
-            tmatvec3(v.R[q2], n, t1)
-            for c in range(3):
-                v.J[r, 0, 3 + c] += u[c]
-                v.J[r, 1, 3 + c] -= t1[c]
-            cross3(v.wW[q1], A, t1)
-            cross3(t1, B, t2)
-            cross3(v.wW[q2], B, t1)
-            cross3(A, t1, t3)
-            acc = 0.0
-            for c in range(3):
-                acc += (v.wW[q1, c] - v.wW[q2, c]) * (t2[c] + t3[c])
-            v.gam[r] = -acc
+            cross3(A, B, n)
+            cross3(A0, B, s)
+            add_turn(v, r, 0, p1, n, s, 1.0)
+            cross3(A, B0, s)
+            add_turn(v, r, 1, p2, n, s, -1.0)  # -(A x B) and B0 x A (d/dt of a1_i . a2_j through a2_j)
+            _axis_motion(v, p1, A, A0, A_d, A_b, s, t)
+            _axis_motion(v, p2, B, B0, B_d, B_b, s, t)
+            v.gam[r] = -(dot3(A_b, B) + 2.0 * dot3(A_d, B_d) + dot3(A, B_b))
             r += 1
         if d.i[k, 5] > 0:
             bias(v, p1, b1)
             bias(v, p2, b2)
-        for e in range(d.i[k, 5]):
-            _world_axis(v, f, 0, q1, d.i[k, 12 + e], A)
+        for e in range(d.i[k, 5]):  # a1_i . (p2 - p1) = 0
+            _section_axis(v, f, 0, p1, d.i[k, 12 + e], A0, A)
             for c in range(3):
                 n[c] = v.px[p2, c] - v.px[p1, c]
+                B_d[c] = v.pv[p2, c] - v.pv[p1, c]
             add_row(v, r, 0, p1, A, -1.0)
             add_row(v, r, 1, p2, A, 1.0)
-            cross3(A, n, t1)
-            tmatvec3(v.R[q1], t1, u)
-            for c in range(3):
-                v.J[r, 0, 3 + c] += u[c]
+            cross3(A, n, B)
+            cross3(A0, n, s)
+            add_turn(v, r, 0, p1, B, s, 1.0)
             v.C[r] = dot3(A, n)
-            cross3(v.wW[q1], A, t1)
-            cross3(v.wW[q1], t1, t2)
-            acc = 0.0
+            _axis_motion(v, p1, A, A0, A_d, A_b, s, t)
+            acc = dot3(A_b, n) + 2.0 * dot3(A_d, B_d)
             for c in range(3):
-                acc += t2[c] * n[c] + 2.0 * t1[c] * (v.pv[p2, c] - v.pv[p1, c]) + A[c] * (b2[c] - b1[c])
+                acc += A[c] * (b2[c] - b1[c])
             v.gam[r] = -acc
             r += 1
 
@@ -639,7 +655,7 @@ class JointDrive(RowsJoint):
         return -lam
 
     def compiled(self, pack) -> Items:
-        if any(js.on_flexible for js in self.joints):
+        if any(js.sides[s].subset([j]).flex for js, j in zip(self.joints, self.index) for s in (0, 1)):
             raise pack.Unsupported("drives on joints at sections of flexible bodies")
         k = len(self.names)
         rows_i, rows_f = [], []

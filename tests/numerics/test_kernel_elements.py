@@ -25,12 +25,12 @@ from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import Baumgarte, Index1, Penalty, Projection
-from viz3d.joints import JOINTS
+from viz3d.joints import JOINTS, FramedJoint
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
-from systems import _sides, configuration, drive_set, random_state, random_system
+from systems import _sides, configuration, drive_set, random_state, random_system, sections_tree
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
 #: computation's round-off, eps times its condition number, measured as the NumPy result's change
@@ -223,6 +223,40 @@ def test_compiled_equals_numpy_right_hand_side(setup, formulation):
         err = np.abs(out - ref)
         tol = FACTOR * _roundoff(rhs, t, state.y, ref)
         assert err.max() <= tol, f"t = {t}: worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
+
+
+#: The joint types with frames: their rows on sections of flexible bars turn with the sections.
+FRAMED = [kind for kind, cls in JOINTS.items() if issubclass(cls, FramedJoint)]
+
+
+@pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0)], ids=lambda f: f.name)
+@pytest.mark.parametrize("kind", FRAMED)
+def test_framed_joints_on_flexible_sections_equal_numpy(kind, formulation):
+    """Joints with frames whose sides sit on sections of flexible bars (side 0, side 1, both; bars on
+    floating and fixed frames; ``tests.systems.sections_tree``): the axes turn with the sections, which
+    enters C, C_v (elastic columns) and gamma; Baumgarte's feedback adds C and C_v v to the comparison.
+    Tolerance as above."""
+    system = sections_tree(kind)
+    state = random_state(system, seed=1)
+    assert {js.type_name for js in system.joints.joints} == {kind} and all(js.on_flexible for js in system.joints.joints)
+    data, why = K.kernel_coverage(system, formulation)
+    assert data is not None, why
+    rhs = VectorField(system, formulation, state.chart)
+    t = TIMES[1]
+    ref = rhs(t, state.y)
+    err = np.abs(K.kernel_rhs(data, t, state.y, state.chart) - ref)
+    tol = FACTOR * _roundoff(rhs, t, state.y, ref)
+    assert err.max() <= tol, f"worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
+
+
+def test_a_drive_on_a_joint_at_a_flexible_section_takes_the_numpy_path_and_says_why():
+    """The drives' piece takes rigid sides (a drive on a joint whose sides are rigid, in a set with
+    joints on sections, is compiled: scenes/flexible_four_bar.toml)."""
+    base = sections_tree("revolute")
+    system = System(base.bodies, build_layout(base.joints.joints + (drive_set(base),), base.bodies), base.forces,
+                    base.rotation)
+    data, why = K.kernel_coverage(system, Index1())
+    assert data is None and why == "drives on joints at sections of flexible bodies"
 
 
 def _roundoff(rhs, t, y, ref):
