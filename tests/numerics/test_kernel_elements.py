@@ -178,9 +178,10 @@ def _contacts(rng, system, state):
 
 def every_element_system(seed: int = 3):
     """(system, state, memory) with every registered element type, on rigid bodies and flexible
-    bars on floating and fixed frames (``tests.systems.random_system(flexible=True)``)."""
+    bars on floating frames (with geometric stiffening) and a fixed one
+    (``tests.systems.random_system(flexible=True, stiffened=True)``)."""
     rng = np.random.default_rng(seed)
-    base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS))  # every joint type on rigid bodies
+    base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS), stiffened=True)  # every joint type on rigid bodies
     state = random_state(base, seed=seed + 1)
     forces = base.forces + tuple(build(rng, base, state) for build in ELEMENT_BUILDERS.values())
     contacts, memory = _contacts(rng, base, state)
@@ -208,6 +209,7 @@ def test_the_system_exercises_every_piece(setup):
         assert not empty, f"registered pieces with no item in the test system: {empty}"
     kinds = {fb.floating for fb in system.bodies.flexible}
     assert kinds == {True, False} and system.bodies.is_rigid.any()
+    assert all(fb.bar.K_omega is not None for fb in system.bodies.flexible if fb.floating)
 
 
 @pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0), Penalty(1e5, 1.0, 9.0), Projection()],

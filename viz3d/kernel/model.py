@@ -277,8 +277,6 @@ def _check(system, formulation) -> None:
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
     if any(fb.ked for fb in system.bodies.flexible):
         raise Unsupported("kineto-elastodynamic flexible bodies (coupling = 'ked')")
-    if any(fb.bar.K_omega is not None for fb in system.bodies.flexible):
-        raise Unsupported("geometric stiffening (geometric_stiffening = true)")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
