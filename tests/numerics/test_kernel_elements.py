@@ -251,14 +251,23 @@ def test_framed_joints_on_flexible_sections_equal_numpy(kind, formulation):
     assert err.max() <= tol, f"worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
 
 
-def test_a_drive_on_a_joint_at_a_flexible_section_takes_the_numpy_path_and_says_why():
-    """The drives' piece takes rigid sides (a drive on a joint whose sides are rigid, in a set with
-    joints on sections, is compiled: scenes/flexible_four_bar.toml)."""
-    base = sections_tree("revolute")
-    system = System(base.bodies, build_layout(base.joints.joints + (drive_set(base),), base.bodies), base.forces,
-                    base.rotation)
+@pytest.mark.parametrize("kind", [k for k in FRAMED if JOINTS[k].FREE])
+def test_drives_on_joints_at_flexible_sections_equal_numpy(kind):
+    """Drives on every coordinate of joints on sections (``sections_tree``: the first three joints,
+    side 0, both sides and side 1 on sections), position and velocity profiles, at every time of
+    TIMES: the drive's axes turn with the sections, as the joints' do. Tolerance as above."""
+    base = sections_tree(kind)
+    drives = tuple(drive_set(base, seed=j, pick={kind: j}) for j in range(3))
+    system = System(base.bodies, build_layout(base.joints.joints + drives, base.bodies), base.forces, base.rotation)
+    state = random_state(system, seed=1).replace(w=np.zeros(system.n_aux))  # the drives' work in the ledger
     data, why = K.kernel_coverage(system, Index1())
-    assert data is None and why == "drives on joints at sections of flexible bodies"
+    assert data is not None, why
+    rhs = VectorField(system, Index1(), state.chart)
+    for t in TIMES:
+        ref = rhs(t, state.y)
+        err = np.abs(K.kernel_rhs(data, t, state.y, state.chart) - ref)
+        tol = FACTOR * _roundoff(rhs, t, state.y, ref)
+        assert err.max() <= tol, f"t = {t}: worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
 
 
 def _roundoff(rhs, t, y, ref):

@@ -36,9 +36,9 @@ FORMULATIONS = {
 }
 #: Formulations whose ``post_step`` the kernel makes after each step (``viz3d.kernel.projection``).
 PROJECTING = ("projection",)
-#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-28 for
+#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-34 for
 #: pieces that call the ball joint's rows (``viz3d.joints``).
-N_V3 = 29
+N_V3 = 35
 
 
 class Unsupported(Exception):
