@@ -1,5 +1,6 @@
-"""Wall time of the flexible mechanisms before and after the kernel took framed joints on flexible
-sections (a benchmark, not a test; issue 14, "a run costs what its steps cost").
+"""Wall time of the flexible mechanisms before and after the kernel took framed joints and drives on
+flexible sections and geometric stiffening (a benchmark, not a test; issue 14, "a run costs what
+its steps cost"): the flexible four-bar and slider-crank, and the spin-up beam.
 
     python benchmarks/bench_flexible_kernel.py --before COMMIT [--after COMMIT] [--repeat 2] [--out docs/bench_flexible_kernel.md]
 
@@ -8,7 +9,7 @@ archive`` into a temporary directory and imported through PYTHONPATH (edits of t
 during the run do not enter it). Each case is one
 ``viz3d run SCENE`` of the whole scene (its own ``t_end``) in a fresh interpreter; the cases are
 interleaved (a round runs every case once) so the load of this shared machine falls on all alike;
-best of ``--repeat``. Every tree first runs each scene once with ``--t-end 0.001`` into an empty
+best of ``--repeat``. Every tree first runs each scene once with ``--t-end 0.02`` into an empty
 numba cache of its own: that warm-up run's time (compiling the kernel, or loading the NumPy path)
 is reported apart, the timed runs find the kernel in the cache, as a user's second run does.
 
@@ -31,7 +32,7 @@ from datetime import date
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = ("scenes/flexible_four_bar.toml", "scenes/flexible_slider_crank.toml")
+SCENES = ("scenes/flexible_four_bar.toml", "scenes/flexible_slider_crank.toml", "scenes/spin_up_beam.toml")
 #: What the benchmark reads from ``viz3d run``'s summary.
 FIELDS = {
     "steps": re.compile(r"^steps\s+(\d+) \((\d+) RHS evaluations\), simulated ([0-9.eE+-]+) s", re.M),
@@ -92,7 +93,7 @@ def main(argv=None) -> None:
         for name, tree in trees.items():
             for scene in SCENES:
                 t0 = time.perf_counter()
-                run(tree, caches[name], scene, tmp / "warm.npz", t_end=0.001)
+                run(tree, caches[name], scene, tmp / "warm.npz", t_end=0.02)
                 warm[name, scene] = time.perf_counter() - t0
         best: dict = {}
         for _ in range(args.repeat):
@@ -121,9 +122,10 @@ def write(args, best: dict, warm: dict, load0: str, load1: str) -> None:
 
 Written by `benchmarks/bench_flexible_kernel.py --before {args.before} --after {args.after} --repeat {args.repeat}`
 on {date.today()}. "before" is commit `{args.before}`, where framed joints with a side on a section of a
-flexible body sent a run to the NumPy path; "after" is commit `{args.after}`, whose kernel covers them. One `viz3d run` of each
+flexible body (and drives on them, and geometric stiffening) sent a run to the NumPy path; "after"
+is commit `{args.after}`, whose kernel covers them. One `viz3d run` of each
 whole scene per case in a fresh interpreter, cases interleaved, best of {args.repeat}; warm numba
-caches (the warm-up run, `--t-end 0.001` into an empty cache, compiles the kernel: its time is the
+caches (the warm-up run, `--t-end 0.02` into an empty cache, compiles the kernel: its time is the
 column "warm-up run"). "run wall" is what `viz3d run` reports (stepping and output frames);
 "process wall" adds start-up and imports.
 

@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece, tmatvec3
+from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece
 from viz3d.joint_axes import SideAxes, side_axes, unit
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, add_row, add_turn, bias, rigid_points

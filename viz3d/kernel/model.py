@@ -377,7 +377,8 @@ def workspace(data: KernelData) -> tuple[View, Work]:
     nb, nx, n_p, n_e, fx_work, n_c, n_je, kd, n_power, n_contacts = data.work_sizes
     z3 = lambda n: np.zeros((n, 3))  # noqa: E731
     view = View(data.pt_i, data.pt_N, data.pt_P, np.zeros((nb + 1, 3, 3)), z3(nb + 1), z3(n_p), z3(n_p), z3(n_p),
-                z3(n_p), z3(n_p), z3(n_p), z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je, np.zeros((n_c, 2, 6)), np.zeros(n_je),
+                z3(n_p), z3(n_p), z3(n_p), z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je,
+                np.zeros((n_c, 2, 6)), np.zeros(n_je),
                 np.zeros(n_c), np.zeros(n_c), np.zeros(n_c), np.zeros(n_c, np.int64), np.zeros((N_V3, 3)),
                 np.zeros((n_contacts, 7)))
     work = Work(z3(nb + 1), z3(nb + 1), z3(nb + 1), np.zeros(n_e), np.zeros(n_e), np.zeros((nb + 1, 6)),
