@@ -17,7 +17,7 @@ from viz3d.constraints import build_layout
 from viz3d.coordinates import EulerSwitching, Quaternion
 from viz3d.dynamics import body_state, retract
 from viz3d.flexible import Material, Section, analytic_modes, fe_model, reduce
-from viz3d.flexible.floating import floating_bar
+from viz3d.flexible.floating import floating_bar, with_geometric_stiffening
 from viz3d.forces import Gravity, SpringDamper
 from viz3d.joints import JOINTS, BallJoint
 from viz3d.points import body_points
@@ -43,9 +43,10 @@ def ball_joints(rng, pairs, names=None):
     return BallJoint(tuple(names), pairs, rng.normal(scale=0.3, size=(len(pairs), 2, 3)))
 
 
-def flexible_bars(rng):
+def flexible_bars(rng, stiffened=False):
     """Three bars: a free-free bending + axial bar and a pinned-free bending bar on floating frames,
-    and a clamped-free FE bar on a fixed frame (modal units differ: both kinds are exercised)."""
+    and a clamped-free FE bar on a fixed frame (modal units differ: both kinds are exercised); with
+    ``stiffened``, the floating ones with geometric stiffening (``with_geometric_stiffening``)."""
     bend = analytic_modes("euler_bernoulli", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 3, ("free", "free"))
     axial = analytic_modes("rod", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 2, ("free", "free"))
     pinned = analytic_modes("timoshenko", BAR_LENGTH, BAR_MATERIAL, BAR_SECTION, 2, ("pinned", "free"))
@@ -53,21 +54,23 @@ def flexible_bars(rng):
     bars = [floating_bar(bend, np.array([0.0, 0.0, 1.0]), second=(np.array([1.0, 0.0, 0.0]), axial)),
             floating_bar(pinned, np.array([0.0, 1.0, 0.0])),
             floating_bar(clamped, np.array([0.0, 0.6, 0.8]))]
+    if stiffened:
+        bars[:2] = [with_geometric_stiffening(bar) for bar in bars[:2]]
     return bars, (True, True, False)
 
 
 def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=False, kinds=("ball",),
-                  framed_on_flexible=False):
+                  framed_on_flexible=False, stiffened=False):
     """A chain 0-1-...-(nb-1) hung from ground plus ``extra_pairs`` joints, random inertia; with
     ``flexible``, three flexible bars after the rigid bodies, joined to the chain (and to each other)
     at random sections by ball joints (by the types ``kinds`` too with ``framed_on_flexible``). The
     joints between rigid bodies (and ground) cycle through the joint types ``kinds``
-    (``viz3d.joints.JOINTS``), with random joint frames."""
+    (``viz3d.joints.JOINTS``), with random joint frames. ``stiffened``: see ``flexible_bars``."""
     rng = np.random.default_rng(seed)
     names = tuple(f"b{i}" for i in range(nb))
     mass, inertia, flex = rng.uniform(0.5, 2.0, nb), random_inertia(rng, nb), ()
     if flexible:
-        bars, floats = flexible_bars(rng)
+        bars, floats = flexible_bars(rng, stiffened)
         names += ("f0", "f1", "f2")
         R0 = Rotation.random(3, random_state=seed + 7).as_matrix()
         flex = tuple(FlexibleBody(nb + i, bar, fl, rng.normal(size=3), R0[i]) for i, (bar, fl) in enumerate(zip(bars, floats)))
@@ -84,6 +87,22 @@ def random_system(nb=4, seed=0, extra_pairs=((0, 2),), springs=True, flexible=Fa
         sp = [[0, n_all], [nb - 1, 0], [1, 2 % nb]] + ([[nb, n_all], [nb + 2, 1]] if flexible else [])
         forces.append(_springs(rng, bodies, np.array(sp)))
     return System(bodies, build_layout(joints, bodies), tuple(forces), EulerSwitching())
+
+
+def sections_tree(kind, seed=0):
+    """Joints of type ``kind`` on sections of the bars of ``flexible_bars``, in a tree (no loop: the
+    rows are independent at any state): ground - f0 (side 0 on a section), f0 - f1 (both sides on
+    sections of bars on floating frames), f1 - r0 (side 1 on a section), f2 (a bar on a fixed frame)
+    - r1 (side 1); rigid bodies r0, r1, gravity. Random sections, section offsets and joint frames."""
+    rng = np.random.default_rng(seed)
+    bars, floats = flexible_bars(rng)
+    R0 = Rotation.random(3, random_state=seed + 7).as_matrix()
+    flex = tuple(FlexibleBody(2 + i, bar, fl, rng.normal(size=3), R0[i]) for i, (bar, fl) in enumerate(zip(bars, floats)))
+    bodies = Bodies(("r0", "r1", "f0", "f1", "f2"), np.concatenate([rng.uniform(0.5, 2.0, 2), [b.mass for b in bars]]),
+                    np.concatenate([random_inertia(rng, 2), [b.J0 for b in bars]]), flex)
+    joints = (_joints(rng, bodies, [(2, 5), (3, 2), (0, 3), (1, 4)], kind),)
+    gravity = Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), flex, sum(fb.n for fb in flex))
+    return System(bodies, build_layout(joints, bodies), (gravity,), EulerSwitching())
 
 
 def _sides(rng, bodies, pairs):

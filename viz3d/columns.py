@@ -9,7 +9,7 @@ states of a run's output instants and turns them into ``FrameColumns`` a chunk a
   every state's kinematics, multipliers, gaps, rigid kinetic and force-element potential energies;
   the rest is array arithmetic, plus per-state NumPy only where the kernel has nothing to offer:
   states with a contact acting (its law's elastic energy and force), flexible bodies' energies,
-  and output elements (gauges);
+  the coordinates of joints on flexible sections, and output elements (gauges);
 * without it, each state's ``Frame`` from ``frame_from_state`` (the NumPy reference).
 
 The live viewer and full-rate recorders still take one ``Frame`` per step (they draw it).
@@ -190,6 +190,7 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
         for key in values[0] if values else ():
             scalars[key] = np.array([v[key] for v in values], float)
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))
+    scalars.update(_section_coordinates(system.joints.joints, cfgs))
     scalars.update(drive_efforts(system.joints.joints, system.joints.row_slices(), s.lam))
     if system.contacts:
         U = _contact_columns(sim, stepper.data, states, s, scalars)
@@ -210,6 +211,16 @@ def _centres_of_mass(system: System, data, s) -> tuple[FloatArray, FloatArray]:
         W_G[:, b] += shift
         W_v[:, b] += np.cross(s.wW[:, b], shift) + np.einsum("nij,nj->ni", s.R[:, b], s.eta_dot[:, sl] @ bar.S.T) / bar.mass
     return W_G, W_v
+
+
+def _section_coordinates(joints, cfgs: list[Configuration] | None) -> dict[str, FloatArray]:
+    """The relative coordinates (n,) of the joint sets with a joint on a flexible section, which need
+    each state's deformation (``viz3d.joints.relative_coordinates`` with its ``cfg``): one state at a time."""
+    sets = tuple(js for js in joints if getattr(js, "coordinate_names", ()) and js.on_flexible)
+    if not sets:
+        return {}
+    values = [relative_coordinates(sets, c.pose.R_WB, c.pose.W_r, c.twist.W_v, c.twist.W_omega, c) for c in cfgs]
+    return {key: np.array([v[key] for v in values], float) for key in values[0]}
 
 
 def _configurations(data, ts: FloatArray, s) -> list[Configuration]:

@@ -23,10 +23,10 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece, tmatvec3
+from viz3d.compiled import Items, compiled_piece, cross3, dot3, inline, items, row_piece
 from viz3d.joint_axes import SideAxes, side_axes, unit
 from viz3d.kinematics import Configuration
-from viz3d.points import BodyPoints, add_row, bias, rigid_points
+from viz3d.points import BodyPoints, add_row, add_turn, bias, rigid_points
 from viz3d.rotations import cross
 from viz3d.timefunctions import profile, profile_value
 
@@ -218,8 +218,8 @@ class FramedJoint(RowsJoint):
     Rows are ordered point, perpendicular, on-plane. A side may be a section of a flexible body: its
     point is the section's material point and its axes turn with the section (``viz3d.joint_axes``:
     ``a = R (A + theta x A)``, ``theta = P eta``), which adds elastic columns to every row and the
-    section's rotation rate to the axes' rates; the formulas above are the rigid case. The compiled
-    kernel takes rigid sides only (a system with a framed joint on a flexible section runs on NumPy).
+    section's rotation rate to the axes' rates; the formulas above are the rigid case (the compiled
+    piece ``_framed`` evaluates the general ones, with the sections' rotations from ``viz3d.points``).
 
     Attributes
     ----------
@@ -357,8 +357,6 @@ class FramedJoint(RowsJoint):
         return any(s.flex for s in self.sides)
 
     def compiled(self, pack) -> Items:
-        if self.on_flexible:
-            raise pack.Unsupported(f"{self.type_name} joints on sections of flexible bodies")
         n = self.n_joints
         rows = pack.row_start(self) + self.n_eq * np.arange(n)
         code = np.zeros((n, 11), np.int64)
@@ -508,54 +506,72 @@ def coordinate_of(v, f, code, q1, q2, p1, p2, u):
     return -math.atan2(sine, cosine), rate
 
 
+@inline
+def _section_axis(v, f, side, p, i, alpha, a):
+    """Axis ``i`` of side ``side`` (packed in ``f``, ``FramedItems``) at point ``p``: ``alpha = R A[:, i]``
+    and ``a = alpha + theta x alpha`` (``theta = R P eta``, world: zero on rigid sides; ``SideAxes.a``)."""
+    _world_axis(v, f, side, v.pt_i[p, 0], i, alpha)
+    cross3(v.pth[p], alpha, a)
+    for c in range(3):
+        a[c] += alpha[c]
+
+
+@inline
+def _axis_motion(v, p, a, alpha, rate, acc, s, t):
+    """``SideAxes.motion`` of the axis ``a`` (undeformed ``alpha``) at point ``p``: ``rate = w x a + s``
+    and ``acc = w x (w x a) + 2 w x s``, ``s = Omega x alpha`` (``s``, ``t``: scratch)."""
+    w = v.wW[v.pt_i[p, 0]]
+    cross3(w, a, rate)
+    cross3(w, rate, acc)
+    cross3(v.pom[p], alpha, s)
+    cross3(w, s, t)
+    for c in range(3):
+        rate[c] += s[c]
+        acc[c] += 2.0 * t[c]
+
+
 @compiled_piece(row_piece, FramedItems)
 def _framed(d, t, v):
-    A, B, n, u, t1, t2, t3, b1, b2 = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21], v.v3[22], v.v3[23], v.v3[24]
+    A, A0, B, B0, n = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20]
+    A_d, A_b, B_d, B_b, s = v.v3[21], v.v3[22], v.v3[23], v.v3[24], v.v3[25]
+    b1, b2, t = v.v3[26], v.v3[27], v.v3[28]
     for k in range(d.i.shape[0]):
         r, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
         f = d.f[k]
-        q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
         if d.i[k, 3] == 1:
             point_rows(v, r, p1, p2)
             r += 3
-        for e in range(d.i[k, 4]):
-            _world_axis(v, f, 0, q1, d.i[k, 6 + 2 * e], A)
-            _world_axis(v, f, 1, q2, d.i[k, 7 + 2 * e], B)
-            cross3(A, B, n)
+        for e in range(d.i[k, 4]):  # a1_i . a2_j = 0
+            _section_axis(v, f, 0, p1, d.i[k, 6 + 2 * e], A0, A)
+            _section_axis(v, f, 1, p2, d.i[k, 7 + 2 * e], B0, B)
             v.C[r] = dot3(A, B)
-            tmatvec3(v.R[q1], n, u)
-            tmatvec3(v.R[q2], n, t1)
-            for c in range(3):
-                v.J[r, 0, 3 + c] += u[c]
-                v.J[r, 1, 3 + c] -= t1[c]
-            cross3(v.wW[q1], A, t1)
-            cross3(t1, B, t2)
-            cross3(v.wW[q2], B, t1)
-            cross3(A, t1, t3)
-            acc = 0.0
-            for c in range(3):
-                acc += (v.wW[q1, c] - v.wW[q2, c]) * (t2[c] + t3[c])
-            v.gam[r] = -acc
+            cross3(A, B, n)
+            cross3(A0, B, s)
+            add_turn(v, r, 0, p1, n, s, 1.0)
+            cross3(A, B0, s)
+            add_turn(v, r, 1, p2, n, s, -1.0)  # -(A x B) and B0 x A (d/dt of a1_i . a2_j through a2_j)
+            _axis_motion(v, p1, A, A0, A_d, A_b, s, t)
+            _axis_motion(v, p2, B, B0, B_d, B_b, s, t)
+            v.gam[r] = -(dot3(A_b, B) + 2.0 * dot3(A_d, B_d) + dot3(A, B_b))
             r += 1
         if d.i[k, 5] > 0:
             bias(v, p1, b1)
             bias(v, p2, b2)
-        for e in range(d.i[k, 5]):
-            _world_axis(v, f, 0, q1, d.i[k, 12 + e], A)
+        for e in range(d.i[k, 5]):  # a1_i . (p2 - p1) = 0
+            _section_axis(v, f, 0, p1, d.i[k, 12 + e], A0, A)
             for c in range(3):
                 n[c] = v.px[p2, c] - v.px[p1, c]
+                B_d[c] = v.pv[p2, c] - v.pv[p1, c]
             add_row(v, r, 0, p1, A, -1.0)
             add_row(v, r, 1, p2, A, 1.0)
-            cross3(A, n, t1)
-            tmatvec3(v.R[q1], t1, u)
-            for c in range(3):
-                v.J[r, 0, 3 + c] += u[c]
+            cross3(A, n, B)
+            cross3(A0, n, s)
+            add_turn(v, r, 0, p1, B, s, 1.0)
             v.C[r] = dot3(A, n)
-            cross3(v.wW[q1], A, t1)
-            cross3(v.wW[q1], t1, t2)
-            acc = 0.0
+            _axis_motion(v, p1, A, A0, A_d, A_b, s, t)
+            acc = dot3(A_b, n) + 2.0 * dot3(A_d, B_d)
             for c in range(3):
-                acc += t2[c] * n[c] + 2.0 * t1[c] * (v.pv[p2, c] - v.pv[p1, c]) + A[c] * (b2[c] - b1[c])
+                acc += A[c] * (b2[c] - b1[c])
             v.gam[r] = -acc
             r += 1
 
@@ -639,12 +655,10 @@ class JointDrive(RowsJoint):
         return -lam
 
     def compiled(self, pack) -> Items:
-        if any(js.on_flexible for js in self.joints):
-            raise pack.Unsupported("drives on joints at sections of flexible bodies")
         k = len(self.names)
         rows_i, rows_f = [], []
         for i, (js, j, c) in enumerate(zip(self.joints, self.index, self.free)):
-            pts = [pack.points(rigid_points(js.body[[j], s], js.B_s[[j], s]))[0] for s in (0, 1)]
+            pts = [pack.points(js.sides[s].subset([j]))[0] for s in (0, 1)]
             code = js.FREE[c][1]
             angle = ANGLE_DRIVES.get(code, (0, 0, 0, 0, 0))
             rows_i.append([pack.row_start(self) + i, pts[0], pts[1], code, self.kind[i], self.velocity[i], *angle])
@@ -700,66 +714,57 @@ class DriveItems(Items):
 
 @compiled_piece(row_piece, DriveItems)
 def _drive(d, t, v):
-    x1, y1, x2, w, m, n = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21]
-    t1, t2, b1, b2 = v.v3[22], v.v3[23], v.v3[24], v.v3[25]
+    e1, e1_0, e2, e2_0, u, u0 = v.v3[16], v.v3[17], v.v3[18], v.v3[19], v.v3[20], v.v3[21]
+    w, w0, m, m0, N, s = v.v3[22], v.v3[23], v.v3[24], v.v3[25], v.v3[26], v.v3[27]
+    u_d, u_b, w_d, w_b, m_d, m_b, t1 = v.v3[28], v.v3[29], v.v3[30], v.v3[31], v.v3[32], v.v3[33], v.v3[34]
     for k in range(d.i.shape[0]):
         row, p1, p2 = d.i[k, 0], d.i[k, 1], d.i[k, 2]
-        q1, q2 = v.pt_i[p1, 0], v.pt_i[p2, 0]
         f = d.f[k]
         r, r_d, r_dd = profile(d.i[k, 4], d.i[k, 5], f[18:28], t)
-        if d.i[k, 3] != DISTANCE_Z:  # e1 -> x1, e2 -> y1, u -> x2 (ANGLE_DRIVES: sides a, b)
+        if d.i[k, 3] != DISTANCE_Z:  # _angle_row: axes e1, e2 of side a, u of side b (ANGLE_DRIVES)
             sa, sb = d.i[k, 6], d.i[k, 9]
-            qa, qb = (q1, q2) if sa == 0 else (q2, q1)
-            _world_axis(v, f, sa, qa, d.i[k, 7], x1)
-            _world_axis(v, f, sa, qa, d.i[k, 8], y1)
-            _world_axis(v, f, sb, qb, d.i[k, 10], x2)
+            pa, pb = (p1, p2) if sa == 0 else (p2, p1)
+            _section_axis(v, f, sa, pa, d.i[k, 7], e1_0, e1)
+            _section_axis(v, f, sa, pa, d.i[k, 8], e2_0, e2)
+            _section_axis(v, f, sb, pb, d.i[k, 10], u0, u)
             cr, sr = math.cos(r), math.sin(r)
             for c in range(3):
-                w[c] = cr * y1[c] + sr * x1[c]
-                m[c] = sr * y1[c] - cr * x1[c]
-            cross3(x2, w, n)                                        # N = u x w
-            v.C[row] = -dot3(x2, w)
-            tmatvec3(v.R[qa], n, t1)
-            tmatvec3(v.R[qb], n, t2)
+                w[c] = cr * e2[c] + sr * e1[c]
+                w0[c] = cr * e2_0[c] + sr * e1_0[c]
+                m[c] = sr * e2[c] - cr * e1[c]
+                m0[c] = sr * e2_0[c] - cr * e1_0[c]
+            v.C[row] = -dot3(u, w)
+            v.Ct[row] = r_d * dot3(u, m)
+            cross3(u, w, N)                                         # N = u x w
+            cross3(u, w0, s)
+            add_turn(v, row, sa, pa, N, s, 1.0)
+            cross3(u0, w, s)
+            add_turn(v, row, sb, pb, N, s, -1.0)
+            _axis_motion(v, pb, u, u0, u_d, u_b, s, t1)
+            _axis_motion(v, pa, w, w0, w_d, w_b, s, t1)
+            _axis_motion(v, pa, m, m0, m_d, m_b, s, t1)
             for c in range(3):
-                v.J[row, sa, 3 + c] += t1[c]
-                v.J[row, sb, 3 + c] -= t2[c]
-            um = dot3(x2, m)
-            v.Ct[row] = r_d * um
-            # gamma = -((w_a - w_b) . N_dot + r_dd (u . m) + r_d (u_dot . m + u . m_dot))
-            cross3(v.wW[qb], x2, b2)                                # u_dot
-            cross3(v.wW[qa], w, t1)
+                w_d[c] -= r_d * m[c]
+                w_b[c] -= 2.0 * r_d * m_d[c] + r_dd * m[c] + r_d * r_d * w[c]
+            v.gam[row] = dot3(u_b, w) + 2.0 * dot3(u_d, w_d) + dot3(u, w_b)
+        else:  # _distance_row: z1 . (p1 - p2) = r
+            _section_axis(v, f, 0, p1, 2, e1_0, e1)                # z1
             for c in range(3):
-                t1[c] -= r_d * m[c]                                 # w_dot
-            cross3(b2, w, t2)
-            cross3(x2, t1, b1)
-            acc = 0.0
-            for c in range(3):
-                acc += (v.wW[qa, c] - v.wW[qb, c]) * (t2[c] + b1[c])
-            cross3(v.wW[qa], m, t1)
-            for c in range(3):
-                t1[c] += r_d * w[c]                                 # m_dot
-            v.gam[row] = -(acc + r_dd * um + r_d * (dot3(b2, m) + dot3(x2, t1)))
-        else:
-            _world_axis(v, f, 0, q1, 2, x1)                         # z1
-            for c in range(3):
-                n[c] = v.px[p1, c] - v.px[p2, c]                    # e
+                N[c] = v.px[p1, c] - v.px[p2, c]                    # e
                 m[c] = v.pv[p1, c] - v.pv[p2, c]                    # e_dot
-            add_row(v, row, 0, p1, x1, 1.0)
-            add_row(v, row, 1, p2, x1, -1.0)
-            cross3(x1, n, t1)
-            tmatvec3(v.R[q1], t1, t2)
-            for c in range(3):
-                v.J[row, 0, 3 + c] += t2[c]
-            v.C[row] = dot3(x1, n) - r
+            add_row(v, row, 0, p1, e1, 1.0)
+            add_row(v, row, 1, p2, e1, -1.0)
+            cross3(e1, N, w)
+            cross3(e1_0, N, s)
+            add_turn(v, row, 0, p1, w, s, 1.0)
+            v.C[row] = dot3(e1, N) - r
             v.Ct[row] = -r_d
-            bias(v, p1, b1)
-            bias(v, p2, b2)
-            cross3(v.wW[q1], x1, t1)
-            cross3(v.wW[q1], t1, t2)
-            acc = dot3(t2, n) + 2.0 * dot3(t1, m)
+            bias(v, p1, e2)
+            bias(v, p2, u)
+            _axis_motion(v, p1, e1, e1_0, u_d, u_b, s, t1)
+            acc = dot3(u_b, N) + 2.0 * dot3(u_d, m)
             for c in range(3):
-                acc += x1[c] * (b1[c] - b2[c])
+                acc += e1[c] * (e2[c] - u[c])
             v.gam[row] = r_dd - acc
 
 

@@ -226,25 +226,35 @@ def body_points(bodies, body: IntArray, B_s: FloatArray, x: FloatArray | None = 
 # in the stacked elastic coordinates] and ``m.pt_s`` (np, 3), the offset s (or s0) in body axes.
 # ``kinematics`` fills, per evaluation, the deformed offsets ``v.ps``, levers ``v.prho``,
 # positions ``v.px``, velocities ``v.pv`` and elastic velocities ``v.pud = R N eta_dot`` (world) of
-# every point; elements then read them and act through ``apply_force``, ``add_row`` and ``bias``,
-# as their NumPy code does through BodyPoints. Scratch rows ``v.v3[0:8]`` are these helpers'.
+# every point, and of its section (``v.pt_P``, the section rotation P (3, n) at the offset of N) the
+# small rotation ``v.pth = R P eta`` and its rate relative to the frame ``v.pom = R P eta_dot``
+# (world; zero on rigid bodies and ground); elements then read them and act through ``apply_force``,
+# ``add_row``, ``add_turn`` and ``bias``, as their NumPy code does through BodyPoints (and
+# ``viz3d.joint_axes``). Scratch rows ``v.v3[0:8]`` are these helpers'.
 
 
 @inline
 def kinematics(m, v, w):
-    """Every point's deformed offset, lever, position, velocity and elastic velocity (see above)."""
+    """Every point's deformed offset, lever, position, velocity and elastic velocity, its section's
+    rotation and rate (see above)."""
     for p in range(v.pt_i.shape[0]):
         b, off, n, e0 = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2], v.pt_i[p, 3]
-        s, ud = v.ps[p], v.v3[0]
+        s, ud, th, om = v.ps[p], v.v3[0], v.v3[2], v.v3[3]
         for c in range(3):
             s[c] = m.pt_s[p, c]
             ud[c] = 0.0
+            th[c] = 0.0
+            om[c] = 0.0
             for q in range(n):
-                N = v.pt_N[off + c * n + q]
+                N, P = v.pt_N[off + c * n + q], v.pt_P[off + c * n + q]
                 s[c] += N * w.eta[e0 + q]
                 ud[c] += N * w.eta_dot[e0 + q]
+                th[c] += P * w.eta[e0 + q]
+                om[c] += P * w.eta_dot[e0 + q]
         matvec3(v.R[b], s, v.prho[p])
         matvec3(v.R[b], ud, v.pud[p])
+        matvec3(v.R[b], th, v.pth[p])
+        matvec3(v.R[b], om, v.pom[p])
         cross3(v.wW[b], v.prho[p], v.v3[1])
         for c in range(3):
             v.px[p, c] = w.r[b, c] + v.prho[p, c]
@@ -306,6 +316,28 @@ def add_row(v, row, side, p, u, sign):
         for c in range(3):
             acc += v.pt_N[off + c * n + q] * uB[c]
         v.Je[j0 + q] += sign * acc
+
+
+@inline
+def add_turn(v, row, side, p, u, u0, sign):
+    """Add ``sign`` times the rate of ``d . x`` through the turn of point ``p``'s section to side ``side``
+    of constraint row ``row``, for a direction ``d`` fixed in the section (``viz3d.joint_axes``): ``u = d
+    x x`` (world) gives ``R^T u`` on ``B_omega`` and ``u0 = d0 x x`` (``d0`` the direction in the
+    undeformed section, ``R`` times its body components) gives ``P^T R^T u0`` on the elastic velocities
+    (none on rigid bodies)."""
+    b, off, n = v.pt_i[p, 0], v.pt_i[p, 1], v.pt_i[p, 2]
+    uB = v.v3[4]
+    tmatvec3(v.R[b], u, uB)
+    for c in range(3):
+        v.J[row, side, 3 + c] += sign * uB[c]
+    if n > 0:
+        tmatvec3(v.R[b], u0, uB)
+        j0 = v.row_je[row, side]
+        for q in range(n):
+            acc = 0.0
+            for c in range(3):
+                acc += v.pt_P[off + c * n + q] * uB[c]
+            v.Je[j0 + q] += sign * acc
 
 
 @inline

@@ -71,6 +71,65 @@ def _roundoff(rhs, y, ref, t=0.37):
     return max(change, eps * np.abs(ref).max())
 
 
+#: Whole runs on both paths (below): the flow may amplify the right-hand side's differences by this
+#: much over the run. The elastic modes oscillate (no growth of a perturbation's energy), the
+#: mechanisms' kinematics are smooth away from their dead points: O(1), with 100 to spare [seen: 7e-15
+#: and 1e-14 against bounds of 6e-11 and 3e-11].
+RUN_GROWTH = 100.0
+
+
+@pytest.mark.parametrize("scene", ["flexible_four_bar.toml", "flexible_slider_crank.toml"])
+def test_flexible_mechanisms_run_on_the_kernel_as_on_the_numpy_path(scene):
+    """Framed joints (revolute, universal) with sides on sections of flexible links: the kernel runs
+    them, and the states of a run (adaptive dopri5, 10 samples of 1 ms) agree with the NumPy path's.
+    Each evaluation may differ by ROUNDOFF_FACTOR times the right-hand side's round-off rho (measured
+    as above, the largest over the NumPy path's samples); a dopri5 step adds h sum(b) = h times that,
+    so over the run each entry of y differs by at most t_end ROUNDOFF_FACTOR rho, times the flow's
+    growth RUN_GROWTH. The step-size controller sees error estimates that differ by about as little:
+    the same steps are accepted and rejected. (These links bend in the mechanisms' plane: their
+    sections turn about the joints' axes, where the turn's terms vanish; those are compared on random
+    states in test_kernel_elements.)"""
+    from viz3d.scene.build import make_controller, make_integrator_from
+
+    t_end, n = 0.01, 10
+    scene_ = viz3d.load_scene(SCENES / scene, {"sim.dt": t_end / n})
+    cfg = scene_.data["sim"]
+    sims = [Simulation(*viz3d.build(scene_), make_integrator_from(cfg), make_formulation(cfg), cfg["dt"],
+                       controller=make_controller(cfg), compiled=compiled) for compiled in (True, False)]
+    assert sims[0].kernel_note == "compiled kernel" and sims[1].kernel_note.startswith("NumPy path")
+    states = [[sim.step() for _ in range(n)] for sim in sims]
+    assert (sims[0].n_steps, sims[0].n_rejected, sims[0].n_rhs) == (sims[1].n_steps, sims[1].n_rejected, sims[1].n_rhs)
+    fields = [(VectorField(sims[1].system, sims[1].formulation, s.chart), s) for s in states[1][::3]]
+    rho = max(_roundoff(rhs, s.y, rhs(s.t, s.y), t=s.t) for rhs, s in fields)
+    bound = RUN_GROWTH * t_end * ROUNDOFF_FACTOR * rho
+    diff = max(np.abs(a.y - b.y).max() for a, b in zip(*states))
+    assert diff <= bound, f"kernel and NumPy runs differ by {diff:.3g} (bound {bound:.3g})"
+
+
+#: Outputs of those runs (below): the states agree to the bound above (< 1e-10), and joint angles,
+#: rates, gauges and drive efforts are functions of them with derivatives of order 1 (angles of unit
+#: axes; rates linear in the velocities; the effort a multiplier of a well-conditioned solve):
+#: 1e-9, relative to each output's scale, leaves 10 for those derivatives.
+OUTPUT_TOL = 1e-9
+
+
+@pytest.mark.parametrize("scene", ["flexible_four_bar.toml", "flexible_slider_crank.toml"])
+def test_flexible_mechanisms_outputs_sampled_in_the_kernel_equal_the_numpy_frames(scene):
+    """Was: frames sampled in the kernel left the coordinates of joint sets with a joint on a
+    flexible section NaN (the crank angle of the four-bar, whose main bearing shares its set with the
+    rocker's pivot), where the NumPy frames had them. Every output agrees and is finite."""
+    overrides = ["sim.t_end=0.01", "sim.output_dt=0.001"]
+    a, b = (viz3d.simulate(SCENES / scene, overrides=overrides + [f"sim.compiled={c}"]) for c in ("true", "false"))
+    assert a.scene["run"]["kernel"] == "compiled kernel" and b.scene["run"]["kernel"].startswith("NumPy path")
+    keys = [k for k in ("joint_coordinates", "joint_coordinate_rates", "gauge_strain", "deflection", "drive_effort")
+            if k in b.extras and np.size(b.extras[k])]
+    assert "joint_coordinates" in keys and list(a.extras["joint_coordinate_names"]) == list(b.extras["joint_coordinate_names"])
+    for key in keys:
+        x, y = np.asarray(a.extras[key], float), np.asarray(b.extras[key], float)
+        assert x.shape == y.shape and np.isfinite(x).all() and np.isfinite(y).all(), key
+        assert np.abs(x - y).max() <= OUTPUT_TOL * max(1.0, np.abs(y).max()), key
+
+
 def test_kernel_steps_equal_numpy_steps_through_chart_switches():
     _, system, state, form = _setup(SCENES / "top_through_vertical.toml")
     sim = Simulation(system, state, make_integrator("rk4"), form, 5e-4)

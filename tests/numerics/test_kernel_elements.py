@@ -27,12 +27,12 @@ from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import Baumgarte, Index1, Penalty, Projection
-from viz3d.joints import JOINTS
+from viz3d.joints import JOINTS, FramedJoint
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
 from viz3d.timefunctions import TIME_FUNCTIONS, TimeFunctions
 
-from systems import _sides, configuration, drive_set, random_state, random_system, with_quaternions
+from systems import _sides, configuration, drive_set, random_state, random_system, sections_tree, with_quaternions
 
 #: Kernel and NumPy path evaluate the same formulas in another order: they may differ by the
 #: computation's round-off, eps times its condition number, measured as the NumPy result's change
@@ -179,12 +179,12 @@ def _contacts(rng, system, state):
 
 
 def every_element_system(seed: int = 3, rotation: str = "euler_switching"):
-    """(system, state) with every registered element type, on rigid bodies and flexible bars on
-    floating and fixed frames (``tests.systems.random_system(flexible=True)``); ``rotation``
-    "quaternion": the same system and state in Euler parameters of random norms
-    (``tests.systems.with_quaternions``)."""
+    """(system, state) with every registered element type, on rigid bodies and flexible
+    bars on floating frames (with geometric stiffening) and a fixed one
+    (``tests.systems.random_system(flexible=True, stiffened=True)``); ``rotation`` "quaternion":
+    the same system and state in Euler parameters of random norms (``tests.systems.with_quaternions``)."""
     rng = np.random.default_rng(seed)
-    base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS))  # every joint type on rigid bodies
+    base = random_system(nb=9, flexible=True, seed=seed, kinds=tuple(JOINTS), stiffened=True)  # every joint type on rigid bodies
     state = random_state(base, seed=seed + 1)
     forces = base.forces + tuple(build(rng, base, state) for build in ELEMENT_BUILDERS.values())
     contacts, memory = _contacts(rng, base, state)
@@ -212,6 +212,7 @@ def test_the_system_exercises_every_piece(setup):
         assert not empty, f"registered pieces with no item in the test system: {empty}"
     kinds = {fb.floating for fb in system.bodies.flexible}
     assert kinds == {True, False} and system.bodies.is_rigid.any()
+    assert all(fb.bar.K_omega is not None for fb in system.bodies.flexible if fb.floating)
 
 
 @pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0), Penalty(1e5, 1.0, 9.0), Projection()],
@@ -227,6 +228,49 @@ def test_compiled_equals_numpy_right_hand_side(setup, formulation):
         err = np.abs(out - ref)
         tol = FACTOR * _roundoff(rhs, t, state.y, ref)
         assert err.max() <= tol, f"t = {t}: worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
+
+
+#: The joint types with frames: their rows on sections of flexible bars turn with the sections.
+FRAMED = [kind for kind, cls in JOINTS.items() if issubclass(cls, FramedJoint)]
+
+
+@pytest.mark.parametrize("formulation", [Index1(), Baumgarte(7.0, 12.0)], ids=lambda f: f.name)
+@pytest.mark.parametrize("kind", FRAMED)
+def test_framed_joints_on_flexible_sections_equal_numpy(kind, formulation):
+    """Joints with frames whose sides sit on sections of flexible bars (side 0, side 1, both; bars on
+    floating and fixed frames; ``tests.systems.sections_tree``): the axes turn with the sections, which
+    enters C, C_v (elastic columns) and gamma; Baumgarte's feedback adds C and C_v v to the comparison.
+    Tolerance as above."""
+    system = sections_tree(kind)
+    state = random_state(system, seed=1)
+    assert {js.type_name for js in system.joints.joints} == {kind} and all(js.on_flexible for js in system.joints.joints)
+    data, why = K.kernel_coverage(system, formulation)
+    assert data is not None, why
+    rhs = VectorField(system, formulation, state.chart)
+    t = TIMES[1]
+    ref = rhs(t, state.y)
+    err = np.abs(K.kernel_rhs(data, t, state.y, state.chart) - ref)
+    tol = FACTOR * _roundoff(rhs, t, state.y, ref)
+    assert err.max() <= tol, f"worst entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
+
+
+@pytest.mark.parametrize("kind", [k for k in FRAMED if JOINTS[k].FREE])
+def test_drives_on_joints_at_flexible_sections_equal_numpy(kind):
+    """Drives on every coordinate of joints on sections (``sections_tree``: the first three joints,
+    side 0, both sides and side 1 on sections), position and velocity profiles, at every time of
+    TIMES: the drive's axes turn with the sections, as the joints' do. Tolerance as above."""
+    base = sections_tree(kind)
+    drives = tuple(drive_set(base, seed=j, pick={kind: j}) for j in range(3))
+    system = System(base.bodies, build_layout(base.joints.joints + drives, base.bodies), base.forces, base.rotation)
+    state = random_state(system, seed=1).replace(w=np.zeros(system.n_aux))  # the drives' work in the ledger
+    data, why = K.kernel_coverage(system, Index1())
+    assert data is not None, why
+    rhs = VectorField(system, Index1(), state.chart)
+    for t in TIMES:
+        ref = rhs(t, state.y)
+        err = np.abs(K.kernel_rhs(data, t, state.y, state.chart) - ref)
+        tol = FACTOR * _roundoff(rhs, t, state.y, ref)
+        assert err.max() <= tol, f"t = {t}: entry {int(np.argmax(err))} of {len(ref)} off by {err.max():.3g} (tol {tol:.3g})"
 
 
 def _roundoff(rhs, t, y, ref):

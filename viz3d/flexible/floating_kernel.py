@@ -29,6 +29,7 @@ from viz3d.compiled import cross3, inline, jit, matvec3, tmatvec3
 
 FX_BODY, FX_FLOATING, FX_N, FX_E0, FX_S, FX_A, FX_NB, FX_BIJ, FX_B = 0, 1, 2, 3, 4, 5, 6, 7, 8
 FX_MINV_KIND, FX_MINV, FX_K_KIND, FX_K, FX_C_KIND, FX_C, FX_WORK = 9, 10, 11, 12, 13, 14, 15
+FX_KW_KIND, FX_KW = 16, 17  # geometric stiffening's K_omega (ZERO without it)
 #: How a matrix is stored in the pool.
 ZERO, DIAGONAL, DENSE = 0, 1, 2
 #: A matrix is stored as diagonal when its off-diagonal entries are at most this many times
@@ -49,7 +50,7 @@ def matrix_kind(A: np.ndarray) -> int:
 def pack_flexible(flexible, e_offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """``(fx_i, fx_f, fx_pool, fx_bij, work size)`` of the flexible bodies (``viz3d.bodies.FlexibleBody``)
     with the offsets of their eta in the stacked elastic coordinates."""
-    fx_i = np.zeros((len(flexible), 16), np.int64)
+    fx_i = np.zeros((len(flexible), 18), np.int64)
     fx_f = np.zeros((len(flexible), 10))
     pool, bij, size, work = [], [], 0, 0
 
@@ -69,7 +70,9 @@ def pack_flexible(flexible, e_offsets) -> tuple[np.ndarray, np.ndarray, np.ndarr
         row[FX_NB], row[FX_BIJ] = len(blocks), sum(len(b) for b in bij)
         bij.append(np.array(blocks, np.int64).ravel())
         row[FX_B] = put(np.array([bar.B[i, j] for i, j in blocks]).reshape(-1)) if blocks else size
-        for kind_col, col, A in ((FX_MINV_KIND, FX_MINV, fb.M_ee_inv), (FX_K_KIND, FX_K, bar.K), (FX_C_KIND, FX_C, bar.C)):
+        K_omega = np.zeros((n, n)) if bar.K_omega is None else bar.K_omega
+        for kind_col, col, A in ((FX_MINV_KIND, FX_MINV, fb.M_ee_inv), (FX_K_KIND, FX_K, bar.K), (FX_C_KIND, FX_C, bar.C),
+                                 (FX_KW_KIND, FX_KW, K_omega)):
             kind = matrix_kind(A)
             row[kind_col] = kind
             row[col] = put(np.diag(A) if kind == DIAGONAL else A) if kind != ZERO else size
@@ -111,6 +114,20 @@ def _quadratic(kind, pool, off, n, x, x0):
         for p in range(n):
             for q in range(n):
                 acc += x[x0 + p] * pool[off + p * n + q] * x[x0 + q]
+    return acc
+
+
+@jit
+def _bilinear(kind, pool, off, n, x, x0, y, y0):
+    """``x^T A y`` for a matrix stored as ``kind``."""
+    acc = 0.0
+    if kind == DIAGONAL:
+        for q in range(n):
+            acc += x[x0 + q] * pool[off + q] * y[y0 + q]
+    elif kind == DENSE:
+        for p in range(n):
+            for q in range(n):
+                acc += x[x0 + p] * pool[off + p * n + q] * y[y0 + q]
     return acc
 
 
@@ -178,7 +195,9 @@ def _inertia(fx_i, fx_f, pool, work, fx, eta, J):
 def body_forces(m, v, w, fx):
     """Elastic forces ``-K eta - C eta_dot`` (into ``v.Qe``) and their damping power (``w.aux``'s
     second last entry); on a floating frame also the velocity forces (centrifugal, Coriolis,
-    gyroscopic: ``w.Q`` frame row, body-axes torque, and ``v.Qe``). Leaves ``F`` in the scratch."""
+    gyroscopic: ``w.Q`` frame row, body-axes torque, and ``v.Qe``) and the geometric stiffening
+    ``-w_perp^2 K_omega eta`` (``viz3d.flexible.floating.velocity_forces``; ``w_perp^2 = |w|^2 - w_x^2``),
+    whose power goes to the work in (``w.aux``'s last entry). Leaves ``F`` in the scratch."""
     i = m.fx_i[fx]
     b, n, e0 = i[FX_BODY], i[FX_N], i[FX_E0]
     pool = m.fx_pool
@@ -188,6 +207,11 @@ def body_forces(m, v, w, fx):
     if i[FX_FLOATING] == 1:
         _velocity_forces(m.fx_i, m.fx_f, pool, m.fx_bij, w.fx_work, fx, v.R[b], w.wB[b], w.eta, w.eta_dot,
                          w.Q[b], v.Qe, v.v3, w.m3)
+        if i[FX_KW_KIND] != ZERO:
+            om = w.wB[b]
+            w_perp2 = om[1] * om[1] + om[2] * om[2]  # B_omega^T P_AXIS B_omega, P_AXIS = diag(0, 1, 1)
+            _apply(i[FX_KW_KIND], pool, i[FX_KW], n, w.eta, e0, v.Qe, e0, -w_perp2)
+            w.aux[w.aux.shape[0] - 1] -= w_perp2 * _bilinear(i[FX_KW_KIND], pool, i[FX_KW], n, w.eta_dot, e0, w.eta, e0)
 
 
 @jit

@@ -37,9 +37,9 @@ FORMULATIONS = {
 }
 #: Formulations whose ``post_step`` the kernel makes after each step (``viz3d.kernel.projection``).
 PROJECTING = ("projection",)
-#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-27 for
+#: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-34 for
 #: pieces that call the ball joint's rows (``viz3d.joints``).
-N_V3 = 28
+N_V3 = 35
 
 
 class Unsupported(Exception):
@@ -90,6 +90,7 @@ class View(NamedTuple):
 
     pt_i: np.ndarray          # (np, 4) int: body, N offset, n, eta offset (viz3d.points)
     pt_N: np.ndarray          # pool of the points' N (3, n)
+    pt_P: np.ndarray          # pool of their sections' P (3, n), at the offsets of N (viz3d.points)
     R: np.ndarray             # (nb + 1, 3, 3)
     wW: np.ndarray            # (nb + 1, 3) [rad/s]
     ps: np.ndarray            # (np, 3) deformed offsets, body axes [m]
@@ -97,6 +98,8 @@ class View(NamedTuple):
     px: np.ndarray            # (np, 3) positions [m]
     pv: np.ndarray            # (np, 3) velocities [m/s]
     pud: np.ndarray           # (np, 3) elastic velocities R N eta_dot [m/s]
+    pth: np.ndarray           # (np, 3) sections' small rotations R P eta, world [rad]
+    pom: np.ndarray           # (np, 3) their rates relative to the frame R P eta_dot, world [rad/s]
     F: np.ndarray             # (nb + 1, 3) world forces at the frame origins [N]
     tau: np.ndarray           # (nb + 1, 3) world torques about them [N m]
     Qe: np.ndarray            # (n_e,) elastic generalized forces
@@ -146,6 +149,7 @@ class KernelData:
     work_sizes: tuple
     pt_i: np.ndarray
     pt_N: np.ndarray
+    pt_P: np.ndarray
     row_je: np.ndarray
     elastic_slices: tuple     # each flexible body's slice of the stacked elastic coordinates
     contact_slices: tuple     # each contact set's slice of the contacts (global contact indices)
@@ -163,6 +167,7 @@ class Packer:
         self._pt_i: list = []
         self._pt_s: list = []
         self._pt_N: list = []
+        self._pt_P: list = []
         self._N_size = 0
         starts = [s.start for s in system.joints.row_slices()]
         self._row_start = {id(js): start for js, start in zip(system.joints.joints, starts)}
@@ -175,32 +180,35 @@ class Packer:
 
     def points(self, bp) -> np.ndarray:
         """Register the material points of ``bp`` (``viz3d.points.BodyPoints``); their global indices (k,)."""
-        N_of: dict[int, np.ndarray] = {}
+        NP_of: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for g in bp.flex:
             for j, p in enumerate(g.which):
-                N_of[int(p)] = g.material.N[j]
+                NP_of[int(p)] = g.material.N[j], g.material.P[j]
         e0 = self._elastic_offsets()
-        return np.array([self._add(int(bp.body[p]), bp.B_s[p], N_of.get(p), e0.get(int(bp.body[p]), 0))
+        return np.array([self._add(int(bp.body[p]), bp.B_s[p], *NP_of.get(p, (None, None)), e0.get(int(bp.body[p]), 0))
                          for p in range(bp.k)], dtype=np.int64)
 
     def centres_of_mass(self) -> np.ndarray:
         """A point at every body's centre of mass, (nb,): the frame origin of a rigid body; on a
-        flexible body the deflected centre of mass ``S eta / m`` (N = S / m)."""
+        flexible body the deflected centre of mass ``S eta / m`` (N = S / m; no section: P = 0)."""
         e0 = self._elastic_offsets()
         bar = {fb.index: fb.bar for fb in self.bodies.flexible}
-        return np.array([self._add(b, np.zeros(3), bar[b].S / bar[b].mass if b in bar else None, e0.get(b, 0))
+        return np.array([self._add(b, np.zeros(3), *((bar[b].S / bar[b].mass, np.zeros_like(bar[b].S)) if b in bar
+                                                      else (None, None)), e0.get(b, 0))
                          for b in range(self.bodies.n_bodies)], dtype=np.int64)
 
     def _elastic_offsets(self) -> dict[int, int]:
         offsets = np.cumsum([0] + [fb.n for fb in self.bodies.flexible])
         return {fb.index: int(o) for fb, o in zip(self.bodies.flexible, offsets)}
 
-    def _add(self, body: int, s, N, e0: int) -> int:
+    def _add(self, body: int, s, N, P, e0: int) -> int:
+        """A point with offset ``s`` (3,), on a flexible body its ``N`` and ``P`` (3, n) (else None)."""
         off, n = self._N_size, 0
         if N is not None:
             N = np.ascontiguousarray(N, dtype=float)
             n = N.shape[1]
             self._pt_N.append(N.ravel())
+            self._pt_P.append(np.ascontiguousarray(P, dtype=float).ravel())
             self._N_size += N.size
         self._pt_i.append((body, off, n, e0 if n else 0))
         self._pt_s.append(np.asarray(s, dtype=float))
@@ -222,11 +230,12 @@ class Packer:
             raise Unsupported(f"normal law {law.name!r} has no compiled piece")
         return law_contacts(type(law).compiled_items)
 
-    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(pt_i, pt_s, pt_N, pt_P)`` of the registered points (``View``, ``Model``)."""
         pt_i = np.array(self._pt_i, np.int64).reshape(-1, 4)
         pt_s = np.array(self._pt_s, float).reshape(-1, 3)
-        pt_N = np.concatenate(self._pt_N) if self._pt_N else np.zeros(0)
-        return pt_i, pt_s, pt_N
+        pool = lambda parts: np.concatenate(parts) if parts else np.zeros(0)  # noqa: E731
+        return pt_i, pt_s, pool(self._pt_N), pool(self._pt_P)
 
 
 def pack(system, formulation) -> KernelData:
@@ -236,9 +245,9 @@ def pack(system, formulation) -> KernelData:
     parts, classes = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
     forces, rows, geometry, energies = (_by_class(target, parts)
                                         for target in (force_piece, row_piece, gap_piece, energy_piece))
-    pt_i, pt_s, pt_N = packer.tables()
+    pt_i, pt_s, pt_N, pt_P = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
-    return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, row_je,
+    return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, pt_P, row_je,
                       _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]),
                       energies, _energy_gap(system.forces, classes))
 
@@ -270,8 +279,6 @@ def _check(system, formulation) -> None:
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
     if any(fb.ked for fb in system.bodies.flexible):
         raise Unsupported("kineto-elastodynamic flexible bodies (coupling = 'ked')")
-    if any(fb.bar.K_omega is not None for fb in system.bodies.flexible):
-        raise Unsupported("geometric stiffening (geometric_stiffening = true)")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
@@ -371,8 +378,9 @@ def workspace(data: KernelData) -> tuple[View, Work]:
     """Fresh scratch arrays for ``data`` (contacts' memory zero: nothing touching)."""
     nb, nx, n_p, n_e, fx_work, n_c, n_je, kd, n_power, n_contacts = data.work_sizes
     z3 = lambda n: np.zeros((n, 3))  # noqa: E731
-    view = View(data.pt_i, data.pt_N, np.zeros((nb + 1, 3, 3)), z3(nb + 1), z3(n_p), z3(n_p), z3(n_p), z3(n_p),
-                z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je, np.zeros((n_c, 2, 6)), np.zeros(n_je),
+    view = View(data.pt_i, data.pt_N, data.pt_P, np.zeros((nb + 1, 3, 3)), z3(nb + 1), z3(n_p), z3(n_p), z3(n_p),
+                z3(n_p), z3(n_p), z3(n_p), z3(n_p), z3(nb + 1), z3(nb + 1), np.zeros(n_e), data.row_je,
+                np.zeros((n_c, 2, 6)), np.zeros(n_je),
                 np.zeros(n_c), np.zeros(n_c), np.zeros(n_c), np.zeros(n_c, np.int64), np.zeros((N_V3, 3)),
                 np.zeros((n_contacts, 7)))
     work = Work(z3(nb + 1), z3(nb + 1), z3(nb + 1), np.zeros(n_e), np.zeros(n_e), np.zeros((nb + 1, 6)),
