@@ -44,24 +44,26 @@ def off_constraints(state, size: float, seed: int = 3):
     return state.replace(q=state.q + size * rng.normal(size=state.q.shape), v=state.v + size * rng.normal(size=state.v.shape))
 
 
-def step_roundoff(system, state, form, dt: float) -> float:
-    """Round-off scale of one NumPy step from ``state``: max change of its result under relative
-    perturbations of eps of ``y`` (random signs), at least eps |y|."""
-    ref = run(system, state, form, 1, dt, compiled=False).state.y
+def step_roundoff(system, state, form, dt: float, method: str = "rk4") -> float:
+    """Round-off scale of one NumPy step of ``method`` from ``state``: max change of its result under
+    relative perturbations of eps of ``y`` (random signs), at least eps |y|."""
+    ref = run(system, state, form, 1, dt, compiled=False, method=method).state.y
     signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SENSITIVITY_SAMPLES, state.y.size))
-    change = max(np.abs(run(system, with_y(system, state, state.y * (1 + EPS * s)), form, 1, dt, compiled=False).state.y
-                        - ref).max() for s in signs)
+    change = max(np.abs(run(system, with_y(system, state, state.y * (1 + EPS * s)), form, 1, dt, compiled=False,
+                            method=method).state.y - ref).max() for s in signs)
     return max(change, EPS * np.abs(ref).max())
 
 
-def growth(system, state, form, n: int, dt: float) -> float:
+def growth(system, state, form, n: int, dt: float, method: str = "rk4") -> float:
     """How much ``n`` kernel steps amplify a small difference of the initial state (max-norm ratio, at least 1)."""
     d = GROWTH_PROBE * np.abs(state.y).max() * np.random.default_rng(2).choice([-1.0, 1.0], size=state.y.size)
-    a = run(system, state, form, n, dt, compiled=True).state.y
-    b = run(system, with_y(system, state, state.y + d), form, n, dt, compiled=True).state.y
+    a = run(system, state, form, n, dt, compiled=True, method=method).state.y
+    b = run(system, with_y(system, state, state.y + d), form, n, dt, compiled=True, method=method).state.y
     return max(np.abs(a - b).max() / np.abs(d).max(), 1.0)
 
 
-def agreement_bound(system, state, form, n: int, dt: float) -> float:
-    """Bound on ``max |y_kernel - y_numpy|`` after ``n`` steps of ``dt`` from ``state`` (module docstring)."""
-    return n * growth(system, state, form, n, dt) * ROUNDOFF_FACTOR * step_roundoff(system, state, form, dt)
+def agreement_bound(system, state, form, n: int, dt: float, method: str = "rk4") -> float:
+    """Bound on ``max |y_kernel - y_numpy|`` after ``n`` steps of ``method``, ``dt`` from ``state``
+    (module docstring)."""
+    return (n * growth(system, state, form, n, dt, method) * ROUNDOFF_FACTOR
+            * step_roundoff(system, state, form, dt, method))

@@ -434,8 +434,7 @@ class Simulation:
     def _adaptive_samples(self, target: float) -> State:
         while self._span is None or self._span.t1 < target:
             self._adaptive_step()
-        sample = self._span.sample(target)
-        sample = self.formulation.post_step(self.system, sample)
+        sample = self._post_step(self._span.sample(target))
         check_state(self.system, sample, self.blowup_speed, self._span.t1 - self._span.t0)
         W_r, theta = self.system.split_q(sample.q)
         return sample.replace(q=self.system.with_frames(sample.q, W_r, self.system.rotation.normalize(theta)))
@@ -587,9 +586,21 @@ class Simulation:
         self._f = None  # f1 was evaluated with the step's memory
         return new.replace(element_memory=element_memory(self.system, new))
 
+    def _post_step(self, raw: State) -> State:
+        """``formulation.post_step`` of ``raw``: the ``projection`` formulation's projections in the
+        kernel when it covers the system (for the steps the kernel does not take itself: implicit
+        methods, adaptive steps at contacts), else, or when the compiled projection fails, the NumPy
+        path (which raises the diagnosis)."""
+        k = self._kernel
+        if k is not None and k.data.model.projects == 1:
+            y, ok = k.project(raw.t, raw.y, raw.chart, raw.memory)
+            if ok:
+                return _state_at(self.system, raw.t, y, raw)
+        return self.formulation.post_step(self.system, raw)
+
     def _settle(self, raw: State, f1, h: float, post_step: bool) -> State:
         """``_accept`` but for the force elements' memory."""
-        new = self.formulation.post_step(self.system, raw) if post_step else raw
+        new = self._post_step(raw) if post_step else raw
         if self._kernel is None or not self._kernel.state_ok(new.y, h, self.blowup_speed):
             check_state(self.system, new, self.blowup_speed, h)
         W_r, theta0 = self.system.split_q(new.q)

@@ -65,6 +65,30 @@ def test_compiled_projection_takes_the_numpy_steps_and_closes_the_joints(name):
     assert worst_C <= form.tol, f"max |C| after projection {worst_C:.2e} m > tol {form.tol:g} m"
 
 
+#: Implicit steps compared (each costs a finite-difference Newton matrix on the NumPy path).
+N_IMPLICIT = 20
+
+
+@pytest.mark.parametrize("method", ["trapezoidal", "gen_alpha"])
+@pytest.mark.parametrize("name", ["heavy_top", "chain"])
+def test_steps_the_kernel_does_not_take_are_projected_in_it(name, method, monkeypatch):
+    """Implicit methods step in Python on the compiled field; their end states are projected by the
+    kernel (``Simulation._post_step``, once a step) and agree with the NumPy path's projections
+    within the bound of ``kernel_runs.agreement_bound``; the joints are closed to the tolerance."""
+    system, state, form = _setup(name)
+    calls = []
+    project = K.KernelStepper.project
+    monkeypatch.setattr(K.KernelStepper, "project", lambda self, *a: calls.append(1) or project(self, *a))
+    compiled = run(system, state, form, N_IMPLICIT, DT, compiled=True, method=method)
+    monkeypatch.undo()
+    assert compiled.kernel_note == "compiled kernel" and len(calls) == N_IMPLICIT
+    numpy = run(system, state, form, N_IMPLICIT, DT, compiled=False, method=method)
+    bound = agreement_bound(system, state, form, N_IMPLICIT, DT, method)
+    diff = np.abs(compiled.state.y - numpy.state.y).max()
+    assert diff <= bound, f"mismatch: y after {N_IMPLICIT} steps: {diff:.2e} > {bound:.2e}"
+    assert _max_abs_C(system, compiled.state) <= form.tol
+
+
 def test_projection_that_does_not_converge_stops_the_run_with_the_numpy_diagnosis():
     """A tolerance below round-off cannot be met: the kernel reports ``PROJECTION`` after the first step, and
     the run stops with the NumPy path's ``ProjectionError`` diagnosis, at the same time."""

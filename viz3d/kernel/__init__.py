@@ -26,6 +26,7 @@ import numpy as np
 from viz3d.compiled import numba
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
+from viz3d.kernel.projection import project_state
 from viz3d.kernel.adaptive import EVENT, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, adaptive_frames
 from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
@@ -243,6 +244,14 @@ class KernelStepper:
         if self.evaluate(t, y, chart, self.view(memory), out) != OK:
             raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
         return self.ws[1].lam.copy()
+
+    def project(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple[np.ndarray, bool]:
+        """``(y', ok)``: ``y`` projected onto the constraints at ``t`` [s] (``viz3d.kernel.projection``,
+        the ``projection`` formulation's ``post_step``), a new array; ``ok`` False when the projection
+        failed (the NumPy path then raises its diagnosis)."""
+        d = self.data
+        out = np.array(y, dtype=np.float64)  # a C-contiguous copy, projected in place
+        return out, self._call(project_state, t, out, _c(chart), d.model, self.view(memory), self.ws[1], d.rows) == OK
 
     def state_ok(self, y: np.ndarray, h: float, max_speed: float) -> bool:
         """True when ``viz3d.diagnosis.check_state`` passes ``y`` after a step ``h`` (compiled);
