@@ -118,12 +118,14 @@ def write(args, best: dict, warm: dict, load0: str, load1: str) -> None:
                         f"{r['simulated'] / r['wall']:.3g} | {ratio} |")
     table = "\n".join(rows)
     print(table)
+    commit = {name: subprocess.run(["git", "rev-parse", "--short", rev], cwd=ROOT, capture_output=True, text=True,
+                                   check=True).stdout.strip() for name, rev in (("before", args.before), ("after", args.after))}
     text = f"""# Flexible mechanisms on the compiled kernel
 
 Written by `benchmarks/bench_flexible_kernel.py --before {args.before} --after {args.after} --repeat {args.repeat}`
-on {date.today()}. "before" is commit `{args.before}`, where framed joints with a side on a section of a
+on {date.today()}. "before" is commit `{commit["before"]}`, where framed joints with a side on a section of a
 flexible body (and drives on them, and geometric stiffening) sent a run to the NumPy path; "after"
-is commit `{args.after}`, whose kernel covers them. One `viz3d run` of each
+is commit `{commit["after"]}`, whose kernel covers them. One `viz3d run` of each
 whole scene per case in a fresh interpreter, cases interleaved, best of {args.repeat}; warm numba
 caches (the warm-up run, `--t-end 0.02` into an empty cache, compiles the kernel: its time is the
 column "warm-up run"). "run wall" is what `viz3d run` reports (stepping and output frames);

@@ -106,15 +106,7 @@ def _apply(kind, pool, off, n, x, x0, out, o0, alpha):
 @jit
 def _quadratic(kind, pool, off, n, x, x0):
     """``x^T A x`` for a matrix stored as ``kind``."""
-    acc = 0.0
-    if kind == DIAGONAL:
-        for q in range(n):
-            acc += pool[off + q] * x[x0 + q] * x[x0 + q]
-    elif kind == DENSE:
-        for p in range(n):
-            for q in range(n):
-                acc += x[x0 + p] * pool[off + p * n + q] * x[x0 + q]
-    return acc
+    return _bilinear(kind, pool, off, n, x, x0, x, x0)
 
 
 @jit

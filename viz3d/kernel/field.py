@@ -42,6 +42,12 @@ def rotation(chart, a, out):
     r00, r01, r02 = c1 * c3 - s1 * c2 * s3, -c1 * s3 - s1 * c2 * c3, s1 * s2
     r10, r11, r12 = s1 * c3 + c1 * c2 * s3, -s1 * s3 + c1 * c2 * c3, -c1 * s2
     r20, r21, r22 = s2 * s3, s2 * c3, c2
+    _chart_times(chart, r00, r01, r02, r10, r11, r12, r20, r21, r22, out)
+
+
+@inline
+def _chart_times(chart, r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
+    """``out = chart @ R`` for the rotation ``R`` given by its entries ``rij`` (3, 3)."""
     for i in range(3):
         x, y, z = chart[i, 0], chart[i, 1], chart[i, 2]
         out[i, 0] = x * r00 + y * r10 + z * r20
@@ -60,11 +66,7 @@ def quaternion_rotation(chart, p, out):
     r00, r01, r02 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
     r10, r11, r12 = 2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)
     r20, r21, r22 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
-    for i in range(3):
-        x, y, z = chart[i, 0], chart[i, 1], chart[i, 2]
-        out[i, 0] = x * r00 + y * r10 + z * r20
-        out[i, 1] = x * r01 + y * r11 + z * r21
-        out[i, 2] = x * r02 + y * r12 + z * r22
+    _chart_times(chart, r00, r01, r02, r10, r11, r12, r20, r21, r22, out)
 
 
 @inline
