@@ -189,23 +189,29 @@ def accepted_step(rhs, t: float, y: FloatArray, f: FloatArray, h: float, method:
     """Try steps of ``method`` from ``(t, y)`` (``f = rhs(t, y)``), shrinking ``h`` until the
     error test of ``controller`` passes.
 
-    A trial step with a non-finite error (the vector field blew up inside it) is rejected like a
-    too-large one, with the smallest allowed factor.
+    A trial step with a non-finite error (the vector field blew up inside it), or one whose stage
+    state the field cannot be evaluated at (``LinAlgError``: e.g. a flexible body deformed so far
+    that its mass block is no longer positive definite), is rejected like a too-large one, with the
+    smallest allowed factor.
 
     Raises
     ------
     StepSizeUnderflow
         If the step falls below ``controller.min_step`` or no longer changes ``t``.
     """
-    order, n_rejected = error_order(method), 0
+    order, n_rejected, failed = error_order(method), 0, None
     while True:
-        res = method.step(rhs, t, y, h, f0=f)
+        try:
+            res = method.step(rhs, t, y, h, f0=f)
+        except np.linalg.LinAlgError as exc:  # a stage state outside the field's domain
+            res, failed = None, exc
         with np.errstate(all="ignore"):
-            norm = controller.error_norm(res.error, y, res.y)
+            norm = np.inf if res is None else controller.error_norm(res.error, y, res.y)
         if norm <= 1.0:
             return Accepted(res, h, controller.next_step(h, norm, order), n_rejected)
         n_rejected += 1
         h = controller.next_step(h, norm, order) if np.isfinite(norm) else FAC_MIN * h
         if h < controller.min_step or t + h == t:
+            why = "" if failed is None else f"; a stage's evaluation failed: {failed}"
             raise StepSizeUnderflow(f"t = {t:.9g} s: adaptive step {h:.3g} s below min_step {controller.min_step:.3g} s "
-                                    f"({n_rejected} rejections in a row)")
+                                    f"({n_rejected} rejections in a row{why})")
