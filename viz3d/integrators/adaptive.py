@@ -181,7 +181,7 @@ class Accepted:
 
 def error_order(method: Integrator) -> int:
     """Order of ``method``'s embedded error estimate (the controller's exponent uses it)."""
-    return method.tableau.error_order or method.order - 1
+    return method.tableau.estimate_order
 
 
 def accepted_step(rhs, t: float, y: FloatArray, f: FloatArray, h: float, method: Integrator,

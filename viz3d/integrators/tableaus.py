@@ -160,6 +160,12 @@ class ButcherTableau:
         return self.b_hat is not None
 
     @property
+    def estimate_order(self) -> int:
+        """Order of the error estimate the controller's exponent uses: ``error_order``, else
+        ``order - 1``."""
+        return self.error_order or self.order - 1
+
+    @property
     def error_weights(self) -> np.ndarray:
         """``b - b_hat`` (s,): the step's error estimate is ``h sum (b - b_hat)_i k_i`` (zeros without
         an embedded solution)."""

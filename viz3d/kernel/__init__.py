@@ -366,9 +366,8 @@ def _adaptive_method(tableau, controller) -> tuple:
     from viz3d.integrators.explicit_rk import is_end_stage
 
     dense, c = tableau.dense, np.ascontiguousarray
-    error_order = tableau.error_order or tableau.order - 1
-    ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, error_order, SAFETY,
-                     FAC_MIN, FAC_MAX], float)
+    ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
+                     SAFETY, FAC_MIN, FAC_MAX], float)
     a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
     return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),

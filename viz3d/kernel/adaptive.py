@@ -30,7 +30,7 @@ import math
 from viz3d.compiled import entry, inline, jit
 from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
-from viz3d.kernel.stepping import _check_frames, rk_step, state_ok
+from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
 
 #: Status codes beyond ``viz3d.kernel.field``'s: an event function changed sign over the step
 #: about to be committed; the controller asked for a step below ``min_step``.
@@ -309,10 +309,7 @@ def _unit_parameters(n_rot, n_frames, y):
     if n_rot != 4:
         return
     for f in range(n_frames):
-        i0 = 7 * f + 3
-        n = math.sqrt(y[i0] * y[i0] + y[i0 + 1] * y[i0 + 1] + y[i0 + 2] * y[i0 + 2] + y[i0 + 3] * y[i0 + 3])
-        for i in range(4):
-            y[i0 + i] = y[i0 + i] / n
+        unit_parameters(y, 7 * f + 3)
 
 
 @jit

@@ -128,6 +128,14 @@ def _frame_health(nq, n_rot, switching, y, f, h, max_speed):
     return OK, st
 
 
+@inline
+def unit_parameters(y, i0):
+    """``p / |p|`` in place for the Euler parameters ``y[i0:i0 + 4]`` (``Quaternion.normalize``)."""
+    n = math.sqrt(y[i0] * y[i0] + y[i0 + 1] * y[i0 + 1] + y[i0 + 2] * y[i0 + 2] + y[i0 + 3] * y[i0 + 3])
+    for i in range(4):
+        y[i0 + i] = y[i0 + i] / n
+
+
 @jit
 def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, chart, switches, h, max_speed):
     for f in range(frame_body.shape[0]):
@@ -135,10 +143,8 @@ def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, char
         if status != OK:
             return status
         i0 = (3 + n_rot) * f + 3
-        if n_rot == 4:  # p / |p| (Quaternion.normalize)
-            n = math.sqrt(y[i0] * y[i0] + y[i0 + 1] * y[i0 + 1] + y[i0 + 2] * y[i0 + 2] + y[i0 + 3] * y[i0 + 3])
-            for i in range(4):
-                y[i0 + i] = y[i0 + i] / n
+        if n_rot == 4:
+            unit_parameters(y, i0)
         elif switching == 1 and st < SWITCH_SIN:
             rotation(chart[f], y[i0:i0 + 3], R)
             for i in range(3):
