@@ -23,7 +23,10 @@ from viz3d.cli import main
 from conftest import ROOT, SCENES
 
 #: A command that only validates (and refuses) must answer well within this [s] (the issue: "never
-#: more than a few seconds before the first output"); generous for a loaded 2-core CI machine.
+#: more than a few seconds before the first output"). Counted in this process's CPU time
+#: (``time.process_time``), which other processes on a loaded machine do not inflate: a guard
+#: against runaway work (a generator laying out 5e5 links before refusing took 135 s), not a speed
+#: target (those are benchmarks); validation takes about 0.1 s.
 PROMPT = 5.0
 
 
@@ -35,7 +38,7 @@ def _run(argv, capsys):
 
 def _refused(argv, capsys, *words):
     """``argv`` exits with 2 and one error line naming every word in ``words``."""
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     code, out, err = _run(argv, capsys)
     assert code == 2, (argv, out, err)
     lines = [line for line in err.splitlines() if "error:" in line]
@@ -43,7 +46,7 @@ def _refused(argv, capsys, *words):
     for w in words:
         assert w in lines[0], (w, lines[0])
     assert "Traceback" not in err
-    assert time.perf_counter() - t0 < PROMPT, argv
+    assert time.process_time() - t0 < PROMPT, argv
     return lines[0]
 
 
@@ -380,7 +383,7 @@ def test_any_override_validates_builds_or_is_refused_with_one_message(case, caps
     argv = ["check", SCENES / f"{scene}.toml"]
     for key, value in overrides:
         argv += ["--set", f"{key}={value}"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     code, out, err = _run(argv, capsys)
     assert "Traceback" not in err, err
     assert code in (0, 2), (argv, out, err)
@@ -389,7 +392,7 @@ def test_any_override_validates_builds_or_is_refused_with_one_message(case, caps
         lines = [line for line in err.splitlines() if "error:" in line]
         assert len(lines) == 1, err
         assert f"{scene}.toml" in lines[0] and ": expected " in lines[0], lines[0]
-        assert time.perf_counter() - t0 < PROMPT, (argv, lines[0])
+        assert time.process_time() - t0 < PROMPT, (argv, lines[0])
 
 
 RUN_FLAGS = st.lists(st.one_of(

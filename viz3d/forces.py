@@ -413,6 +413,12 @@ class JointCoordinateForce(ForceElement):
     index: IntArray
     free: IntArray
 
+    def __post_init__(self):
+        for name, js, j in zip(self.names, self.joints, self.index):
+            if _on_section(js, int(j)):
+                raise ValueError(f"{self.type_name} {name!r}: its joint has a side on a section of a flexible body; "
+                                 "forces on joint coordinates act through rigid frames' axes (drives take such joints)")
+
     def _code(self, k: int) -> int:
         return self.joints[k].FREE[self.free[k]][1]
 
@@ -466,6 +472,11 @@ class JointCoordinateForce(ForceElement):
             rows_i.append([p[0], p[1], self._code(k), *i_extra[k]])
             rows_f.append([*js.B_A[j].reshape(18), *f_extra[k]])
         return items(cls, rows_i, rows_f, k=len(self.names))
+
+
+def _on_section(js, j: int) -> bool:
+    """Joint ``j`` of set ``js`` has a side on a section of a flexible body."""
+    return any(j in g.which for side in js.sides for g in side.flex)
 
 
 @inline

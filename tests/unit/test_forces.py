@@ -132,3 +132,24 @@ def test_joint_coordinate_forces_have_power_effort_times_rate_off_the_manifold(s
         f, _ = element.effort(0.0, q, q_dot)
         assert np.all(f != 0.0)
         assert _power(cfg, element) == pytest.approx(float(f @ q_dot), rel=1e-12)
+
+
+def test_forces_on_joint_coordinates_refuse_a_joint_on_a_flexible_section():
+    """Stops and motors act through rigid frames' axes (``JointCoordinateForce``): a system built in
+    code (scene files refuse it earlier) cannot put one on a joint at a flexible section, and the
+    same joints between rigid bodies are accepted."""
+    from viz3d.forces import JointMotor, JointStop
+
+    from systems import sections_tree
+
+    js = sections_tree("revolute").joints.joints[0]  # every joint has a side on a section
+    one = np.ones(1)
+    for j in range(js.n_joints):
+        with pytest.raises(ValueError, match="flexible body"):
+            JointStop(("stop",), (js,), np.array([j]), np.zeros(1, int), -one, one, one, one)
+    rigid = random_system(kinds=("revolute",)).joints.joints[0]
+    JointStop(("stop",), (rigid,), np.array([1]), np.zeros(1, int), -one, one, one, one)
+    target = TimeFunctions.from_entries([{"kind": "constant", "offset": [0, 0, 0], "amplitude": [0, 0, 0], "frequency": 0.0,
+                                         "phase": 0.0, "start": 0.0, "duration": 0.0}])
+    with pytest.raises(ValueError, match="joint_motor 'motor'"):
+        JointMotor(("motor",), (js,), np.array([2]), np.zeros(1, int), target, one, one, one)
