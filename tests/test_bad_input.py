@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -226,6 +227,30 @@ def test_a_mesh_outside_the_scene_folder_is_refused(tmp_path, capsys):
 # ---------------------------------------------------------------- SIGTERM is Ctrl-C
 
 
+def _children_cpu() -> float:
+    """CPU time [s] of this process's waited-for children."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _wait_for_cpu(pid: int, seconds: float, timeout: float) -> None:
+    """Until process ``pid`` has used ``seconds`` of CPU time (Linux ``/proc``; elsewhere, that much
+    wall time), or ``timeout`` [s] of wall time has passed."""
+    stat = Path(f"/proc/{pid}/stat")
+    end = time.monotonic() + timeout
+    if not stat.exists():
+        time.sleep(seconds)
+        return
+    tick = os.sysconf("SC_CLK_TCK")
+    while time.monotonic() < end:
+        fields = stat.read_text().rsplit(")", 1)[1].split()  # (after the command's name)
+        if (int(fields[11]) + int(fields[12])) / tick >= seconds:  # utime, stime
+            return
+        time.sleep(0.05)
+
+
 def test_sigterm_stops_a_run_like_ctrl_c_and_keeps_its_files(tmp_path):
     """``kill`` (SIGTERM) during a run: the .npz holds the frames computed and the .rrd is complete."""
     from viz3d.viz.rrd import read_scalars
@@ -236,11 +261,15 @@ def test_sigterm_stops_a_run_like_ctrl_c_and_keeps_its_files(tmp_path):
     # a short run first, so the kernel is compiled and cached: otherwise a cold numba cache (a fresh
     # clone, edited compiled sources) can take the 3 s below and the signal lands before any step
     warm = cmd[:cmd.index("--t-end")] + ["--t-end", "0.01", "--out", str(tmp_path / "warm.npz"), "--no-progress"]
+    cpu0 = _children_cpu()
     subprocess.run(warm, cwd=ROOT, capture_output=True, timeout=600, check=True)
+    start_up = _children_cpu() - cpu0  # imports, build, kernel from the cache, 0.01 s simulated
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = proc.stdout.readline()  # the run's first line: it is running
     assert first.startswith("running"), first
-    time.sleep(3.0)
+    # the signal lands once the run has had CPU time for its start, the recorder's and some steps
+    # (CPU time, not wall time: on a loaded machine 3 s of waiting could pass before the first frame)
+    _wait_for_cpu(proc.pid, 2.0 * start_up + 1.0, timeout=120.0)
     proc.send_signal(signal.SIGTERM)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 1, stderr
