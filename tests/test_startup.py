@@ -15,8 +15,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: Imported only by the commands that use them: viewer, recorder, charts, studies, meshes, oracles.
 OPTIONAL = ("viser", "rerun", "matplotlib", "dask", "distributed", "trimesh", "coal", "pyarrow", "sympy", "websockets")
-#: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import).
-UNUSED_SCIPY = ("scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial", "scipy.stats")
+#: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import; scipy.sparse came
+#: with the row ordering's reverse Cuthill-McKee, now viz3d's own).
+UNUSED_SCIPY = ("scipy.sparse", "scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial",
+                "scipy.stats")
 #: The modules of the other kinds of scene (a multibody scene's run needs none of them).
 OTHER_KINDS = ("viz3d.hydro", "viz3d.scene.hydro")
 #: Imported by numba's target refresh (the typing and lowering of all numba supports), which compiling
