@@ -2,9 +2,10 @@
 
     python benchmarks/bench_startup.py [--repeat 5] [--before DIR] [--out docs/bench_startup.md]
 
-Each case runs in a fresh interpreter; the wall time of the whole process is measured, best of
-``--repeat``, the cases interleaved (one round runs every case once) so that the load of this shared
-machine falls on all of them alike. Warm caches, as a user has them after the first run: every tree
+Each case runs in a fresh interpreter; the wall time of the whole process is measured, and its CPU
+time (user + system, of the process and its threads), which the load of a shared machine inflates far
+less: on an idle machine the two agree (warm caches: nothing to wait for). Best of ``--repeat``, the
+cases interleaved (one round runs every case once) so that the load falls on all of them alike. Warm caches, as a user has them after the first run: every tree
 is run once untimed first (numba's on-disk cache of the kernel, ``NUMBA_CACHE_DIR`` if set, and the
 modules' bytecode: ``PYTHONDONTWRITEBYTECODE`` is dropped for the children).
 
@@ -14,7 +15,8 @@ and ``viz3d run scenes/heavy_top.toml --t-end 0.01`` (10 steps). ``--before DIR`
 tree too (an earlier version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through
 PYTHONPATH, in the same rounds. A last table splits one run into its phases (imports, scene load and
 build, the kernel's first call = loading the run's stepping entry, ``advance_frames``, from numba's
-cache, the rest of the run: its sampling entry loaded, the steps, the output), best of ``--repeat``.
+cache, the rest of the run: its sampling entry loaded, the steps, the output), wall and CPU time,
+best of ``--repeat``.
 The load average is quoted before and after.
 """
 
@@ -23,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -41,68 +44,77 @@ CASES = [
     ("viz3d run heavy_top --t-end 0.01", ["-m", "viz3d", "run", "{scene}", "--t-end", "0.01", "--out", "{out}",
                                          "--no-progress"]),
 ]
-#: One run split into phases (printed as JSON, seconds).
+#: The two clocks of every measurement.
+CLOCKS = ("wall", "CPU")
+#: The phases of ``PHASES``.
+PHASE_NAMES = ("imports", "load and build", "kernel from cache", "run")
+#: One run split into phases (printed as JSON: wall and CPU seconds of each).
 PHASES = """
 import time
-t0 = time.perf_counter()
+def now():
+    return time.perf_counter(), time.process_time()
+t0 = now()
 import numpy as np
 from viz3d.cli import main
 from viz3d.scene.build import build, make_formulation
 from viz3d.scene.load import load_scene
-t1 = time.perf_counter()
+t1 = now()
 scene = load_scene({scene!r}, ["sim.t_end=0.01"])
 system, state = build(scene)
-t2 = time.perf_counter()
+t2 = now()
 from viz3d.integrators.tableaus import RK4
 from viz3d.kernel import KernelStepper, kernel_for
 data = kernel_for(system, make_formulation(scene.data["sim"]))
 y, chart = state.y.copy(), state.chart.copy()
 KernelStepper(data, RK4).frames(1, 1, 0, 0.0, 1e-3, y, chart, np.zeros(system.n_bodies, np.int64), 1e6)
-t3 = time.perf_counter()
+t3 = now()
 main(["run", {scene!r}, "--t-end", "0.01", "--out", {out!r}, "--no-progress"])
-t4 = time.perf_counter()
+t4 = now()
 import json
-print(json.dumps({{"imports": t1 - t0, "load and build": t2 - t1, "kernel from cache": t3 - t2, "run": t4 - t3}}))
+names = {names!r}
+ts = (t0, t1, t2, t3, t4)
+print(json.dumps({{f"{{k}} {{c}}": ts[i + 1][j] - ts[i][j] for i, k in enumerate(names) for j, c in enumerate(("wall", "CPU"))}}))
 """
 
 
-def child_env(tree: Path | None) -> dict:
-    """The children's environment: bytecode written (warm, as installed), ``tree`` first on the path."""
+def child_env(tree: Path) -> dict:
+    """The children's environment: bytecode written (warm, as installed), ``tree`` first on the path
+    (this tree too: the children run in a temporary directory, where an installed viz3d would win)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    if tree is not None:
-        env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")
+    env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")
     return env
 
 
-def wall(args: list[str], env: dict, quiet: bool = True) -> float:
-    """Wall time [s] of one interpreter running ``args``."""
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, *args], env=env, cwd=tempfile.gettempdir(), check=True,
-                   stdout=subprocess.DEVNULL if quiet else None)
-    return time.perf_counter() - t0
+def timed(args: list[str], env: dict) -> tuple[float, float]:
+    """Wall and CPU time (user + system) [s] of one interpreter running ``args``."""
+    r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+    subprocess.run([sys.executable, *args], env=env, cwd=tempfile.gettempdir(), check=True, stdout=subprocess.DEVNULL)
+    t1, r1 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return t1 - t0, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def case_args(args: list[str], tree: Path, out: Path) -> list[str]:
     return [a.format(scene=str(tree / "scenes" / "heavy_top.toml"), out=str(out)) for a in args]
 
 
-def measure(trees: dict[str, Path], repeat: int, out: Path) -> dict[tuple[str, str], float]:
-    """Best wall time [s] per (tree label, case label), cases and trees interleaved."""
-    envs = {name: child_env(None if name == "now" else tree) for name, tree in trees.items()}
+def measure(trees: dict[str, Path], repeat: int, out: Path) -> dict[tuple[str, str, str], float]:
+    """Best wall and CPU time [s] per (tree label, case label, "wall" or "CPU"), cases and trees
+    interleaved."""
+    envs = {name: child_env(tree) for name, tree in trees.items()}
     for name, tree in trees.items():  # warm-up: numba cache, bytecode
-        wall(case_args(CASES[-1][1], tree, out), envs[name])
-    best: dict[tuple[str, str], float] = {}
+        timed(case_args(CASES[-1][1], tree, out), envs[name])
+    best: dict[tuple[str, str, str], float] = {}
     for _ in range(repeat):
         for label, args in CASES:
             for name, tree in trees.items():
-                t = wall(case_args(args, tree, out), envs[name])
-                best[name, label] = min(best.get((name, label), float("inf")), t)
+                for clock, t in zip(CLOCKS, timed(case_args(args, tree, out), envs[name])):
+                    best[name, label, clock] = min(best.get((name, label, clock), float("inf")), t)
     return best
 
 
 def phases(tree: Path, env: dict, repeat: int, out: Path) -> dict[str, float]:
-    """Best time [s] of each phase of one run (``PHASES``)."""
-    code = PHASES.format(scene=str(tree / "scenes" / "heavy_top.toml"), out=str(out))
+    """Best wall and CPU time [s] of each phase of one run (``PHASES``), keyed ``"<phase> <clock>"``."""
+    code = PHASES.format(scene=str(tree / "scenes" / "heavy_top.toml"), out=str(out), names=PHASE_NAMES)
     best: dict[str, float] = {}
     for _ in range(repeat):
         res = subprocess.run([sys.executable, "-c", code], env=env, cwd=tempfile.gettempdir(), check=True,
@@ -113,20 +125,22 @@ def phases(tree: Path, env: dict, repeat: int, out: Path) -> dict[str, float]:
 
 
 def table(best: dict, names: list[str]) -> str:
-    base = {n: best[n, CASES[0][0]] for n in names}
-    head = " | ".join(f"{n} [s] | {n}, beyond Python [s]" for n in names)
-    lines = [f"| case | {head} |", "|---|" + "---|---|" * len(names)]
+    """Per case and tree: wall and CPU time, each also beyond Python's own start."""
+    cols = [(n, c) for n in names for c in CLOCKS]
+    base = {(n, c): best[n, CASES[0][0], c] for n, c in cols}
+    head = " | ".join(f"{n} {c} [s] | {n} {c}, beyond Python [s]" for n, c in cols)
+    lines = [f"| case | {head} |", "|---|" + "---|---|" * len(cols)]
     for label, _ in CASES:
-        cells = " | ".join(f"{best[n, label]:.3f} | {best[n, label] - base[n]:.3f}" for n in names)
+        cells = " | ".join(f"{best[n, label, c]:.3f} | {best[n, label, c] - base[n, c]:.3f}" for n, c in cols)
         lines.append(f"| `{label}` | {cells} |")
     return "\n".join(lines)
 
 
 def phase_table(split: dict[str, dict[str, float]]) -> str:
-    names = list(split)
-    lines = ["| phase of one run | " + " | ".join(f"{n} [s]" for n in names) + " |", "|---|" + "---|" * len(names)]
-    for k in split[names[0]]:
-        lines.append(f"| {k} | " + " | ".join(f"{split[n][k]:.3f}" for n in names) + " |")
+    cols = [(n, c) for n in split for c in CLOCKS]
+    lines = ["| phase of one run | " + " | ".join(f"{n} {c} [s]" for n, c in cols) + " |", "|---|" + "---|" * len(cols)]
+    for k in PHASE_NAMES:
+        lines.append(f"| {k} | " + " | ".join(f"{split[n][f'{k} {c}']:.3f}" for n, c in cols) + " |")
     return "\n".join(lines)
 
 
@@ -146,7 +160,7 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         npz = Path(tmp) / "top.npz"
         best = measure(trees, args.repeat, npz)
-        split = {n: phases(t, child_env(None if n == "now" else t), args.repeat, npz) for n, t in trees.items()}
+        split = {n: phases(t, child_env(t), args.repeat, npz) for n, t in trees.items()}
     text = (f"Generated by `python benchmarks/bench_startup.py{' --before DIR' if args.before else ''}` "
             f"({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores, Python {sys.version.split()[0]}, best of "
             f"{args.repeat} fresh processes, warm numba cache and bytecode; load average {_load(load0)} at the "

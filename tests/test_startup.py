@@ -15,8 +15,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: Imported only by the commands that use them: viewer, recorder, charts, studies, meshes, oracles.
 OPTIONAL = ("viser", "rerun", "matplotlib", "dask", "distributed", "trimesh", "coal", "pyarrow", "sympy", "websockets")
-#: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import).
-UNUSED_SCIPY = ("scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial", "scipy.stats")
+#: Parts of scipy a rigid multibody run does not need (each costs 0.1-0.4 s to import; scipy.sparse came
+#: with the row ordering's reverse Cuthill-McKee, now viz3d's own).
+UNUSED_SCIPY = ("scipy.sparse", "scipy.optimize", "scipy.integrate", "scipy.special", "scipy.fft", "scipy.spatial",
+                "scipy.stats")
 #: The modules of the other kinds of scene (a multibody scene's run needs none of them).
 OTHER_KINDS = ("viz3d.hydro", "viz3d.scene.hydro")
 #: Imported by numba's target refresh (the typing and lowering of all numba supports), which compiling
@@ -65,3 +67,40 @@ def test_a_warm_run_loads_its_kernel_without_numbas_target_refresh(tmp_path):
     modules = loaded_after(run + "from viz3d.kernel import stepping\n"
                                  "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
     assert not offending(modules, NUMBA_TARGET)
+
+
+def test_the_compiled_kernel_needs_no_lapack():
+    """The kernel's solves are its own loops (no ``np.linalg`` in compiled code, which would make numba
+    import scipy.linalg.cython_lapack when the code runs): stepping, projecting and sampling a top on a
+    ball joint in the kernel, compiled or loaded from numba's cache, imports no scipy.linalg, so that a
+    run's one use of LAPACK is its initial projection (``viz3d.constraints.schur_solve``)."""
+    pytest.importorskip("numba")
+    code = """
+import numpy as np
+import viz3d.scene.build  # every element type registered, as in a run (the kernel's signature)
+from viz3d.bodies import Bodies
+from viz3d.constraints import build_layout
+from viz3d.coordinates import EulerSwitching
+from viz3d.forces import Gravity
+from viz3d.formulation import Projection
+from viz3d.integrators.tableaus import RK4
+from viz3d.joints import BallJoint
+from viz3d.kernel import KernelStepper, kernel_for
+from viz3d.system import State, System
+
+bodies = Bodies(("top",), np.array([1.0]), np.diag([0.02, 0.02, 0.01])[None])
+joint = BallJoint(("pivot",), np.array([[0, 1]]), np.array([[[0.0, 0.0, -0.1], [0.0, 0.0, 0.0]]]))
+system = System(bodies, build_layout((joint,), bodies), (Gravity(bodies.mass, np.array([0.0, 0.0, -9.81]), (), 0),),
+                EulerSwitching())
+theta, chart = system.rotation.from_matrix(np.eye(3)[None])
+q = system.join_q(np.array([[0.0, 0.0, 0.1]]), theta)
+state = State(0.0, q, np.array([0.0, 0.0, 0.0, 0.0, 0.0, 50.0]), chart)
+stepper = KernelStepper(kernel_for(system, Projection(1e-12)), RK4)
+y, chart = state.y.copy(), state.chart.copy()
+Y, charts, done, _, status = stepper.frames(3, 2, 0, 0.0, 1e-3, y, chart, np.zeros(1, np.int64), 1e6)
+assert done == 3 and status == 0, (done, status)
+stepper.sample(np.array([0.002, 0.004, 0.006]), Y, charts, ())
+"""
+    modules = loaded_after(code)
+    assert "viz3d.kernel.stepping" in modules
+    assert not offending(modules, ("scipy.linalg", "scipy.linalg.cython_lapack", "scipy.sparse")), "the kernel needs LAPACK"

@@ -69,6 +69,40 @@ def test_shuffled_chain_is_reordered_to_a_narrow_band():
     assert layout.banded and layout.kd <= 5
 
 
+def scipy_rcm(r_idx, k_idx, n):
+    """The oracle: scipy's reverse Cuthill-McKee of the symmetric graph with edges (r_idx, k_idx)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    graph = coo_matrix((np.ones(len(r_idx)), (r_idx, k_idx)), shape=(n, n)).tocsr()
+    return np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=int)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_row_order_is_scipys_reverse_cuthill_mckee(seed):
+    """On random symmetric graphs (disconnected parts, repeated edges, self-loops on some rows,
+    many ties in degree, up to 400 rows) the own ordering is scipy's, tie for tie."""
+    from viz3d.constraints import _bandwidth_order
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    m = int(rng.integers(0, 3 * n))
+    a, b = rng.integers(0, n, m), rng.integers(0, n, m)
+    loops = np.nonzero(rng.random(n) < rng.random())[0]
+    r, k = np.concatenate([a, b, loops]), np.concatenate([b, a, loops])
+    np.testing.assert_array_equal(_bandwidth_order(r, k, n), scipy_rcm(r, k, n))
+
+
+@pytest.mark.parametrize("nb,extra", [(3, ((0, 2),)), (12, ()), (40, ()), (30, ((5, 17), (2, 25)))])
+def test_layout_orders_its_rows_as_scipys_reverse_cuthill_mckee(nb, extra):
+    from viz3d.constraints import _shared_body_pairs
+
+    system = random_system(nb=nb, seed=nb, extra_pairs=extra)
+    layout = system.joints
+    r, _, k, _ = _shared_body_pairs(layout.row_body, system.n_bodies)
+    np.testing.assert_array_equal(layout.perm, scipy_rcm(r, k, layout.n_rows))
+
+
 def test_redundant_joints_raise_and_are_named():
     rng = np.random.default_rng(2)
     bodies = Bodies(("a", "b"), np.ones(2), np.stack([np.eye(3) * 0.01] * 2))
