@@ -73,11 +73,12 @@ def test_the_compiled_kernel_needs_no_lapack():
     """The kernel's solves are its own loops (no ``np.linalg`` in compiled code, which would make numba
     import scipy.linalg.cython_lapack when the code runs): stepping, projecting and sampling a top on a
     ball joint in the kernel, compiled or loaded from numba's cache, imports no scipy.linalg, so that a
-    run's one use of LAPACK is its initial projection (``viz3d.constraints.schur_solve``)."""
+    run's one use of LAPACK is its initial projection (``viz3d.constraints.schur_solve``). The system
+    is built without the contact modules: packing registers every piece itself (the kernel's types
+    do not depend on the caller's imports)."""
     pytest.importorskip("numba")
     code = """
 import numpy as np
-import viz3d.scene.build  # every element type registered, as in a run (the kernel's signature)
 from viz3d.bodies import Bodies
 from viz3d.constraints import build_layout
 from viz3d.coordinates import EulerSwitching

@@ -238,8 +238,20 @@ class Packer:
         return pt_i, pt_s, pool(self._pt_N), pool(self._pt_P)
 
 
+def _register_pieces() -> None:
+    """Import viz3d's modules with compiled pieces: the kernel's argument types (one ``Items`` per
+    registered class, ``registered``) must not depend on what the caller happened to import (a
+    system built without the contact modules left the contact tables empty, and ``sample`` failed to
+    compile over the empty tuple)."""
+    import viz3d.contact.contacts  # noqa: F401
+    import viz3d.contact.laws  # noqa: F401
+    import viz3d.forces  # noqa: F401
+    import viz3d.joints  # noqa: F401
+
+
 def pack(system, formulation) -> KernelData:
     """``system`` and ``formulation`` packed for the kernel; ``Unsupported`` names what it lacks."""
+    _register_pieces()
     _check(system, formulation)
     packer = Packer(system)
     parts, classes = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
