@@ -127,6 +127,11 @@ class StowageReport:
         lines += ["| " + " | ".join(r) + " |" for r in rows]
         lines.append("\nthe fraction is of the members with a verdict (not failed); every member's verdict and "
                      "overrides are in runs.csv (`viz3d run SCENE --set ...` reruns one alone)")
+        for c in self.cells:
+            failed = [r for r in c.runs if r.outcome == "failed"]
+            if failed:
+                lines.append(f"{len(failed)} failed at {dict(zip(self.keys, c.values))}, member {failed[0].member}: "
+                             f"{failed[0].status}")
         return "\n".join(lines)
 
     def _runs_markdown(self) -> str:

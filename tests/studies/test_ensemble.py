@@ -117,7 +117,9 @@ def test_the_cells_count_every_member_and_the_fraction_is_of_the_verdicts():
 
 def test_the_ensemble_report_writes_its_cells_and_every_member(tmp_path):
     report = _report()
-    assert "| 0 | 0 | 5 | 2 | 1 | 1 | 1 | 2/4 = 0.50 [0.15, 0.85] | 100.0 / 250.0 / 500.0 |" in report.markdown()
+    text = report.markdown()
+    assert "| 0 | 0 | 5 | 2 | 1 | 1 | 1 | 2/4 = 0.50 [0.15, 0.85] | 100.0 / 250.0 / 500.0 |" in text
+    assert "1 failed at {'ship.heel': 0.0, 'ship.trim': 0.0}, member 4: diverged" in text
     save(report, tmp_path)
     with (tmp_path / "cells.csv").open() as f:
         cells = list(csv.DictReader(f))
