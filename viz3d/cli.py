@@ -7,6 +7,7 @@ Usage::
     viz3d replay FILE.rrd
     viz3d bench SCENE --methods LIST (--dt LIST | --tol LIST) [--t-end T] [--out DIR]
     viz3d stability SCENE --methods LIST [--sweep key.path=V1,V2,...] [--t-end T] [--out DIR]
+    viz3d stowage SCENE [--heel LIST] [--trim LIST] [--ensemble N --perturb KEY=SIZE,... [--seed S]] [--out DIR]
     viz3d sweep SCENE --grid key.path=V1,V2,... [--grid key.path=A:B:N] [--sample key.path=DIST(ARGS) --n N]
                 [--metrics LIST] [--out DIR] [--workers N | --scheduler tcp://HOST:8786 [--worker-timeout S]]
     viz3d check SCENE [SCENE ...]
@@ -134,6 +135,7 @@ def _parser() -> argparse.ArgumentParser:
     stow.add_argument("--trim", type=_number_list("--trim"), default=[-2.0, 0.0, 2.0], help="ship.trim values [deg]")
     _cluster_args(stow)
     _set_arg(stow)
+    _ensemble_args(stow)
     stow.add_argument("--out", type=Path, help="report folder (default out/stowage/<scene>); its runs.jsonl keeps every "
                       "finished run, so the same command started again runs only what is missing")
     stow.set_defaults(func=cmd_stowage)
@@ -341,12 +343,40 @@ def port_number(x):
     return x
 
 
+def _ensemble_args(p) -> None:
+    """``--ensemble``, ``--perturb`` and ``--seed`` of ``viz3d stowage`` (``viz3d.studies.ensemble``)."""
+    from viz3d.scene.schema import nonnegative_int
+    from viz3d.studies import STOWAGE_PERTURBATIONS as PERTURBATIONS
+
+    p.add_argument("--ensemble", type=int, metavar="N", help="N perturbed runs (members) per grid point: the "
+                   "report gives per point the verdict counts, the fraction seated with its 95 %% Wilson interval "
+                   "and the peak force's min/median/max (default: one unperturbed run)")
+    p.add_argument("--perturb", action="append", default=[], metavar="KEY=SIZE,...",
+                   help="what the members perturb, each uniformly within +-SIZE: relative (0 < SIZE < 1) for "
+                   + ", ".join(k for k, (kind, _) in PERTURBATIONS.items() if kind == "relative")
+                   + "; absolute for " + ", ".join(f"{k} [{u}]" for k, (kind, u) in PERTURBATIONS.items()
+                                                   if kind == "absolute"))
+    p.add_argument("--seed", type=flag_type(nonnegative_int), default=0, help="seed of the members' draws (default 0); "
+                   "member m draws the same perturbations at every grid point and in an ensemble of any size")
+
+
 def cmd_stowage(args) -> int:
     from viz3d.stowagestudy import save, stowage_study
+    from viz3d.studies import STOWAGE_PERTURBATIONS
+    from viz3d.studies.ensemble import parse_ensemble
+    from viz3d.studies.plan import PlanError
 
+    try:
+        n = 1 if args.ensemble is None else args.ensemble
+        ensemble = (parse_ensemble(n, args.perturb, STOWAGE_PERTURBATIONS, args.seed)
+                    if args.ensemble is not None or args.perturb else None)
+    except PlanError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     out = _writable_dir(args.out or Path("out") / "stowage" / args.scene.stem, "stowage")
     grid = {"ship.heel": args.heel, "ship.trim": args.trim}
-    return _report(lambda: stowage_study(args.scene, grid, args.overrides, cluster=_cluster(args), out=out), save, out)
+    return _report(lambda: stowage_study(args.scene, grid, args.overrides, cluster=_cluster(args), out=out,
+                                         ensemble=ensemble), save, out)
 
 
 def _sweep_parser(sub) -> None:

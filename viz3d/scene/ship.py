@@ -38,6 +38,8 @@ from viz3d.scene.schema import (OPTIONAL, Field, SceneError, Table, boolean, non
                                 validate)
 
 STEEL_E, STEEL_NU, STEEL_RHO = 2.1e11, 0.3, 7850.0
+#: The chain starts this fraction of a link's radius clear of the pocket's rim (no overlap at t = 0).
+RIM_CLEARANCE = 1e-3
 
 SHIP = Table({
     "length": Field(positive, 176.1, "ship length [m] (seed 004)"),
@@ -61,6 +63,9 @@ SHIP = Table({
                             "lip (radius pipe_diameter / 2) [m]: a simulated link is k real links, k the largest "
                             "with (k 4d)^2 / (8 r) <= this"),
     "hang": Field(positive, 0.5, "chain hanging below the pocket's lower rim at the start [m]"),
+    "payout": Field(number, 0.0, "the windlass starts this much paid out [m] (the chain moves this much along its "
+                    "path, the anchor as much lower): a perturbation of the starting pose (stowage ensembles), at "
+                    "most the chain's clearance on the rim (1e-3 of a link's radius) in magnitude"),
     "hauling_speed": Field(positive, 0.15, "windlass nominal speed [m/s] (9 m/min, IACS UR A3)"),
     "ramp_time": Field(positive, 2.0, "time to reach the hauling speed [s]"),
     "overhaul": Field(nonnegative, 0.5, "the windlass may haul this much beyond the haul of the level ship to the "
@@ -143,10 +148,11 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     r_link = 1.8 * p["chain_diameter"]
     C = S @ np.array([0.0, -p["pocket_bottom"], p["pocket_depth"]])
     try:
-        T, V, m = bend_over(C, T, a, down, r_link * (1 + 1e-3), ell, f)
+        T, V, m = bend_over(C, T, a, down, r_link * (1 + RIM_CLEARANCE), ell, f)
     except ValueError as exc:
         raise SceneError(source, "ship", f"a hull whose chain path from the windlass over the pocket's rim is finite "
                          f"({exc})") from None
+    T = T - _payout(p, r_link, source) * a
     n_links = m + max(1, math.ceil(p["hang"] / ell))
     check_generated_bodies(n_links + 4, validate(raw.get("limits", {}), LIMITS, source, "limits"), source, "ship",
                            f"{n_links} chain links of {ell:.3g} m from the pipe, pocket and hang sizes, and 4 more")
@@ -251,6 +257,15 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     sim.setdefault("t_end", t_end)
     out["sim"] = sim
     return out
+
+
+def _payout(p: dict, r_link: float, source: str) -> float:
+    """``ship.payout`` [m], refused beyond the chain's clearance on the rim (a link would start in the rim)."""
+    clearance = RIM_CLEARANCE * r_link
+    if abs(p["payout"]) > clearance:
+        raise SceneError(source, "ship.payout", f"at most {clearance:.3g} m in magnitude (the chain's clearance on the "
+                         "pocket's rim: a perturbation of the starting pose, not another pose)", p["payout"])
+    return p["payout"]
 
 
 def _check(p: dict, source: str) -> None:

@@ -12,3 +12,11 @@ docs/sweep.md describes the command and the fault handling.
 #: Seconds a study on an existing scheduler waits while no worker is attached (``--worker-timeout``);
 #: here, not in ``execute``, so the command line's parser reads it without importing the machinery.
 WORKER_TIMEOUT = 60.0
+
+#: Keys a stowage ensemble may perturb (``viz3d stowage --perturb``; ``viz3d.studies.ensemble``): kind
+#: and unit. The uncertain parameters of the haul (``viz3d.scene.ship.SHIP`` says what each is),
+#: relative; the starting pose, ``ship.payout`` [m] (chain and anchor moved along the chain's path),
+#: absolute. Here, like ``WORKER_TIMEOUT``, so the parser's help lists them without the machinery.
+STOWAGE_PERTURBATIONS = {**{f"ship.{k}": ("relative", "") for k in (
+    "mu", "mu_static", "stick_stiffness", "stick_damping", "restitution", "hauling_speed", "ramp_time",
+    "stop_stiffness", "stop_damping")}, "ship.payout": ("absolute", "m")}
