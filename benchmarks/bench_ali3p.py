@@ -9,7 +9,8 @@ scene's dt (no output frames but the run's own), the best wall time per step of 
 the mean number of force and constraint evaluations per step (the iteration count, plus the
 grouped finite differences when a tangent is rebuilt; the same on both paths, which take the same
 iterates), and the largest constraint violation. Runs that fail are reported with their status.
-Prints a Markdown table (with the NumPy/kernel ratio) and writes a log-log chart; compare the rows
+Prints a Markdown table (with the NumPy/kernel ratio) and writes log-log charts of the wall time per
+step and per evaluation (one Newton iteration, or one column group of a tangent); compare the rows
 of one run with each other.
 """
 
@@ -86,19 +87,23 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for path, style in (("kernel", "o-"), ("numpy", "s--")):
-        for alpha in sorted({r["alpha"] for r in rows}):
+    fig, (ax, ax_e) = plt.subplots(1, 2, figsize=(11, 4.2))
+    n = np.array(sorted({r["n"] for r in rows}), float)
+    for k, alpha in enumerate(sorted({r["alpha"] for r in rows})):
+        for path, style in (("kernel", "o-"), ("numpy", "s--")):
             sel = [r for r in rows if r["alpha"] == alpha and r["path"] == path and r["status"] == "ok"]
             if sel:
-                ax.loglog([r["n"] for r in sel], [r["ms"] for r in sel], style, label=f"{path}, alpha = {alpha:.0e}")
-    n = np.array(sorted({r["n"] for r in rows}), float)
-    ax.loglog(n, 0.02 * n, "k:", label="O(N)")
-    ax.set_xlabel("links")
-    ax.set_ylabel("wall time per step [ms]")
-    ax.set_title("ALI3-P (trapezoidal) on the chain: compiled kernel (band LU) and NumPy")
-    ax.legend()
-    ax.grid(True, which="both", alpha=0.3)
+                x = [r["n"] for r in sel]
+                kw = dict(color=f"C{k}", label=f"{path}, alpha = {alpha:.0e}")
+                ax.loglog(x, [r["ms"] for r in sel], style, **kw)
+                ax_e.loglog(x, [r["ms"] / r["evals"] for r in sel], style, **kw)
+    for a, scale, what in ((ax, 0.02, "step"), (ax_e, 0.005, "evaluation (Newton iteration)")):
+        a.loglog(n, scale * n, "k:", label="O(N)")
+        a.set_xlabel("links")
+        a.set_ylabel(f"wall time per {what} [ms]")
+        a.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle("ALI3-P (trapezoidal) on the chain: compiled kernel (band LU) and NumPy path")
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=120)

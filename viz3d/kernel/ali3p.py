@@ -230,11 +230,11 @@ class Band:
     @classmethod
     def from_sparse(cls, S, bw: int) -> "Band":
         """The band of the sparse (n, n) ``S``; ``ValueError`` if an entry lies outside it."""
-        S = S.tocoo()
+        S = S.tocsr().tocoo()  # duplicates summed: each entry once
         if S.nnz and np.max(np.abs(S.row - S.col)) > bw:
             raise ValueError(f"entry outside the half-bandwidth {bw}")
         out = cls.zeros(S.shape[0], bw)
-        np.add.at(out.ab, (2 * bw + S.row - S.col, S.col), S.data)
+        out.ab[2 * bw + S.row - S.col, S.col] = S.data
         return out
 
     def __add__(self, other: "Band") -> "Band":
