@@ -1,14 +1,17 @@
-"""ALI3-P's cost per step on the `chain` scene against the number of links and the penalty factor
-(a benchmark, not a test).
+"""ALI3-P's cost per step on the `chain` scene against the number of links and the penalty factor,
+on the compiled kernel's path (``viz3d.kernel.ali3p``) and the NumPy one (a benchmark, not a test).
 
-    python benchmarks/bench_ali3p.py [--n 10,25,50,100,200,400] [--alpha 1e9,1e10,1e11] [--out docs/bench_ali3p.png]
+    python benchmarks/bench_ali3p.py [--n 2,10,50,100,200] [--alpha 1e9,1e10] [--paths kernel,numpy]
+                                     [--out docs/bench_ali3p.png]
 
-For each (N, alpha): the trapezoidal ALI3-P steps of ``t_end`` simulated seconds at the scene's
-dt (no output frames but the run's own), the best wall time per step of ``repeats`` runs, the mean
-number of force and constraint evaluations per step (the iteration count, plus the grouped
-finite differences when a tangent is rebuilt), and the largest constraint violation. Runs that fail
-are reported with their status. Prints a Markdown table and writes a log-log chart; compare the
-rows of one run with each other.
+For each (N, alpha, path): the trapezoidal ALI3-P steps of ``t_end`` simulated seconds at the
+scene's dt (no output frames but the run's own), the best wall time per step of ``repeats`` runs,
+the mean number of force and constraint evaluations per step (the iteration count, plus the
+grouped finite differences when a tangent is rebuilt; the same on both paths, which take the same
+iterates), and the largest constraint violation. Runs that fail are reported with their status.
+Prints a Markdown table (with the NumPy/kernel ratio) and writes log-log charts of the wall time per
+step and per evaluation (one Newton iteration, or one column group of a tangent); compare the rows
+of one run with each other.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from viz3d import ali3p
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def measure(n: int, alpha: float, t_end: float, repeats: int) -> dict:
+def measure(n: int, alpha: float, path: str, t_end: float, repeats: int) -> dict:
     evals: list[int] = []
     original = ali3p._iterate
 
@@ -41,54 +44,66 @@ def measure(n: int, alpha: float, t_end: float, repeats: int) -> dict:
             evals.clear()
             scene = viz3d.load_scene(ROOT / "scenes" / "chain.toml", [f"chain.n={n}", "sim.formulation=ali3p",
                                                                         "sim.integrator=trapezoidal",
-                                                                        f"sim.ali3p_alpha={alpha}"])
+                                                                        f"sim.ali3p_alpha={alpha}",
+                                                                        f"sim.compiled={str(path == 'kernel').lower()}"])
             t0 = time.perf_counter()
             traj = viz3d.simulate(scene, t_end=t_end)
             best = min(best, (time.perf_counter() - t0) / max(traj.n_steps, 1))
     finally:
         ali3p._iterate = original
-    return {"n": n, "alpha": alpha, "ms": 1e3 * best, "evals": float(np.mean(evals)) if evals else np.nan,
+    return {"n": n, "alpha": alpha, "path": path, "ms": 1e3 * best, "evals": float(np.mean(evals)) if evals else np.nan,
             "violation": traj.max_constraint_violation, "status": traj.status}
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--n", default="10,25,50,100,200,400")
-    p.add_argument("--alpha", default="1e9,1e10,1e11")
+    p.add_argument("--n", default="2,10,50,100,200")
+    p.add_argument("--alpha", default="1e9,1e10")
+    p.add_argument("--paths", default="kernel,numpy")
     p.add_argument("--t-end", type=float, default=0.02)
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_ali3p.png")
     args = p.parse_args(argv)
     rows = []
+    paths = args.paths.split(",")
     for alpha in (float(a) for a in args.alpha.split(",")):
         for n in (int(x) for x in args.n.split(",")):
             if alpha < 1e10 and n > 100:
                 continue  # tens of iterations a step and worse: minutes per point
-            rows.append(measure(n, alpha, args.t_end, args.repeats))
-            r = rows[-1]
-            print(f"  N={n:4d} alpha={alpha:.0e}: {r['ms']:8.2f} ms/step, {r['evals']:6.1f} evaluations/step, "
-                  f"max |C| {r['violation']:.1e} m, {r['status'][:40]}", flush=True)
-    print("\n| links | alpha | ms/step (wall) | evaluations/step | max abs C [m] | status |")
-    print("|---:|---:|---:|---:|---:|---|")
+            for path in paths:
+                rows.append(measure(n, alpha, path, args.t_end, args.repeats))
+                r = rows[-1]
+                print(f"  N={n:4d} alpha={alpha:.0e} {path:6s}: {r['ms']:8.3f} ms/step, {r['evals']:6.1f} "
+                      f"evaluations/step, max |C| {r['violation']:.1e} m, {r['status'][:40]}", flush=True)
+    print("\n| links | alpha | path | ms/step (wall) | NumPy / kernel | evaluations/step | max abs C [m] | status |")
+    print("|---:|---:|---|---:|---:|---:|---:|---|")
     for r in rows:
-        print(f"| {r['n']} | {r['alpha']:.0e} | {r['ms']:.2f} | {r['evals']:.1f} | {r['violation']:.1e} | "
-              f"{'ok' if r['status'] == 'ok' else 'failed'} |")
+        other = [o for o in rows if (o["n"], o["alpha"], o["path"]) == (r["n"], r["alpha"], "numpy")]
+        ratio = f"{other[0]['ms'] / r['ms']:.1f}" if r["path"] == "kernel" and other else ""
+        print(f"| {r['n']} | {r['alpha']:.0e} | {r['path']} | {r['ms']:.3f} | {ratio} | {r['evals']:.1f} | "
+              f"{r['violation']:.1e} | {'ok' if r['status'] == 'ok' else 'failed'} |")
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for alpha in sorted({r["alpha"] for r in rows}):
-        sel = [r for r in rows if r["alpha"] == alpha and r["status"] == "ok"]
-        ax.loglog([r["n"] for r in sel], [r["ms"] for r in sel], "o-", label=f"alpha = {alpha:.0e}")
+    fig, (ax, ax_e) = plt.subplots(1, 2, figsize=(11, 4.2))
     n = np.array(sorted({r["n"] for r in rows}), float)
-    ax.loglog(n, 0.05 * n, "k:", label="O(N)")
-    ax.set_xlabel("links")
-    ax.set_ylabel("wall time per step [ms]")
-    ax.set_title("ALI3-P (trapezoidal) on the chain: sparse LU, grouped differences")
-    ax.legend()
-    ax.grid(True, which="both", alpha=0.3)
+    for k, alpha in enumerate(sorted({r["alpha"] for r in rows})):
+        for path, style in (("kernel", "o-"), ("numpy", "s--")):
+            sel = [r for r in rows if r["alpha"] == alpha and r["path"] == path and r["status"] == "ok"]
+            if sel:
+                x = [r["n"] for r in sel]
+                kw = dict(color=f"C{k}", label=f"{path}, alpha = {alpha:.0e}")
+                ax.loglog(x, [r["ms"] for r in sel], style, **kw)
+                ax_e.loglog(x, [r["ms"] / r["evals"] for r in sel], style, **kw)
+    for a, scale, what in ((ax, 0.02, "step"), (ax_e, 0.005, "evaluation (Newton iteration)")):
+        a.loglog(n, scale * n, "k:", label="O(N)")
+        a.set_xlabel("links")
+        a.set_ylabel(f"wall time per {what} [ms]")
+        a.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle("ALI3-P (trapezoidal) on the chain: compiled kernel (band LU) and NumPy path")
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=120)

@@ -67,3 +67,13 @@ def agreement_bound(system, state, form, n: int, dt: float, method: str = "rk4")
     (module docstring)."""
     return (n * growth(system, state, form, n, dt, method) * ROUNDOFF_FACTOR
             * step_roundoff(system, state, form, dt, method))
+
+
+def ali3p_agreement_bound(system, state, form, n: int, dt: float) -> float:
+    """Bound on ``max |y_kernel - y_numpy|`` after ``n`` ALI3-P steps of ``dt`` from ``state``: each path
+    stops its Newton iteration within ``form.tol`` of the step's root in the increment ``dx`` [m, rad],
+    so the two ``dx`` differ by at most ``2 tol`` and the velocities ``v1 = 2 dx / h - v0`` by ``4 tol / h``
+    (the positions by less); with the step's round-off (``step_roundoff``, ``ROUNDOFF_FACTOR``) that is one
+    step's difference, carried by the flow as in ``agreement_bound``."""
+    per_step = 4.0 * form.tol / dt + ROUNDOFF_FACTOR * step_roundoff(system, state, form, dt, "trapezoidal")
+    return n * growth(system, state, form, n, dt, "trapezoidal") * per_step

@@ -29,6 +29,12 @@ SuperLU with a fill-reducing column order: on a chain its factors stay banded, s
 O(N) in the number of links, not the O(N^3) of a dense LU; below, dense matrices and LAPACK cost
 less. The finite-difference tangents difference the columns of bodies that share no neighbour
 together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any length.
+
+The method is written once, here; what costs (the trial points' positions, forces and rows, the
+mass matrix, the tangents' storage and factors) comes from a *path* held by the memory:
+``NumPyPath`` (the reference, the matrices above) or ``viz3d.kernel.ali3p.KernelPath`` (the
+compiled kernel's evaluations, band matrices in body order and LAPACK's banded LU), which
+``viz3d.simulate.Simulation`` picks when the kernel covers the system.
 """
 
 from __future__ import annotations
@@ -84,6 +90,8 @@ class ALI3PMemory:
     w_dot : ndarray, shape (n_aux,)
         Rates of the energy ledger's work integrals at the current state [W] (``aux_rates``): the
         step integrates them by the trapezoidal rule, like the motion.
+    path : NumPyPath or viz3d.kernel.ali3p.KernelPath
+        Where the evaluations and the linear algebra run (module docstring).
     """
 
     v_dot: FloatArray
@@ -93,6 +101,7 @@ class ALI3PMemory:
     n_evals: int = 0
     plan: tuple = ()
     w_dot: FloatArray = field(default_factory=lambda: np.zeros(0))
+    path: object = None
 
 
 @dataclass(frozen=True)
@@ -108,13 +117,14 @@ class _Point:
     M: object  # sparse (n_v, n_v)
 
 
-def init_memory(system: System, formulation, state: State) -> ALI3PMemory:
-    """Initial accelerations and multipliers from ``formulation.start`` (the penalty method)."""
+def init_memory(system: System, formulation, state: State, path=None) -> ALI3PMemory:
+    """Initial accelerations and multipliers from ``formulation.start`` (the penalty method);
+    ``path``: where the steps run (default ``NumPyPath``)."""
+    path = NumPyPath() if path is None else path
     acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart,
                         elements=state.element_memory)
-    w_dot = _work_rates(system, state, accelerations(system, formulation, state.t, state.q, state.v, state.chart,
-                                                      elements=state.element_memory)) if system.n_aux else np.zeros(0)
-    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system), w_dot)
+    w_dot = path.work_rates(system, formulation, state.replace(memory=())) if system.n_aux else np.zeros(0)
+    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system), w_dot, path)
 
 
 def _work_rates(system: System, state: State, acc) -> FloatArray:
@@ -146,7 +156,8 @@ def _one_step(system: System, formulation, state: State, h: float, memory: ALI3P
     with np.errstate(all="ignore"):
         for fresh in ((False, True) if memory.K is not None else (True,)):
             if fresh:
-                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory)
+                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory,
+                                     memory.path)
                 memory = replace(memory, K=K, D=D, n_evals=memory.n_evals + 2 * len(memory.plan[0]) + 1)
             result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh and _smooth(system))
             if isinstance(result, tuple):
@@ -161,14 +172,14 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
     """Newton-Raphson + multiplier updates, then projections: ``(result, evaluations)``, the
     result a reason string if it fails. With ``exact_ok``, an iteration that would not converge
     within ``MAX_ITER`` at its present rate switches to the exact tangent."""
-    alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
-    M = mass_matrix(system, state)
+    alpha, tol, t1, path = formulation.alpha, formulation.tol, state.t + h, memory.path
+    M = path.mass_matrix(system, state)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = memory.lam.copy()
     dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
     lu, step, prev, exact, evals = None, np.inf, np.inf, False, 0
     for it in range(MAX_ITER):
-        p = _with_mass(_evaluate(system, state, memory.v_dot, dx, h, t1), M)
+        p = _Point(*path.point(system, state, memory.v_dot, dx, h, t1, M))
         evals += 1
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
             return "non-finite state", evals
@@ -186,14 +197,15 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
         prev = step
         residual = _residual(p, alpha, lam, h)
         if lu is None:
-            lu = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
+            lu = path.factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
         elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
-            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan)
+            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan,
+                                        path)
             evals += len(memory.plan[0])
             try:
-                lu, exact = _factor(tangent.toarray() if _dense(system) else tangent), True
+                lu, exact = path.factor(path.matrix(tangent)), True
             except RuntimeError:  # a singular difference tangent: go on with the approximate one
                 exact_ok = False
         ddx = lu.solve(-residual)
@@ -202,28 +214,16 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
     return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m", evals
 
 
-def _evaluate(system, state, a0, dx, h, t1) -> _Point:
-    q1 = retract(system, state.q, dx, state.chart)
-    v1 = 2.0 / h * dx - state.v
-    a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
-    cfg = body_state(system, q1, v1, state.chart, t1)
-    C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
-    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
-    M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg) if system.n_elastic else None
-    return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
-
-
 def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
     """Project velocities (eq. 3.27, with the drives' explicit rate ``C_t``: ``C_v v = -C_t``) and
     accelerations (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged
     positions. A step that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent
     for the next."""
-    alpha = formulation.alpha
-    T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
-    C_t = constraint_rows(system.joints, body_state(system, p.q, p.v, state.chart, t1)).C_t
+    alpha, path = formulation.alpha, memory.path
+    T = path.factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
+    C_t = path.rows(system, p.q, p.v, state.chart, t1)[0]
     v = T.solve(W @ p.v if C_t is None else W @ p.v - 0.25 * h * h * alpha * (p.Cv.T @ C_t))
-    cfg = body_state(system, p.q, v, state.chart, t1)
-    gamma = constraint_rows(system.joints, cfg).gamma
+    gamma = path.rows(system, p.q, v, state.chart, t1)[1]
     a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
     keep = evals <= REFRESH_ITER
     new = State(t1, p.q, v, state.chart, element_memory=state.element_memory)  # (renewed by the simulation)
@@ -231,9 +231,7 @@ def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals:
     if system.n_aux:  # the ledger's work integrals by the trapezoidal rule; the drives' power from the
         # index-1 multipliers at the new state (those the frames report), not lam*
         new = new.replace(memory=state.memory)
-        acc = accelerations(system, formulation, t1, new.q, new.v, new.chart, new.memory, cfg,
-                            new.element_memory)
-        w_dot = _work_rates(system, new, acc)
+        w_dot = path.work_rates(system, formulation, new)
         new = new.replace(w=state.w + 0.5 * h * (memory.w_dot + w_dot))
     return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
                         n_evals=memory.n_evals + evals + 1 + (1 if w_dot.size else 0), w_dot=w_dot)
@@ -277,18 +275,13 @@ def _residual(p: _Point, alpha, lam, h) -> FloatArray:
     return 0.25 * h * h * (p.M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
 
 
-def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan):
+def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan, path):
     """``d residual / d dx`` at fixed multipliers by forward differences, sparse (n_v, n_v), columns
     grouped by ``plan`` (``viz3d.sparsity``): everything the seed's tangent (eq. 3.26) leaves out
     (the geometric stiffness of the constraint forces, the rotation kinematics, gyroscopic terms at
     the iterate) is in it."""
-    return grouped_fd_jacobian(lambda x: _residual(_with_mass(_evaluate(system, state, a0, x, h, t1), M), alpha, lam, h),
+    return grouped_fd_jacobian(lambda x: _residual(_Point(*path.point(system, state, a0, x, h, t1, M)), alpha, lam, h),
                                dx, r0, *plan, FD_REL * np.maximum(np.abs(dx), 1.0))
-
-
-def _with_mass(p: _Point, M: FloatArray) -> _Point:
-    """``p`` with the constant mass matrix of a rigid system (flexible ones carry their own)."""
-    return p if p.M is not None else _Point(p.q, p.v, p.a, p.C, p.Cv, p.Q, M)
 
 
 def mass_matrix(system: System, state: State):
@@ -304,18 +297,68 @@ def _dense(system: System) -> bool:
 
 
 def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray, plan: tuple = (),
-                  elements: tuple = ()):
-    """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), dense or sparse (``_dense``), by forward
-    differences of the applied and gyroscopic forces (``dx``: velocity-space displacement of the
-    positions), columns grouped by ``plan`` (``viz3d.sparsity.sparse_fd_plan``; default: built here);
-    ``elements``: the force elements' memory (``State.element_memory``), fixed during a step."""
+                  elements: tuple = (), path=None):
+    """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), in ``path``'s storage (default ``NumPyPath``:
+    dense or sparse, ``_dense``), by forward differences of the applied and gyroscopic forces
+    (``dx``: velocity-space displacement of the positions), columns grouped by ``plan``
+    (``viz3d.sparsity.sparse_fd_plan``; default: built here); ``elements``: the force elements'
+    memory (``State.element_memory``), fixed during a step."""
+    path = NumPyPath() if path is None else path
 
     def forces(q_, v_):
-        return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t), elements=elements))
+        return path.forces(system, t, q_, v_, chart, elements)
 
     plan = plan or sparse_fd_plan(system)
     Q0 = forces(q, v)
     zero = np.zeros(system.n_v)
-    K = -grouped_fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), zero, Q0, *plan, FD_REL * np.ones(system.n_v))
+    K = -grouped_fd_jacobian(lambda w: forces(path.retract(system, q, w, chart), v), zero, Q0, *plan,
+                             FD_REL * np.ones(system.n_v))
     D = -grouped_fd_jacobian(lambda v_: forces(q, v_), v, Q0, *plan, FD_REL * np.maximum(np.abs(v), 1.0))
-    return (K.toarray(), D.toarray()) if _dense(system) else (K.tocsr(), D.tocsr())
+    return path.matrix(K), path.matrix(D)
+
+
+class NumPyPath:
+    """The reference path: NumPy evaluations (``viz3d.dynamics``, ``viz3d.constraints``), dense
+    matrices and LAPACK's LU up to ``DENSE_MAX`` unknowns, sparse ones and SuperLU above."""
+
+    name = "NumPy"
+
+    def point(self, system, state, a0, dx, h: float, t1: float, M):
+        """``(q1, v1, a1, C, C_v, Q, M)`` at the trial increment ``dx`` (``_Point``'s fields); ``M``: the
+        constant mass matrix of a rigid system (flexible ones carry their own)."""
+        q1 = retract(system, state.q, dx, state.chart)
+        v1 = 2.0 / h * dx - state.v
+        a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
+        cfg = body_state(system, q1, v1, state.chart, t1)
+        C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
+        Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
+        if system.n_elastic:
+            M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
+        return q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M
+
+    def mass_matrix(self, system, state):
+        return mass_matrix(system, state)
+
+    def forces(self, system, t: float, q, v, chart, elements=()) -> FloatArray:
+        """Applied and gyroscopic forces (n_v,) at ``(t, q, v)``."""
+        return flat_velocity(system, *generalized_forces(system, body_state(system, q, v, chart, t), elements=elements))
+
+    def rows(self, system, q, v, chart, t: float):
+        """``(C_t, gamma)`` at ``(t, q, v)`` (``C_t`` None without drives)."""
+        rows = constraint_rows(system.joints, body_state(system, q, v, chart, t))
+        return rows.C_t, rows.gamma
+
+    def retract(self, system, q, dx, chart) -> FloatArray:
+        return retract(system, q, dx, chart)
+
+    def matrix(self, S):
+        """A finite-difference tangent (sparse CSC) in this path's storage."""
+        return S.toarray() if S.shape[0] <= DENSE_MAX else S.tocsr()
+
+    def factor(self, A):
+        return _factor(A)
+
+    def work_rates(self, system, formulation, state) -> FloatArray:
+        """The ledger's work rates at ``state`` (n_aux,) [W] (index-1 multipliers for the drives' power)."""
+        return _work_rates(system, state, accelerations(system, formulation, state.t, state.q, state.v, state.chart,
+                                                        state.memory, elements=state.element_memory))

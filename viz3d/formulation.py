@@ -3,7 +3,7 @@
 A formulation has two hooks: ``solve(system, mass, Q, rows, cfg) -> ((a, a_e), lam)`` with the
 accelerations split like every generalized vector (``viz3d.mass``: ``a`` (nb + 1, 6), ``a_e``
 (n_e,)), and ``post_step(system, state) -> state`` (identity unless it stabilizes between steps). A formulation that does its own time stepping (``ALI3P``) also sets the class attribute
-``integrator`` to the one integrator name it accepts and implements ``init_memory(system, state)``
+``integrator`` to the one integrator name it accepts and implements ``init_memory(system, state, kernel)``
 and ``step(system, state, h, memory) -> (state, memory, Status)``; ``viz3d.simulate`` then calls
 those instead of an integrator. Registry: ``FORMULATIONS``; see docs/extending.md.
 """
@@ -189,9 +189,15 @@ class ALI3P(Index1):
     tol: float = 1e-12
     start: Penalty = field(default_factory=Penalty)
 
-    def init_memory(self, system: System, state: State) -> ALI3PMemory:
-        """Accelerations and multipliers at ``state`` from ``start``, and the force tangent."""
-        return init_memory(system, self, state)
+    def init_memory(self, system: System, state: State, kernel=None) -> ALI3PMemory:
+        """Accelerations and multipliers at ``state`` from ``start``, and the force tangent; the
+        steps run in the compiled kernel when ``kernel`` (a ``viz3d.kernel.KernelStepper`` of the
+        system) is given, else in NumPy."""
+        if kernel is None:
+            return init_memory(system, self, state)
+        from viz3d.kernel.ali3p import KernelPath
+
+        return init_memory(system, self, state, KernelPath(system, kernel))
 
     def step(self, system: System, state: State, h: float, memory: ALI3PMemory) -> tuple[State, ALI3PMemory, Status]:
         """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``)."""

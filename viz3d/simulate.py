@@ -261,8 +261,8 @@ class Simulation:
         return self._accept(raw, res.f1, self.dt)
 
     def _kernel_ready(self) -> bool:
-        """Fixed explicit RK steps the kernel covers (``_compiled`` already declined formulations
-        that step themselves); never with contacts, whose events are located between the steps."""
+        """Fixed explicit RK steps the kernel covers (a formulation that steps itself gets a stepper
+        without tableau from ``_compiled``); never with contacts, whose events are located between the steps."""
         return (self._kernel is not None and self._kernel.tableau is not None and self.controller is None
                 and self._contacts is None)
 
@@ -422,7 +422,7 @@ class Simulation:
     def _own_step(self, target: float) -> State:
         s = self.state
         if self._memory is None:
-            self._memory = self.formulation.init_memory(self.system, s)
+            self._memory = self.formulation.init_memory(self.system, s, self._kernel)
             self.n_rhs += self._memory.n_evals
         new, memory, status = self.formulation.step(self.system, s, self.dt, self._memory)
         self.n_rhs += memory.n_evals - self._memory.n_evals
@@ -678,15 +678,15 @@ class _Span:
 def _compiled(system, integrator, formulation):
     """``(KernelStepper, "compiled kernel")`` when the kernel covers this system and formulation, else
     ``(None, "NumPy path, not covered by the compiled kernel: <why>")``. Its whole-step path serves
-    fixed explicit RK steps; its right-hand side serves every method."""
+    fixed explicit RK steps; its right-hand side serves every method; a formulation that steps
+    itself (ALI3-P) takes its steps through it (``viz3d.kernel.ali3p``)."""
     from viz3d.kernel import KernelStepper, kernel_coverage
 
-    if formulation.integrator is not None:
-        return None, f"NumPy path, formulation {formulation.name!r} steps itself"
     data, why = kernel_coverage(system, formulation)
     if data is None:
         return None, f"NumPy path, not covered by the compiled kernel: {why}"
-    return KernelStepper(data, getattr(integrator, "tableau", None)), "compiled kernel"
+    tableau = None if formulation.integrator is not None else getattr(integrator, "tableau", None)
+    return KernelStepper(data, tableau), "compiled kernel"
 
 
 def _trajectory(system: System, cols: FrameColumns, status: str, scene_json: str, chart_switches,

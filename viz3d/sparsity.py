@@ -74,11 +74,11 @@ def grouped_fd_jacobian(residual: Callable[[FloatArray], FloatArray], x: FloatAr
         xp = x.copy()
         xp[g] += step[g]
         d = residual(xp) - r0
-        for j in g:
-            r = rows_of[j]
-            rows.append(r)
-            cols.append(np.full(len(r), j))
-            vals.append(d[r] / step[j])
+        r = np.concatenate([rows_of[j] for j in g])
+        c = np.repeat(g, [len(rows_of[j]) for j in g])
+        rows.append(r)
+        cols.append(c)
+        vals.append(d[r] / step[c])
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r0.size, x.size))
 
 

@@ -84,11 +84,19 @@ def test_convergence_order_matches_declared_order(name, double_pendulum_referenc
     assert abs(slope - order) <= ORDER_TOL, f"{name}: slope {slope:.2f}, steps {counts}, errors {errors}"
 
 
-def test_ali3p_converges_at_second_order(double_pendulum_reference):
-    """ALI3-P steps itself (the trapezoidal rule on R^3 x SO(3)): order 2, like its integrator."""
+@pytest.mark.parametrize("compiled", [True, False], ids=["kernel", "numpy"])
+def test_ali3p_converges_at_second_order(double_pendulum_reference, compiled):
+    """ALI3-P steps itself (the trapezoidal rule on R^3 x SO(3)): order 2, like its integrator, on
+    both paths (``viz3d.kernel.ali3p`` and the NumPy reference)."""
     counts = [COARSEST[2] * 2**k for k in range(4)]
-    errors = _errors(double_pendulum_reference, lambda system, state, dt: Simulation(
-        system, state, make_integrator("trapezoidal"), ALI3P(), dt), T_ORDER, counts)
+    sims = []
+
+    def make(system, state, dt):
+        sims.append(Simulation(system, state, make_integrator("trapezoidal"), ALI3P(), dt, compiled=compiled))
+        return sims[-1]
+
+    errors = _errors(double_pendulum_reference, make, T_ORDER, counts)
+    assert all((s.kernel_note == "compiled kernel") == compiled for s in sims)
     slope = np.polyfit(np.log(T_ORDER / np.array(counts)), np.log(errors), 1)[0]
     assert abs(slope - 2) <= ORDER_TOL, f"ali3p: slope {slope:.2f}, errors {errors}"
 

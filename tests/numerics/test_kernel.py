@@ -155,8 +155,9 @@ def test_kernel_reports_failures():
 
 
 def test_kernel_declines_what_it_does_not_cover():
-    _, system, _, form = _setup(SCENES / "double_pendulum.toml", "ali3p")
+    _, system, _, form = _setup(SCENES / "flexible_pendulum.toml", "ali3p")
     assert K.kernel_for(system, form) is None
+    assert K.kernel_coverage(system, form)[1] == "ALI3-P with flexible bodies"
 
 
 @pytest.mark.parametrize("rotation", ["euler_switching", "euler_zxz"])

@@ -34,7 +34,10 @@ FORMULATIONS = {
     "baumgarte": lambda f: (f.alpha, f.beta, 0.0),
     "penalty": lambda f: (f.xi * f.omega, f.omega, 1.0 / f.alpha),
     "projection": lambda f: (0.0, 0.0, 0.0),  # index1's field; positions and velocities projected after each step
+    "ali3p": lambda f: (0.0, 0.0, 0.0),  # steps itself (viz3d.kernel.ali3p); its field (output frames) is index1's
 }
+#: Formulations that step themselves whose steps the kernel takes (``viz3d.kernel.ali3p``).
+STEPPING = ("ali3p",)
 #: Formulations whose ``post_step`` the kernel makes after each step (``viz3d.kernel.projection``).
 PROJECTING = ("projection",)
 #: Rows of scratch 3-vectors in ``View.v3``: 0-7 for viz3d.points, 8-15 for pieces and bodies, 16-34 for
@@ -285,12 +288,25 @@ def _slices(sizes: list[int]) -> tuple[slice, ...]:
 
 
 def _check(system, formulation) -> None:
-    if formulation.name not in FORMULATIONS or getattr(formulation, "integrator", None) is not None:
+    if formulation.name not in FORMULATIONS or (getattr(formulation, "integrator", None) is not None
+                                                and formulation.name not in STEPPING):
         raise Unsupported(f"formulation {formulation.name!r}")
+    if formulation.name in STEPPING:
+        _check_stepping(system)
     if type(system.rotation) not in (EulerSwitching, EulerZXZ, Quaternion):
         raise Unsupported(f"orientation coordinates {system.rotation.name!r}")
     if any(fb.ked for fb in system.bodies.flexible):
         raise Unsupported("kineto-elastodynamic flexible bodies (coupling = 'ked')")
+
+
+def _check_stepping(system) -> None:
+    """What the compiled ALI3-P steps (``viz3d.kernel.ali3p``) leave to the NumPy path."""
+    if system.n_elastic or system.bodies.flexible:
+        raise Unsupported("ALI3-P with flexible bodies")
+    if system.contacts:
+        raise Unsupported("ALI3-P with contacts")
+    if any(e.has_memory for e in system.forces):
+        raise Unsupported("ALI3-P with force elements that remember (shape contacts)")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:

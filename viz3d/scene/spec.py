@@ -63,7 +63,7 @@ SIM = Table({
     "gravity": Field(vec3, [0.0, 0.0, -9.81], "gravitational acceleration [m/s^2]"),
     "baumgarte_alpha": Field(nonnegative, 10.0, "Baumgarte damping rate [1/s] (formulation = baumgarte)"),
     "baumgarte_beta": Field(nonnegative, 10.0, "Baumgarte frequency [rad/s] (formulation = baumgarte)"),
-    "compiled": Field(boolean, True, "fixed explicit Runge-Kutta steps through the compiled kernel when it covers the scene"),
+    "compiled": Field(boolean, True, "fixed explicit Runge-Kutta steps and ALI3-P steps through the compiled kernel when it covers the scene"),
     "projection_tol": Field(positive, 1e-12, "position tolerance of projections and of ali3p's iteration [m]"),
     "rtol": Field(positive, OPTIONAL, "relative tolerance: adaptive steps with error control (integrators dopri5, "
                   "dop853); sim.dt is then the interval between returned states, sampled by dense output"),
