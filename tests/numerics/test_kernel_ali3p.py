@@ -40,8 +40,11 @@ def test_compiled_ali3p_takes_the_numpy_steps(name, overrides):
     bound = ali3p_agreement_bound(system, state, form, N_STEPS, dt)
     diff = np.abs(compiled.state.y - numpy.state.y).max()
     assert diff <= bound, f"y after {N_STEPS} steps: {diff:.2e} > {bound:.2e}"
-    # the same iterates: as many force and row evaluations (an iteration matrix that differs changes them)
-    assert compiled.n_rhs == numpy.n_rhs
+    # the same iterates: as many force and row evaluations (an iteration matrix that differs changes them:
+    # twice its constraint term took 3385 against 206). Round-off may flip a stopping test that sits at
+    # the tolerance (seen once over 200 steps of a 50-link chain, on another BLAS it may happen here):
+    # one iteration's evaluations either way, never more than 2 % of them
+    assert abs(compiled.n_rhs - numpy.n_rhs) <= max(2, 0.02 * numpy.n_rhs), (compiled.n_rhs, numpy.n_rhs)
     assert np.array_equal(compiled.state.chart, numpy.state.chart)
 
 
