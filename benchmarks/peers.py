@@ -175,7 +175,7 @@ def exudyn_run(tree: RigidTree, dt: float, t_end: float, output_dt: float, solve
     mbs = sc.AddSystem()
     ground = mbs.CreateGround()
     explicit = bool(np.all(tree.parent == FREE))
-    solver = solver or ("RK44" if explicit else "GeneralizedAlpha")
+    solver = solver or exudyn_solver(tree)
     node = exu.NodeType.RotationRotationVector if explicit else exu.NodeType.RotationEulerParameters
     bodies, sensors = [], []
     for i in range(len(tree.mass)):
@@ -202,6 +202,12 @@ def exudyn_run(tree: RigidTree, dt: float, t_end: float, output_dt: float, solve
     pos = np.stack([mbs.GetSensorStoredData(s)[:, 1:4] for s in sensors], axis=1)
     n = round(t_end / output_dt) + 1
     return PeerRun(pos[:n].reshape(n, len(tree.mass), len(MARKERS), 3), wall, steps)
+
+
+def exudyn_solver(tree: RigidTree) -> str:
+    """``exudyn_run``'s default solver for ``tree``: RK44 without joints (explicit solvers take no
+    constraints), else GeneralizedAlpha."""
+    return "RK44" if bool(np.all(tree.parent == FREE)) else "GeneralizedAlpha"
 
 
 def _exudyn_settings(exu, steps: int, t_end: float, output_dt: float):
