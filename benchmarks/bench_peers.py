@@ -22,7 +22,8 @@ over the 100 Hz output frames, of any marker point (each body's centre of mass a
 charts) integrated by its adaptive DOP853 at rtol 1e-12 (``viz3d.bench.reference_run``). MuJoCo
 (minimal coordinates, quaternions, RK4) and Exudyn (Euler parameters, index-3 generalized-alpha;
 RK44 on rotation vectors for the free body) and Pinocchio (minimal coordinates, its articulated-body
-algorithm ``aba`` stepped by RK4 written in Python, as a user steps it: Pinocchio has no integrator)
+algorithm ``aba``, or its mass matrix ``crba`` and a Cholesky solve, stepped by RK4 written in Python,
+as a user steps it: Pinocchio has no integrator; see ``peers.pinocchio_run`` for why both)
 are independent formulations of the same model: the
 error they reach at small steps also bounds how well the models agree. Wall time: the whole run
 with its frames at 100 Hz: ``viz3d.simulate`` (build, run, frames, trajectory); MuJoCo stepping and
@@ -41,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from peers import exudyn_run, exudyn_solver, markers, mujoco_run, pinocchio_run, rigid_tree
+from peers import PINOCCHIO_DYNAMICS, exudyn_run, exudyn_solver, markers, mujoco_run, pinocchio_run, rigid_tree
 
 from viz3d.bench import ATOL_FACTOR, reference_run
 from viz3d.scene.load import load_scene
@@ -146,16 +147,23 @@ def exudyn(p: Problem, level: int):
     return r.position, r.wall, r.steps, f"{exudyn_solver(p.tree)} dt {dt:.3g}"
 
 
-def pinocchio(p: Problem, level: int):
+def pinocchio(p: Problem, level: int, dynamics: str):
     dt = OUTPUT_DT / DIVISIONS[level]
-    r = pinocchio_run(p.tree, dt, p.t_end, OUTPUT_DT)
-    return r.position, r.wall, r.steps, f"aba+RK4 dt {dt:.3g}"
+    r = pinocchio_run(p.tree, dt, p.t_end, OUTPUT_DT, dynamics)
+    return r.position, r.wall, r.steps, f"{dynamics}+RK4 dt {dt:.3g}"
+
+
+def group(name: str) -> str:
+    """The simulator a runner belongs to: "viz3d" for its configurations, "Pinocchio" for both of
+    its dynamics, else the runner's name."""
+    return "viz3d" if name in VIZ3D else name.split()[0]
 
 
 def simulators(wanted: list[str]) -> dict:
     """The runners of the installed simulators among ``wanted`` ("viz3d": every configuration of
     ``VIZ3D``, or one of them by name), a message for each one missing."""
-    runners = {"MuJoCo": mujoco, "Exudyn": exudyn, "Pinocchio": pinocchio}
+    runners = {"MuJoCo": {"MuJoCo": mujoco}, "Exudyn": {"Exudyn": exudyn},
+               "Pinocchio": {f"Pinocchio {d}": functools.partial(pinocchio, dynamics=d) for d in PINOCCHIO_DYNAMICS}}
     out = {}
     for name in wanted:
         if name == "viz3d" or name in VIZ3D:
@@ -168,7 +176,7 @@ def simulators(wanted: list[str]) -> dict:
         except ImportError:
             print(f"{name}: not installed, skipped (pip install -e '.[peers]')")
             continue
-        out[name] = runners[name]
+        out.update(runners[name])
     return out
 
 
@@ -218,18 +226,20 @@ def cheapest(rows: list[Run], tol: float) -> dict[tuple[str, str], Run]:
 
 
 def summary(rows: list[Run], tol: float, sims: list[str]) -> str:
-    """Per problem: viz3d's cheapest run over its configurations, each peer's cheapest, the ratio."""
+    """Per problem and simulator (``group``), the cheapest run of any of its methods that reaches
+    ``tol``, and viz3d's time over the fastest peer's."""
     best = cheapest(rows, tol)
-    peers = [s for s in sims if s not in VIZ3D]
-    ours = [s for s in sims if s in VIZ3D]
-    lines = [f"| problem | viz3d (cheapest configuration) | {' | '.join(peers)} | viz3d / fastest peer |",
-             "|---|---|" + "---|" * (len(peers) + 1)]
+    groups = {}
+    for s in sims:
+        groups.setdefault(group(s), []).append(s)
+    names = [g if g != "viz3d" else "viz3d (cheapest configuration)" for g in groups]
+    lines = [f"| problem | {' | '.join(names)} | viz3d / fastest peer |", "|---|" + "---|" * (len(groups) + 1)]
     for prob in dict.fromkeys(r.problem for r in rows):
-        mine = [best[prob, s] for s in ours if (prob, s) in best]
-        cells = [_cell(rows, prob, ours, min(mine, key=lambda r: r.wall) if mine else None)]
-        cells += [_cell(rows, prob, [s], best.get((prob, s))) for s in peers]
-        ratio = _ratio(best, prob, sims)
-        lines.append(f"| {prob} | {' | '.join(cells)} | {ratio} |")
+        cells = []
+        for members in groups.values():
+            mine = [best[prob, s] for s in members if (prob, s) in best]
+            cells.append(_cell(rows, prob, members, min(mine, key=lambda r: r.wall) if mine else None))
+        lines.append(f"| {prob} | {' | '.join(cells)} | {_ratio(best, prob, sims)} |")
     return "\n".join(lines)
 
 
