@@ -10,7 +10,7 @@ a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, 
 links over their first second (``--chains``). viz3d runs in each of its configurations ``VIZ3D``
 (RK4 with the index-1 formulation, with coordinate projection, with projection and quaternion
 coordinates; adaptive DOPRI5 and DOP853 with projection), all compiled; its column takes the
-cheapest and names it, as the peers' cells name their methods. The default run takes about 15-20
+cheapest and names it, as the peers' cells name their methods. The default run takes about 25
 minutes on 2 cores.
 
 Each fixed-step method runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...:

@@ -267,8 +267,8 @@ def pinocchio_run(tree: RigidTree, dt: float, t_end: float, output_dt: float, dy
     written here (Pinocchio has no time integrator: this is how a user steps it), quaternions
     advanced by ``q_dot = q (x) (omega/2, 0)`` as plain ODE coordinates and normalised after each
     step (and, for the dynamics, at each stage: ``crba`` reads a quaternion that is not a unit one
-    otherwise than ``aba`` does, 10x the error on a 2-link chain at a 5 ms step); poses read by ``forwardKinematics`` every ``output_dt``. The model is built before the clock
-    starts.
+    otherwise than ``aba`` does, 10x the error on a 2-link chain at a 5 ms step); poses read by
+    ``forwardKinematics`` every ``output_dt``. The model is built before the clock starts.
 
     On ball-joint chains of 50 links and more ``aba`` is not usable: its accelerations let each
     link's spin about its own axis (zero in the exact motion: the joint forces act on the axis) grow
