@@ -7,19 +7,23 @@
 Problems (the shipped scenes, one model for all simulators, ``peers.rigid_tree``): the heavy top on
 a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, no gravity) over
 20 s, the top whose axis passes through theta = 0 over its scene's 3 s, and ball-joint chains of N
-links over their first second (``--chains``). viz3d runs twice: RK4 with its default index-1
-formulation ("viz3d") and with coordinate projection ("viz3d+projection", compiled since the kernel
-projects); the ratio column takes the cheaper. The default run takes about 15 minutes on 2 cores.
+links over their first second (``--chains``). viz3d runs in each of its configurations ``VIZ3D``
+(RK4 with the index-1 formulation, with coordinate projection, with projection and quaternion
+coordinates; adaptive DOPRI5 and DOP853 with projection), all compiled; its column takes the
+cheapest and names it, as the peers' cells name their methods. The default run takes about 25
+minutes on 2 cores.
 
-Each simulator runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...: about
-sqrt(2) apart, each dividing the frame interval), coarse to fine, until a run reaches
-``--tol`` or the next run would take longer than ``--max-run`` seconds. Error: the largest distance,
+Each fixed-step method runs each problem at steps dt = 10 ms / k (k = 2, 3, 4, 6, 8, 11, 16, ...:
+about sqrt(2) apart, each dividing the frame interval), each adaptive one at rtol = 1e-3, 10^-3.5,
+..., 1e-12 (atol = 1e-3 rtol, as the reference's), coarse to fine, until a run reaches ``--tol`` or
+the next run would take longer than ``--max-run`` seconds. Error: the largest distance,
 over the 100 Hz output frames, of any marker point (each body's centre of mass and three points
 0.1 m along its axes) from the reference: viz3d's own equations (maximal coordinates, Euler-angle
 charts) integrated by its adaptive DOP853 at rtol 1e-12 (``viz3d.bench.reference_run``). MuJoCo
 (minimal coordinates, quaternions, RK4) and Exudyn (Euler parameters, index-3 generalized-alpha;
 RK44 on rotation vectors for the free body) and Pinocchio (minimal coordinates, its articulated-body
-algorithm ``aba`` stepped by RK4 written in Python, as a user steps it: Pinocchio has no integrator)
+algorithm ``aba``, or its mass matrix ``crba`` and a Cholesky solve, stepped by RK4 written in Python,
+as a user steps it: Pinocchio has no integrator; see ``peers.pinocchio_run`` for why both)
 are independent formulations of the same model: the
 error they reach at small steps also bounds how well the models agree. Wall time: the whole run
 with its frames at 100 Hz: ``viz3d.simulate`` (build, run, frames, trajectory); MuJoCo stepping and
@@ -31,15 +35,16 @@ interleaved at each step. Writes the table to ``docs/bench_peers.md`` and a work
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from peers import exudyn_run, markers, mujoco_run, pinocchio_run, rigid_tree
+from peers import PINOCCHIO_DYNAMICS, exudyn_run, exudyn_solver, markers, mujoco_run, pinocchio_run, rigid_tree
 
-from viz3d.bench import reference_run
+from viz3d.bench import ATOL_FACTOR, reference_run
 from viz3d.scene.load import load_scene
 from viz3d.simulate import simulate
 
@@ -57,11 +62,12 @@ DIVISIONS = (2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64, 91, 128, 181, 256, 362, 512,
 
 @dataclass(frozen=True)
 class Run:
-    """One run: problem, simulator, step [s], error [m], wall time [s], steps."""
+    """One run: problem, simulator, its method and setting (``setting``: "dt 0.000625" or
+    "rtol 1e-08"), error [m], wall time [s], steps."""
 
     problem: str
     simulator: str
-    dt: float
+    setting: str
     error: float
     wall: float
     steps: int
@@ -95,83 +101,119 @@ def problems(names: list[str], chains: list[int], rtol: float) -> list[Problem]:
     return out
 
 
-def viz3d_run(p: Problem, dt: float, formulation: str = "index1") -> tuple[np.ndarray | None, float, int]:
-    """viz3d's RK4 with ``formulation`` (index-1, the default; or coordinate projection), Euler-angle
-    charts, compiled kernel, at step ``dt``."""
-    scene = load_scene(p.path, p.overrides + [f"sim.dt={dt!r}", f"sim.output_dt={OUTPUT_DT!r}",
-                                              f"sim.formulation={formulation}"])
+#: viz3d's configurations tried: name -> (scene overrides, adaptive). Fixed-step ones run at the steps
+#: ``OUTPUT_DT / DIVISIONS``, adaptive ones at the tolerances ``RTOLS`` (atol = rtol * ATOL_FACTOR, as the
+#: reference's); all on the compiled kernel.
+VIZ3D = {
+    "rk4+index1": (["sim.integrator=rk4", "sim.formulation=index1"], False),
+    "rk4+projection": (["sim.integrator=rk4", "sim.formulation=projection"], False),
+    "rk4+projection+quaternion": (["sim.integrator=rk4", "sim.formulation=projection", "sim.rotation=quaternion"],
+                                  False),
+    "dopri5+projection": (["sim.integrator=dopri5", "sim.formulation=projection"], True),
+    "dop853+projection": (["sim.integrator=dop853", "sim.formulation=projection"], True),
+}
+#: Tolerances tried by the adaptive configurations, coarse to fine (half a decade apart).
+RTOLS = tuple(10.0 ** (-3 - k / 2) for k in range(len(DIVISIONS)))
+
+
+def viz3d_run(p: Problem, level: int, config: str) -> tuple[np.ndarray | None, float, int, str]:
+    """viz3d in ``config`` (``VIZ3D``) at the ``level``-th step or tolerance, Euler-angle charts unless
+    the configuration says otherwise, compiled kernel."""
+    over, adaptive = VIZ3D[config]
+    if adaptive:
+        rtol = RTOLS[level]
+        over = over + [f"sim.dt={OUTPUT_DT!r}", f"sim.rtol={rtol!r}", f"sim.atol={rtol * ATOL_FACTOR!r}"]
+        setting = f"rtol {rtol:.2g}"
+    else:
+        dt = OUTPUT_DT / DIVISIONS[level]
+        over = over + [f"sim.dt={dt!r}"]
+        setting = f"dt {dt:.3g}"
+    scene = load_scene(p.path, p.overrides + over + [f"sim.output_dt={OUTPUT_DT!r}"])
     t0 = time.perf_counter()
     traj = simulate(scene, t_end=p.t_end)
     wall = time.perf_counter() - t0
-    return (markers(traj.position, traj.rotation) if traj.ok else None), wall, traj.n_steps
+    return (markers(traj.position, traj.rotation) if traj.ok else None), wall, traj.n_steps, f"{config} {setting}"
 
 
-def mujoco(p: Problem, dt: float):
+def mujoco(p: Problem, level: int):
+    dt = OUTPUT_DT / DIVISIONS[level]
     r = mujoco_run(p.tree, dt, p.t_end, OUTPUT_DT)
-    return r.position, r.wall, r.steps
+    return r.position, r.wall, r.steps, f"RK4 dt {dt:.3g}"
 
 
-def exudyn(p: Problem, dt: float):
+def exudyn(p: Problem, level: int):
+    dt = OUTPUT_DT / DIVISIONS[level]
     r = exudyn_run(p.tree, dt, p.t_end, OUTPUT_DT)
-    return r.position, r.wall, r.steps
+    return r.position, r.wall, r.steps, f"{exudyn_solver(p.tree)} dt {dt:.3g}"
 
 
-def pinocchio(p: Problem, dt: float):
-    r = pinocchio_run(p.tree, dt, p.t_end, OUTPUT_DT)
-    return r.position, r.wall, r.steps
+def pinocchio(p: Problem, level: int, dynamics: str):
+    dt = OUTPUT_DT / DIVISIONS[level]
+    r = pinocchio_run(p.tree, dt, p.t_end, OUTPUT_DT, dynamics)
+    return r.position, r.wall, r.steps, f"{dynamics}+RK4 dt {dt:.3g}"
+
+
+def group(name: str) -> str:
+    """The simulator a runner belongs to: "viz3d" for its configurations, "Pinocchio" for both of
+    its dynamics, else the runner's name."""
+    return "viz3d" if name in VIZ3D else name.split()[0]
 
 
 def simulators(wanted: list[str]) -> dict:
-    """The runners of the installed simulators among ``wanted`` (a message for each one missing)."""
-    runners = {"viz3d": viz3d_run, "viz3d+projection": lambda p, dt: viz3d_run(p, dt, "projection"), "MuJoCo": mujoco,
-               "Exudyn": exudyn, "Pinocchio": pinocchio}
+    """The runners of the installed simulators among ``wanted`` ("viz3d": every configuration of
+    ``VIZ3D``, or one of them by name), a message for each one missing."""
+    runners = {"MuJoCo": {"MuJoCo": mujoco}, "Exudyn": {"Exudyn": exudyn},
+               "Pinocchio": {f"Pinocchio {d}": functools.partial(pinocchio, dynamics=d) for d in PINOCCHIO_DYNAMICS}}
     out = {}
     for name in wanted:
-        module = {"MuJoCo": "mujoco", "Exudyn": "exudyn", "Pinocchio": "pinocchio"}.get(name)
+        if name == "viz3d" or name in VIZ3D:
+            for config in (VIZ3D if name == "viz3d" else [name]):
+                out[config] = functools.partial(viz3d_run, config=config)
+            continue
+        module = {"MuJoCo": "mujoco", "Exudyn": "exudyn", "Pinocchio": "pinocchio"}[name]
         try:
-            if module:
-                version = __import__(module).__version__
-                print(f"{name} {version}")
+            print(f"{name} {__import__(module).__version__}")
         except ImportError:
             print(f"{name}: not installed, skipped (pip install -e '.[peers]')")
             continue
-        out[name] = runners[name]
+        out.update(runners[name])
     return out
 
 
 def measure(p: Problem, runners: dict, tol: float, max_run: float, repeat: int) -> list[Run]:
-    """Every simulator on ``p`` at steps ``OUTPUT_DT / DIVISIONS`` until it reaches ``tol`` or its next
-    run would exceed ``max_run`` seconds; the simulators alternate at each step."""
+    """Every runner on ``p`` at its levels (steps ``OUTPUT_DT / DIVISIONS``, tolerances ``RTOLS``),
+    coarse to fine, until it reaches ``tol`` or its next run would exceed ``max_run`` seconds; the
+    runners alternate at each level."""
     active, rows = dict(runners), []
-    for k in DIVISIONS:
-        dt = OUTPUT_DT / k
+    for level in range(len(DIVISIONS)):
         if not active:
             break
         for name, run in list(active.items()):
-            row = one(p, name, run, dt, repeat)
+            row = one(p, name, run, level, repeat)
             rows.append(row)
-            print(f"  {p.name:>22} {name:<7} dt {dt:9.3e} s  error {row.error:9.2e} m  wall {row.wall:8.3f} s", flush=True)
+            print(f"  {p.name:>12} {name:<26} {row.setting:<46} error {row.error:9.2e} m  wall {row.wall:8.3f} s",
+                  flush=True)
             if row.error <= tol or 1.5 * row.wall > max_run:
                 del active[name]
     return rows
 
 
-def one(p: Problem, name: str, run, dt: float, repeat: int) -> Run:
+def one(p: Problem, name: str, run, level: int, repeat: int) -> Run:
     """Best of ``repeat`` runs (one when a run takes over a second); a failed run has error inf."""
-    best, error, steps = np.inf, np.inf, 0
+    best, error, steps, setting = np.inf, np.inf, 0, f"level {level}"
     for _ in range(repeat):
         try:
-            pos, wall, steps = run(p, dt)
+            pos, wall, steps, setting = run(p, level)
         except Exception as exc:  # a peer's solver may give up (Exudyn's Newton iteration)
-            print(f"  {name} at dt {dt:g}: {type(exc).__name__}: {str(exc)[:100]}")
-            return Run(p.name, name, dt, np.inf, np.nan, 0)
+            print(f"  {name} at level {level}: {type(exc).__name__}: {str(exc)[:100]}")
+            return Run(p.name, name, setting, np.inf, np.nan, 0)
         if pos is None or pos.shape != p.reference.shape or not np.all(np.isfinite(pos)):
-            return Run(p.name, name, dt, np.inf, wall, steps)
+            return Run(p.name, name, setting, np.inf, wall, steps)
         error = float(np.linalg.norm(pos - p.reference, axis=-1).max())
         best = min(best, wall)
         if wall > 1.0:
             break
-    return Run(p.name, name, dt, error, best, steps)
+    return Run(p.name, name, setting, error, best, steps)
 
 
 def cheapest(rows: list[Run], tol: float) -> dict[tuple[str, str], Run]:
@@ -184,35 +226,55 @@ def cheapest(rows: list[Run], tol: float) -> dict[tuple[str, str], Run]:
 
 
 def summary(rows: list[Run], tol: float, sims: list[str]) -> str:
+    """Per problem and simulator (``group``), the cheapest run of any of its methods that reaches
+    ``tol``, and viz3d's time over the fastest peer's."""
     best = cheapest(rows, tol)
-    lines = [f"| problem | {' | '.join(sims)} | viz3d / fastest peer |", "|---|" + "---|" * (len(sims) + 1)]
+    groups = {}
+    for s in sims:
+        groups.setdefault(group(s), []).append(s)
+    names = [g if g != "viz3d" else "viz3d (cheapest configuration)" for g in groups]
+    lines = [f"| problem | {' | '.join(names)} | viz3d / fastest peer |", "|---|" + "---|" * (len(groups) + 1)]
     for prob in dict.fromkeys(r.problem for r in rows):
         cells = []
-        for s in sims:
-            r = best.get((prob, s))
-            if r is None:
-                tried = [x for x in rows if x.problem == prob and x.simulator == s and np.isfinite(x.error)]
-                low = min(tried, key=lambda x: x.error) if tried else None
-                cells.append("not reached" + (f" (best {low.error:.1e} m, {low.wall:.3g} s)" if low else ""))
-            else:
-                cells.append(f"{r.wall:.3g} s (dt {r.dt:.3g}, {r.error:.1e} m)")
-        ratio = _ratio(best, prob, sims)
-        lines.append(f"| {prob} | {' | '.join(cells)} | {ratio} |")
+        for members in groups.values():
+            mine = [best[prob, s] for s in members if (prob, s) in best]
+            cells.append(_cell(rows, prob, members, min(mine, key=lambda r: r.wall) if mine else None))
+        lines.append(f"| {prob} | {' | '.join(cells)} | {_ratio(best, prob, sims)} |")
     return "\n".join(lines)
 
 
+def configurations(rows: list[Run], tol: float, sims: list[str]) -> str:
+    """Per problem and viz3d configuration, its cheapest run that reaches ``tol``."""
+    best = cheapest(rows, tol)
+    ours = [s for s in sims if s in VIZ3D]
+    lines = [f"| problem | {' | '.join(ours)} |", "|---|" + "---|" * len(ours)]
+    for prob in dict.fromkeys(r.problem for r in rows):
+        lines.append(f"| {prob} | {' | '.join(_cell(rows, prob, [s], best.get((prob, s)), named=False) for s in ours)} |")
+    return "\n".join(lines)
+
+
+def _cell(rows: list[Run], prob: str, sims: list[str], r: Run | None, named: bool = True) -> str:
+    """``r`` as a table cell (wall time, setting, error), or the closest any of ``sims`` came."""
+    if r is None:
+        tried = [x for x in rows if x.problem == prob and x.simulator in sims and np.isfinite(x.error)]
+        low = min(tried, key=lambda x: x.error) if tried else None
+        return "not reached" + (f" (best {low.error:.1e} m, {low.wall:.3g} s)" if low else "")
+    setting = r.setting if named else r.setting.split(" ", 1)[1]
+    return f"{r.wall:.3g} s ({setting}, {r.error:.1e} m)"
+
+
 def _ratio(best: dict, prob: str, sims: list[str]) -> str:
-    """viz3d's cheapest wall time (either formulation) over the fastest peer's, on ``prob``."""
-    ours = [best[prob, s].wall for s in sims if s.startswith("viz3d") and (prob, s) in best]
-    peers = [best[prob, s].wall for s in sims if not s.startswith("viz3d") and (prob, s) in best]
+    """viz3d's cheapest wall time (any configuration) over the fastest peer's, on ``prob``."""
+    ours = [best[prob, s].wall for s in sims if s in VIZ3D and (prob, s) in best]
+    peers = [best[prob, s].wall for s in sims if s not in VIZ3D and (prob, s) in best]
     if not ours:
         return "-"
     return f"{min(ours) / min(peers):.2f}" if peers else "no peer reached it"
 
 
 def all_runs(rows: list[Run]) -> str:
-    lines = ["| problem | simulator | dt [s] | steps | error [m] | wall [s] |", "|---|---|---|---|---|---|"]
-    lines += [f"| {r.problem} | {r.simulator} | {r.dt:.4g} | {r.steps} | {r.error:.2e} | {r.wall:.4g} |" for r in rows]
+    lines = ["| problem | simulator | setting | steps | error [m] | wall [s] |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r.problem} | {r.simulator} | {r.setting} | {r.steps} | {r.error:.2e} | {r.wall:.4g} |" for r in rows]
     return "\n".join(lines)
 
 
@@ -228,7 +290,7 @@ def chart(rows: list[Run], tol: float, path: Path) -> None:
     nrows = -(-len(probs) // cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(4 * cols, 3.4 * nrows), squeeze=False)
     for ax, prob in zip(axes.flat, probs):
-        for sim, marker in zip(dict.fromkeys(r.simulator for r in rows), "osx^vD"):
+        for sim, marker in zip(dict.fromkeys(r.simulator for r in rows), "osx^vD<>ph"):
             mine = [r for r in rows if r.problem == prob and r.simulator == sim and np.isfinite(r.error)]
             ax.loglog([r.wall for r in mine], [r.error for r in mine], marker + "-", label=sim)
         ax.axhline(tol, color="grey", lw=0.8, ls="--")
@@ -251,7 +313,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", default="heavy_top,torque_free,top_through_vertical,chain")
     ap.add_argument("--chains", default="2,10,50,100,200", help="chain lengths (links)")
-    ap.add_argument("--simulators", default="viz3d,viz3d+projection,MuJoCo,Exudyn,Pinocchio")
+    ap.add_argument("--simulators", default="viz3d,MuJoCo,Exudyn,Pinocchio",
+                    help="viz3d (all its configurations) or configuration names, and peers")
     ap.add_argument("--tol", type=float, default=1e-6, help="accuracy to reach [m]")
     ap.add_argument("--max-run", type=float, default=20.0, help="longest run tried [s]")
     ap.add_argument("--repeat", type=int, default=3)
@@ -262,13 +325,14 @@ def main(argv=None) -> None:
     probs = problems(args.problems.split(","), [int(n) for n in args.chains.split(",")], args.ref_rtol)
     for p in probs:  # untimed warm-up: the kernel from numba's cache, first calls of each library
         for run in runners.values():
-            one(Problem(p.name, p.path, p.overrides, 2 * OUTPUT_DT, p.reference[:3], p.tree), "", run, 1e-3, 1)
+            one(Problem(p.name, p.path, p.overrides, 2 * OUTPUT_DT, p.reference[:3], p.tree), "", run, 4, 1)
     rows = [r for p in probs for r in measure(p, runners, args.tol, args.max_run, args.repeat)]
     sims = list(runners)
     head = (f"Generated by `python benchmarks/bench_peers.py` ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores; "
             f"cheapest whole run, frames at 100 Hz, whose largest marker error is at most {args.tol:g} m; "
             f"reference: viz3d dop853 at rtol {args.ref_rtol:g}).\n\n")
-    text = head + summary(rows, args.tol, sims) + "\n\nAll runs:\n\n" + all_runs(rows) + "\n"
+    text = (head + summary(rows, args.tol, sims) + "\n\nviz3d's configurations (cheapest run of each):\n\n"
+            + configurations(rows, args.tol, sims) + "\n\nAll runs:\n\n" + all_runs(rows) + "\n")
     print("\n" + summary(rows, args.tol, sims))
     chart(rows, args.tol, args.out)
     args.out.with_suffix(".md").write_text(text)

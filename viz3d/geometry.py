@@ -7,6 +7,7 @@ meshes, so anything else is refused.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -106,6 +107,28 @@ def shape_mesh(shape: dict, base_dir: Path):
     mesh = trimesh.Trimesh(V, F, process=False)
     mesh.apply_scale(shape["scale"])
     return mesh
+
+
+def shape_mesh_properties(shape: dict, base_dir: Path) -> UnitMassProperties:
+    """``mesh_properties`` of a mesh shape table (``shape_mesh``); a mesh file's are computed once per
+    process and version of the file (its path, size and modification time): a build asks twice
+    (mass properties, centroid) and a sweep builds its scene once per run. Raise ``MeshError``."""
+    if "generator" in shape:
+        return mesh_properties(shape_mesh(shape, base_dir))
+    path = base_dir / shape["file"]
+    try:
+        stat = path.resolve().stat()
+    except OSError:  # load_mesh names the missing file
+        return mesh_properties(load_mesh(path, shape["scale"]))
+    p = _mesh_file_properties(str(path.resolve()), stat.st_size, stat.st_mtime_ns, float(shape["scale"]))
+    return UnitMassProperties(p.volume, p.center.copy(), p.inertia.copy())
+
+
+@functools.lru_cache(maxsize=64)
+def _mesh_file_properties(path: str, size: int, mtime_ns: int, scale: float) -> UnitMassProperties:
+    """``mesh_properties`` of the mesh file ``path`` scaled by ``scale`` (``size`` [bytes] and
+    ``mtime_ns`` key the file's version)."""
+    return mesh_properties(load_mesh(Path(path), scale))
 
 
 def mesh_properties(mesh) -> UnitMassProperties:

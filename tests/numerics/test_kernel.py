@@ -278,3 +278,24 @@ def test_a_run_without_sinks_takes_its_frames_in_batches_with_the_same_result(sc
     assert a.n_rhs == b.n_rhs if a.status == "ok" else a.n_rhs >= b.n_rhs
     if "sim.rotation=euler_zxz" in overrides:
         assert "gimbal lock" in a.status
+
+
+def test_compiled_entries_are_found_once_per_argument_types_and_are_the_right_ones(monkeypatch):
+    """Runs of scenes interleaved (a top on RK4; a spring on gen_alpha, whose run calls other compiled
+    entries): after the first run of each, their compiled entries are found without numba's typing,
+    and they give exactly what numba's own dispatch at every call gives."""
+    scenes = [viz3d.load_scene(SCENES / "heavy_top.toml", {"sim.dt": 1e-3}),
+              viz3d.load_scene(SCENES / "stiff_spring.toml", {"sim.dt": 1e-4}),
+              viz3d.load_scene(SCENES / "heavy_top.toml", {"sim.dt": 1e-3})]
+    runs = [viz3d.simulate(s, t_end=0.05) for s in scenes]
+    typed = []
+    typeof = K._typed_entry
+    monkeypatch.setattr(K, "_typed_entry", lambda d, a: typed.append(d) or typeof(d, a))
+    again = [viz3d.simulate(s, t_end=0.05) for s in scenes]
+    assert typed == []
+    monkeypatch.setattr(K, "_entry_point", lambda d, a: d)  # numba's own dispatch at every call
+    direct = [viz3d.simulate(s, t_end=0.05) for s in scenes]
+    for a, b, c in zip(runs, again, direct):
+        for name in ("position", "rotation", "omega", "reaction_force"):
+            assert a.ok and np.array_equal(getattr(a, name), getattr(b, name)), name
+            assert np.array_equal(getattr(a, name), getattr(c, name)), name

@@ -98,3 +98,25 @@ def test_missing_mesh_file(write_scene):
 def test_unphysical_inertia_is_refused(inertia, word):
     with pytest.raises(InertiaError, match=word):
         Bodies(("x",), np.ones(1), inertia[None])
+
+
+def test_a_mesh_file_is_read_once_per_version(tmp_path, write_scene, monkeypatch):
+    """Builds reuse a mesh file's mass properties until the file changes (then they follow it)."""
+    import os
+
+    from viz3d import geometry
+
+    f = _box_with(tmp_path, "box.obj", lambda m: m)
+    reads = []
+    load = geometry.load_mesh
+    monkeypatch.setattr(geometry, "load_mesh", lambda path, scale: reads.append(path) or load(path, scale))
+    scene = viz3d.load_scene(write_scene(BODY_WITH_MESH.format(file=f.name)))
+    first, _ = viz3d.build(scene)
+    viz3d.build(scene)
+    assert len(reads) == 1
+    bigger = trimesh.creation.box(extents=(0.4, 0.1, 0.05))
+    bigger.export(f)
+    os.utime(f, ns=(f.stat().st_atime_ns, f.stat().st_mtime_ns + 10**9))  # a new version even within one clock tick
+    second, _ = viz3d.build(scene)
+    assert len(reads) == 2
+    assert second.bodies.mass[0] == pytest.approx(2 * first.bodies.mass[0], rel=1e-12)

@@ -25,6 +25,11 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.compiled import numba
+
+try:  # numba's fingerprint of an argument's type (C, fast), the key of its own dispatch cache
+    from numba._dispatcher import compute_fingerprint
+except ImportError:  # pragma: no cover - no numba, or a numba without it: _entry_point types each time
+    pass
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.projection import project_state
@@ -196,9 +201,30 @@ def _c(a: np.ndarray) -> np.ndarray:
     return a if a.dtype == np.float64 and a.flags.c_contiguous else np.ascontiguousarray(a, dtype=np.float64)
 
 
+#: Compiled entries found by ``_entry_point``, keyed by dispatcher and the arguments' fingerprints.
+_ENTRIES: dict = {}
+
+
 def _entry_point(dispatcher, args):
     """The compiled entry of ``dispatcher`` for these argument types (skips the per-call type
-    dispatch, a few microseconds for tuples of arrays); the dispatcher itself if unavailable."""
+    dispatch, a few microseconds for tuples of arrays); the dispatcher itself if unavailable.
+
+    Looked up once per process and argument types: numba's own typing of the arguments (``typeof``)
+    costs about a millisecond for the packed model's tuples of arrays, 6 of a small run's 8 ms
+    before this cache. The key is numba's fingerprint of each argument, the key numba's dispatcher
+    caches its own typing under (so equal fingerprints mean equal types)."""
+    try:
+        key = (dispatcher, tuple(compute_fingerprint(a) for a in args))
+    except (NameError, TypeError, ValueError, NotImplementedError):  # no fingerprint: type them each time
+        return _typed_entry(dispatcher, args)
+    entry = _ENTRIES.get(key)
+    if entry is None:
+        entry = _ENTRIES[key] = _typed_entry(dispatcher, args)
+    return entry
+
+
+def _typed_entry(dispatcher, args):
+    """``_entry_point`` by numba's typing of ``args``."""
     try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         return dispatcher.overloads[sig].entry_point

@@ -22,7 +22,7 @@ from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
 from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
-from viz3d.geometry import MeshError, mesh_properties, primitive_properties, shape_mesh
+from viz3d.geometry import MeshError, primitive_properties, shape_mesh, shape_mesh_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
 from viz3d.integrators.adaptive import Controller
 from viz3d.joints import JOINTS, BallJoint, JointDrive
@@ -231,7 +231,7 @@ def shape_unit_properties(scene: Scene, shape: dict, where: str):
     if shape["type"] != "mesh":
         return primitive_properties(shape)
     try:
-        return mesh_properties(shape_mesh(shape, scene.base_dir))
+        return shape_mesh_properties(shape, scene.base_dir)
     except MeshError as exc:
         raise SceneError(scene.source(), f"{where}.file", f"a watertight, outward-oriented mesh file ({exc})") from None
 
