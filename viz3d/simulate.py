@@ -96,8 +96,10 @@ class Simulation:
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
         when it covers the system and formulation; the NumPy path otherwise (``kernel_note`` says
-        which, and why). Adaptive steps at contact events, during law contacts and with force
-        elements that remember are taken in Python.
+        which, and why). Adaptive steps at contact events (and the step after each), during law
+        contacts with stateful friction and with force elements that remember are taken in Python
+        (``viz3d.events.ContactStepping.python_steps``); during other law contacts the compiled
+        driver takes them and Python keeps the contacts' books on its step records afterwards.
 
     Raises
     ------

@@ -44,7 +44,7 @@ STEPPED_ROUNDOFF = 100 * SAMPLE_ROUNDOFF
 HEAVY_TOP_PROJECTION = ("sim.integrator=dopri5", "sim.formulation=projection", "sim.rtol=1e-5", "sim.atol=1e-7",
                         "sim.dt=0.01")
 #: Scenes with shipped adaptive settings whose runs the kernel covers, and a short t_end [s]: a few
-#: contact events each (flight, onset, law contact in Python, separation), or a swing.
+#: contact events each (flight, onset, law contact in the compiled driver, separation), or a swing.
 SCENES_T_END = {"pendulum_strikes_bar": 4e-4, "impact_bronze_ball": 4e-4, "impact_free_bar": 1.6e-4,
                 "bouncing_sphere": 0.08, "flexible_pendulum": 0.2, "ball_on_flexible_beam": 0.024}
 

@@ -13,7 +13,7 @@ tests/numerics/test_kernel_elements.py compares the two on a random system holdi
 element type.
 
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
-(adaptive runs: error control, dense output, event sign checks), ``projection`` (the
+(adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection`` (the
 ``projection`` formulation's post-step projections), ``sampling`` (output samples).
 """
 
