@@ -196,6 +196,24 @@ def test_stateful_friction_steps_in_python(monkeypatch, tmp_path):
     _assert_same_run((a[0], a[1], 1), b, SAMPLE_ROUNDOFF)
 
 
+#: Five samples per output frame of rolling_ball (dt 0.1 ms).
+FRAMES_OF_5 = ("sim.output_dt=5e-4",)
+
+
+def test_full_step_records(monkeypatch):
+    """Room for one step record per call (``STEP_RECORDS``): calls during the law contact stop at full
+    records (``FULL``, inside a frame: the good frames kept, their records redone) and the next
+    records twice as many; the run is the Python loop's."""
+    import importlib
+
+    with pytest.MonkeyPatch.context() as mp:  # (``viz3d.simulate`` the attribute is the function)
+        mp.setattr(importlib.import_module("viz3d.simulate"), "STEP_RECORDS", 1)
+        a = _run("rolling_ball", 0.05, True, ROLLING + FRAMES_OF_5, monkeypatch=monkeypatch)
+    b = _run("rolling_ball", 0.05, False, ROLLING + FRAMES_OF_5, monkeypatch=monkeypatch)
+    assert a[0]._capacity > 1
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
 def test_failed_contact_check_in_recorded_steps_is_diagnosed_as_in_python(monkeypatch):
     """A contact check that fails on a step the compiled driver took (the bouncing ball of
     tests/impact/test_contact_resolution.py without the step bound: the energy check): the same
