@@ -1,14 +1,15 @@
 """Adaptive runs (dopri5, dop853) through the compiled adaptive driver against the Python adaptive loop
 (issue 14): whole-run wall time and cost per accepted step, on shipped scenes (a benchmark, not a test).
 
-    python benchmarks/bench_adaptive.py [--repeat 3] [--out docs/bench_adaptive.md]
+    python benchmarks/bench_adaptive.py [--repeat 3] [--out docs/bench_adaptive.md] [--before /work/main]
 
 Every scene runs headless (``viz3d.simulate.run``: output frames and their checks included, the build
 of the system not) both ways, the two interleaved in each repeat so that both see the same load: with
 the compiled driver (``viz3d.kernel.adaptive``: the default), and with the Python adaptive loop it
 replaced (``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events,
-during law contacts and for systems the kernel does not cover), its right-hand side compiled as
-before. Wall time is the least of the repeats (the load of a shared machine only adds); an untimed
+with stateful friction and for systems the kernel does not cover), its right-hand side compiled as
+before. With ``--before`` (a checkout of an earlier viz3d), the compiled driver of that checkout
+too, and this checkout's, each in a fresh subprocess importing it (``PYTHONPATH``), interleaved likewise. Wall time is the least of the repeats (the load of a shared machine only adds); an untimed
 warm-up run of each first (numba's cache loads). Both runs must take the same steps (the table
 says so). Prints a Markdown table and writes it to ``--out``. Wall times of this machine under its
 load at the time (quoted): compare the ratios of one run, not machines.
@@ -18,8 +19,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
 import platform
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -38,6 +42,8 @@ SCENES = {
     "ball_on_flexible_beam": ("ball_on_flexible_beam", [], 0.12),
     "pendulum_strikes_bar": ("pendulum_strikes_bar", [], 1e-3),
     "impact_free_bar": ("impact_free_bar", [], 1.6e-4),
+    "impact_bronze_ball": ("impact_bronze_ball", [], 1e-3),
+    "bouncing_sphere": ("bouncing_sphere", [], 0.1),
 }
 
 
@@ -78,16 +84,29 @@ def one_run(label: str, python: bool) -> dict:
                 kernel_steps=sum(kernel_steps))
 
 
-def measure(repeat: int) -> dict:
-    """label -> {"kernel": best run, "python": best run}, interleaved repeats after a warm-up."""
+def checkout_run(label: str, checkout: Path) -> dict:
+    """``one_run(label, python=False)`` with the viz3d of ``checkout``, in a fresh subprocess (after an
+    untimed warm-up run there): a run in this process, which holds every scene's runs so far, is a
+    little slower on the scenes whose frames dominate (bouncing_sphere: 0.097 s against 0.063 s)."""
+    cache = os.environ.get("NUMBA_CACHE_DIR", "/tmp/nbc") + ("" if checkout == ROOT else "_before")
+    env = {**os.environ, "PYTHONPATH": str(checkout), "NUMBA_CACHE_DIR": cache}
+    out = subprocess.run([sys.executable, __file__, "--worker", label], env=env, check=True, capture_output=True,
+                         text=True, cwd=checkout)
+    return json.loads(out.stdout.splitlines()[-1])
+
+
+def measure(repeat: int, before: Path | None) -> dict:
+    """label -> {"kernel": best run, "python": best run[, "before": best run]}, interleaved repeats
+    after a warm-up."""
     best: dict = {}
+    ways = [("kernel", False), ("python", True)] + ([("after", ROOT), ("before", before)] if before else [])
     for label in SCENES:
         for python in (False, True):
             one_run(label, python)  # warm-up: numba's cache, scipy imports
     for r in range(repeat):
         for label in SCENES:
-            for way, python in (("kernel", False), ("python", True)):
-                res = one_run(label, python)
+            for way, python in ways:
+                res = one_run(label, python) if isinstance(python, bool) else checkout_run(label, python)
                 if way not in best.setdefault(label, {}) or res["wall"] < best[label][way]["wall"]:
                     best[label][way] = res
                 print(f"  repeat {r + 1}: {label:<26} {way:<6} {res['wall']:.3f} s  {res['steps']} steps", flush=True)
@@ -95,15 +114,24 @@ def measure(repeat: int) -> dict:
 
 
 def table(best: dict) -> str:
+    has_before = any("before" in ways for ways in best.values())
+    extra = ((" subprocess: compiled driver [s] | subprocess: before [s] | steps in the driver before "
+              "| speed-up over before |", "---|---|---|---|") if has_before else ("", ""))
     lines = ["| scene | steps (rejected) | evaluations | same steps | steps in the compiled driver | Python loop [s] "
-             "| compiled driver [s] | per step: Python [us] | per step: compiled [us] | speed-up |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| compiled driver [s] | per step: Python [us] | per step: compiled [us] | speed-up |" + extra[0],
+             "|---|---|---|---|---|---|---|---|---|---|" + extra[1]]
     for label, ways in best.items():
         k, p = ways["kernel"], ways["python"]
-        same = (k["steps"], k["rejected"], k["rhs"], k["status"]) == (p["steps"], p["rejected"], p["rhs"], p["status"])
-        lines.append(f"| {label} | {k['steps']} ({k['rejected']}) | {k['rhs']} | {'yes' if same else 'NO'} "
-                     f"| {100 * k['kernel_steps'] / k['steps']:.0f} % | {p['wall']:.3f} | {k['wall']:.3f} | {1e6 * p['wall'] / p['steps']:.0f} "
-                     f"| {1e6 * k['wall'] / k['steps']:.0f} | {p['wall'] / k['wall']:.2f}x |")
+        same = all((k["steps"], k["rejected"], k["rhs"], k["status"]) == (x["steps"], x["rejected"], x["rhs"], x["status"])
+                   for x in ways.values())
+        row = (f"| {label} | {k['steps']} ({k['rejected']}) | {k['rhs']} | {'yes' if same else 'NO'} "
+               f"| {100 * k['kernel_steps'] / k['steps']:.0f} % | {p['wall']:.3f} | {k['wall']:.3f} | {1e6 * p['wall'] / p['steps']:.0f} "
+               f"| {1e6 * k['wall'] / k['steps']:.0f} | {p['wall'] / k['wall']:.2f}x |")
+        if "before" in ways:
+            a, b = ways["after"], ways["before"]
+            row += (f" {a['wall']:.3f} | {b['wall']:.3f} | {100 * b['kernel_steps'] / b['steps']:.0f} % "
+                    f"| {b['wall'] / a['wall']:.2f}x |")
+        lines.append(row)
     return "\n".join(lines)
 
 
@@ -111,9 +139,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_adaptive.md")
+    ap.add_argument("--before", type=Path, help="a checkout of an earlier viz3d: its compiled driver too")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)  # (before_run's subprocess: one timed run as JSON)
     args = ap.parse_args()
+    if args.worker:
+        one_run(args.worker, False)
+        print(json.dumps(one_run(args.worker, False)))
+        return
     load0 = os.getloadavg()
-    best = measure(args.repeat)
+    best = measure(args.repeat, args.before)
     load1 = os.getloadavg()
     text = table(best)
     print(text)
@@ -123,11 +157,20 @@ def main() -> None:
               f"before {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f}, after {load1[0]:.1f} / {load1[1]:.1f} / "
               f"{load1[2]:.1f} (1 / 5 / 15 min). Simulated: "
               + ", ".join(f"{label} {t_end:g} s" for label, (_, _, t_end) in SCENES.items())
-              + ". Per step: wall time over accepted steps. The steps of law contacts (the impact scenes' "
-              "contact phases) and at contact events are the Python loop's in both columns (the compiled "
-              "driver's share of the steps is given).\n")
+              + ". Per step: wall time over accepted steps. The steps at contact events (and the one after "
+              "each) are the Python loop's in every column; the steps of law contacts the compiled driver's "
+              "since 18cf73e (the share of the steps in the driver is given)"
+              + (f"; subprocess columns: the compiled driver of this checkout (git {_commit(ROOT)}) and of "
+                 f"{args.before} (git {_commit(args.before)}), each run in a fresh process" if args.before else "")
+              + ".\n")
     args.out.write_text(header + "\n" + text + "\n")
     print(f"wrote {args.out}")
+
+
+def _commit(path: Path) -> str:
+    """The short commit of the checkout at ``path``."""
+    out = subprocess.run(["git", "-C", str(path), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    return out.stdout.strip() or "unknown"
 
 
 if __name__ == "__main__":

@@ -15,6 +15,14 @@ each contact was resolved.
   impulse of a kinematic contact and its activation while compressive, restitution impulses
   (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
   contact its target normal velocity while every joint keeps its velocity constraint.
+* **Who steps** (``ContactStepping.python_steps``, the one place that decides) adaptive runs with the
+  compiled driver (``viz3d.kernel.adaptive``): in flight and while kinematic contacts touch, the
+  driver (it checks the signs of the event functions); while law contacts touch, the driver too,
+  its steps bounded by ``step_bound`` and recorded, ``after_step`` run on the records after the call
+  (it keeps books and checks, and leaves the vector field alone) — unless a touching law contact has
+  stateful friction, whose stick anchors move between steps and change the force: Python. Locating
+  an event (brentq on the dense output), handling it and the step after it (its events start at a
+  root) are Python's.
 * **Checks** (``ContactStepping.after_step``, at separation): while a law contact lasts, the
   numerics create no more energy than the error estimates of its steps allow (and its indentation
   stores no more than the energy available since onset); a law contact separates with the surfaces
@@ -283,6 +291,16 @@ class ContactStepping:
         """True while a law contact touches (``after_step`` and ``step_bound`` may act then)."""
         return any(phase.touching and c.models[i] == "law"
                    for k, c in enumerate(self.system.contacts) for i, phase in enumerate(state.memory[k]))
+
+    def python_steps(self, state: State) -> str | None:
+        """Why the compiled adaptive driver cannot take the next step from ``state`` (the module
+        docstring's "who steps"), None when it can: a touching law contact with stateful friction."""
+        for k, c in enumerate(self.system.contacts):
+            for i, phase in enumerate(state.memory[k]):
+                law = c.friction[i]
+                if phase.touching and c.models[i] == "law" and law is not None and law.stateful:
+                    return f"{c.names[i]}: stick anchors move between steps"
+        return None
 
     def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
         """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``_gap_values``, or with

@@ -59,6 +59,9 @@ PROGRESS_AFTER = 2.0
 #: when its nutation comes within 30 deg (0.52 rad) of the singular one, and only between steps,
 #: so no step may turn the angles further than that.
 ADAPTIVE_MAX_TURN = 0.5
+#: Steps the compiled adaptive driver records in one call during a law contact (doubled whenever a
+#: frame needs more): their contact bookkeeping runs in Python after the call.
+STEP_RECORDS = 256
 
 
 class Simulation:
@@ -93,8 +96,10 @@ class Simulation:
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
         when it covers the system and formulation; the NumPy path otherwise (``kernel_note`` says
-        which, and why). Adaptive steps at contact events, during law contacts and with force
-        elements that remember are taken in Python.
+        which, and why). Adaptive steps at contact events (and the step after each), during law
+        contacts with stateful friction and with force elements that remember are taken in Python
+        (``viz3d.events.ContactStepping.python_steps``); during other law contacts the compiled
+        driver takes them and Python keeps the contacts' books on its step records afterwards.
 
     Raises
     ------
@@ -127,6 +132,8 @@ class Simulation:
         self._span = None       # adaptive: the last accepted step, for dense output
         self._h = None          # adaptive: next step to try [s]
         self._carry = None      # adaptive: the kernel's carry while the kernel owns the adaptive state (else None)
+        self._span_memory = None  # adaptive, kernel: the contacts' memory at the carry's last step's start (None: the inner's)
+        self._records, self._capacity = None, STEP_RECORDS  # adaptive, kernel: steps recorded during law contacts
         self._fields: list[VectorField] = []
         self._kernel, self.kernel_note = (_compiled(system, integrator, formulation) if compiled
                                           else (None, "NumPy path (compiled = false)"))
@@ -202,10 +209,18 @@ class Simulation:
     def step(self) -> State:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
         cannot go on."""
-        if self._adaptive_kernel_covers():
-            states = self._kernel_samples(1, 1)
-            if states:
-                return states[0]
+        while True:  # the compiled adaptive driver, and the Python loop where it stops, until the sample
+            if self._adaptive_kernel_covers():
+                states = self._kernel_samples(1, 1)
+                if states:
+                    return states[0]
+            new = self._python_step()
+            if new is not None:
+                return new
+
+    def _python_step(self) -> State | None:
+        """``step`` through the Python loop; None when it hands the rest of the sample back to the
+        compiled adaptive driver (after the steps at a contact event)."""
         self._to_python()
         target = self.t0 + (self.n_samples + 1) * self.dt
         check_chart(self.system, self._inner if self.controller is not None else self.state)
@@ -214,6 +229,8 @@ class Simulation:
                 new = self._own_step(target)
             elif self._contacts is not None:
                 new = self._event_steps(target)
+                if new is None:
+                    return None
             elif self.controller is None:
                 new = self._fixed_step(target)
             else:
@@ -351,16 +368,19 @@ class Simulation:
         self._f = None
         return y, chart, done, True
 
-    def _event_steps(self, target: float) -> State:
+    def _event_steps(self, target: float) -> State | None:
         """Steps to ``target`` with contact events located on each step (``viz3d.events``): fixed
         steps land on ``target`` (shortened by the contact step bound and by events), adaptive ones
-        are sampled there by dense output."""
+        are sampled there by dense output. None when the compiled adaptive driver may take the
+        next step (it takes the rest to ``target``)."""
         s = self._inner
         slack = 1e-12 * max(abs(target), self.dt)  # round-off of times, relative to the run's own scale
         end = target - slack
         while s.t < end and (self.controller is None or self._span is None or self._span.t1 < target):
             s = self._event_step(s, target)
             self._inner = s
+            if self._adaptive_kernel_covers() and self._adaptive_kernel_now():
+                return None
         if self.controller is None or abs(s.t - target) <= slack:
             return s.replace(t=target) if self.controller is None else s
         sample = self._span.sample(target)
@@ -382,7 +402,7 @@ class Simulation:
                     raise SimulationFailure(res.status.message)
                 solver, t1 = res.state, (target if h == target - s.t else s.t + h)
             else:
-                ctrl = self.controller if bound >= self.controller.max_step else replace(self.controller, max_step=bound)
+                ctrl = self._step_controller(s)
                 if self._h is None:
                     self._h = min(ctrl.first_step(rhs, s.t, s.y, f0, error_order(method)), self._turn_limit(f0))
                 acc = accepted_step(rhs, s.t, s.y, f0, min(self._h, ctrl.max_step), method, ctrl)
@@ -467,33 +487,40 @@ class Simulation:
 
     def _adaptive_kernel_now(self) -> bool:
         """The kernel may take the next samples: the last step was not cut at an event (its span is
-        an RK step's), and with contacts, no event was just handled and no law contact is under
-        way (Python checks those steps: ``ContactStepping.after_step``, ``step_bound``)."""
+        an RK step's), and with contacts, no event was just handled (the next step's events start
+        at a root) and ``ContactStepping.python_steps`` leaves the steps to the kernel."""
         if self._carry is not None:
             return True
         if self._span is not None and self._span.stages is None:
             return False
-        c, s = self._contacts, self._inner
-        return c is None or (self._fired is None and not c.law_contact_under_way(s) and c.step_bound(s) == np.inf)
+        c = self._contacts
+        return c is None or (self._fired is None and c.python_steps(self._inner) is None)
 
     def _kernel_samples(self, n_frames: int, every: int) -> list[State] | None:
         """Up to ``n_frames`` output states ``every`` samples apart, the adaptive steps and dense
-        output in one kernel call: the states, counters and chart switches of as many ``step``
-        calls. None when the kernel cannot take the next sample now; fewer states when it stopped
-        at a step that needs Python (an event, a failure: the Python path then redoes that step
-        from the same state and locates the event, or raises the diagnosis)."""
-        from viz3d.kernel import OK
-        from viz3d.kernel.adaptive import EVALS, REJECTED, STEPS
+        output in one kernel call: the states, counters, chart switches and contact memory of as
+        many ``step`` calls. None when the kernel cannot take the next sample now; fewer states when
+        it stopped at a step that needs Python (an event, a failure: the Python path then redoes
+        that step from the same state and locates the event, or raises the diagnosis), when its
+        step records were full, or before a recorded step whose contact check fails (the Python
+        path redoes that step and raises the diagnosis)."""
+        from viz3d.kernel import FULL, OK
+        from viz3d.kernel.adaptive import EVALS, REJECTED, STEPS, T
 
         if not self._adaptive_kernel_now():
             return None
+        like = self._inner
         try:
             carry = self._to_kernel()
-            start = carry.copy() if every > 1 else None
-            Ts, Y, charts, done, partial, status = self._adaptive_call(carry, n_frames, every)
-            if status != OK and partial and start is not None:  # stopped inside a frame: keep the good frames only
+            records = self._step_records()
+            start = carry.copy() if every > 1 or records is not None else None
+            Ts, Y, charts, done, partial, status = self._adaptive_call(carry, n_frames, every, records)
+            memories, failed = self._contact_steps(records, like)
+            keep = done if failed is None else self._frames_before(records, failed, float(start.times[T]), done, every)
+            if start is not None and (failed is not None or (status != OK and partial)):  # the good frames only
                 carry = start
-                Ts, Y, charts, done, partial, status = self._adaptive_call(carry, done, every)
+                Ts, Y, charts, done, partial, status = self._adaptive_call(carry, keep, every, records)
+                memories, _ = self._contact_steps(records, like)
         finally:
             self.n_rhs += sum(f.n_evals for f in self._fields)
             self._fields.clear()
@@ -502,22 +529,87 @@ class Simulation:
         self.n_steps += int(carry.counts[STEPS])
         self.n_rejected += int(carry.counts[REJECTED])
         self.chart_switches += carry.switches
-        like = self._inner
-        states = [_state_at(self.system, float(Ts[f]), Y[f], like.replace(chart=charts[f])) for f in range(done)]
+        if memories:
+            self._span_memory = memories[-2] if len(memories) > 1 else like.memory
+            self._inner = like.replace(memory=memories[-1])
+        elif carry.counts[STEPS]:
+            self._span_memory = None
+        states = [_state_at(self.system, float(Ts[f]), Y[f], like.replace(chart=charts[f], memory=self._memory_at(
+                  float(Ts[f]), records, memories, like.memory))) for f in range(done)]
         self.n_samples += done * every
         if states:
             self.state = states[-1]
-        if status != OK:
+        if status == FULL:
+            self._capacity *= 2  # the next call records more steps (its frame needs them)
+        elif status != OK or failed is not None:  # the Python loop takes the step (and raises its diagnosis)
             self._to_python()
         return states
 
-    def _adaptive_call(self, carry, n_frames: int, every: int) -> tuple:
-        """The kernel's ``adaptive`` call from ``carry`` (its counters zeroed first)."""
+    def _step_records(self):
+        """The kernel's step records (emptied) when a law contact acts at the inner state (its steps'
+        bookkeeping is ``ContactStepping.after_step``'s, after the call), else None."""
+        from viz3d.kernel import StepRecords
+
+        c = self._contacts
+        if c is None or not c.law_contact_under_way(self._inner):
+            return None
+        if self._records is None or self._records.capacity != self._capacity:
+            self._records = StepRecords.empty(self._capacity, self._inner.y.shape[0], self._inner.chart.shape[0])
+        self._records.n[0] = 0
+        return self._records
+
+    def _contact_steps(self, records, like: State) -> tuple[list[tuple], int | None]:
+        """``ContactStepping.after_step`` on each recorded step in order, as the Python loop runs it
+        after each step: the contacts' memory after each step, and the index of the first step whose
+        check fails (None when none does)."""
+        memories, memory = [], like.memory
+        for r in range(0 if records is None else int(records.n[0])):
+            state = _state_at(self.system, float(records.t[r]), records.y[r], like.replace(chart=records.chart[r],
+                                                                                         memory=memory))
+            try:
+                memory = self._contacts.after_step(state, records.err[r]).memory
+            except SimulationFailure:
+                return memories, r
+            memories.append(memory)
+        return memories, None
+
+    def _frames_before(self, records, r: int, t_call: float, done: int, every: int) -> int:
+        """How many of the ``done`` frames of a call started at ``t_call`` [s] the Python loop outputs
+        before it takes recorded step ``r`` (each frame's last sample at or before the step's start)."""
+        t_start = float(records.t[r - 1]) if r > 0 else t_call
+        keep = 0
+        for f in range(done):
+            target = self.t0 + (self.n_samples + (f + 1) * every) * self.dt
+            if target > t_start + 1e-12 * max(abs(target), self.dt):
+                break
+            keep += 1
+        return keep
+
+    @staticmethod
+    def _memory_at(t: float, records, memories: list[tuple], memory: tuple) -> tuple:
+        """The contacts' memory of a sample at ``t`` [s]: after the last recorded step ending by
+        ``t`` (``memory``, that at the call's start, before the first)."""
+        if not memories:
+            return memory
+        r = int(np.searchsorted(records.t[: len(memories)], t, side="right"))
+        return memories[r - 1] if r else memory
+
+    def _adaptive_call(self, carry, n_frames: int, every: int, records=None) -> tuple:
+        """The kernel's ``adaptive`` call from ``carry`` (its counters and ``records`` emptied first)."""
         carry.counts[:], carry.switches[:] = 0, 0
+        if records is not None:
+            records.n[0] = 0
         s, contacts = self._inner, self._contacts
         events = contacts.event_rows(s) if contacts is not None else ()
-        return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self.controller, events,
-                                     s.memory, contacts is not None, self.blowup_speed, ADAPTIVE_MAX_TURN)
+        return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self._step_controller(s),
+                                     events, s.memory, contacts is not None, self.blowup_speed, ADAPTIVE_MAX_TURN,
+                                     records)
+
+    def _step_controller(self, s: State) -> Controller:
+        """The controller of the adaptive steps from ``s``: ``max_step`` within the contacts' step
+        bound (``ContactStepping.step_bound``)."""
+        bound = self._contacts.step_bound(s) if self._contacts is not None else np.inf
+        return self.controller if bound >= self.controller.max_step else replace(self.controller, max_step=bound)
 
     def _to_kernel(self):
         """The adaptive state as the kernel's carry (the first step chosen here, as the Python path
@@ -531,8 +623,9 @@ class Simulation:
         if self._h is None:
             rhs = self._field(s.chart, s.memory, s.element_memory)
             self._f = rhs(s.t, s.y) if self._f is None else self._f
-            self._h = min(self.controller.first_step(rhs, s.t, s.y, self._f, error_order(self.integrator)),
+            self._h = min(self._step_controller(s).first_step(rhs, s.t, s.y, self._f, error_order(self.integrator)),
                           self._turn_limit(self._f))
+        self._span_memory = None if self._span is None else self._span.start.memory
         c = AdaptiveCarry.empty(s.y.shape[0], s.chart.shape[0], self.system.n_bodies, self._kernel.tableau)
         c.y[:], c.chart[:], c.times[T], c.times[H] = s.y, s.chart, s.t, self._h
         if self._f is not None:
@@ -561,7 +654,8 @@ class Simulation:
         if not c.flags[SPAN]:
             return
         t0, t1 = float(c.times[T0]), float(c.times[T1])
-        start = _state_at(system, t0, c.y0.copy(), like.replace(chart=c.chart0.copy()))
+        memory = like.memory if self._span_memory is None else self._span_memory
+        start = _state_at(system, t0, c.y0.copy(), like.replace(chart=c.chart0.copy(), memory=memory))
         stages, h = c.K[: len(self._kernel.tableau.b)].copy(), float(c.times[SPAN_H])
         rhs = self._field(start.chart, start.memory, start.element_memory)
         self._span = self._rk_span(rhs, start, t1, h, StepResult(None, f0=stages[0], stages=stages), c.f1.copy())

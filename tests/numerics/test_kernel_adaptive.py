@@ -1,7 +1,7 @@
 """The compiled adaptive driver (viz3d.kernel.adaptive) against the Python adaptive loop it replaces
-(``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events, law contacts
-and failures): the same accepted and rejected steps, evaluations, contact events, chart switches and
-diagnoses, and the same states to round-off.
+(``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events, during law
+contacts with stateful friction and at failures): the same accepted and rejected steps, evaluations,
+contact events, chart switches, contact memory and diagnoses, and the same states to round-off.
 
 The two paths run the same compiled stages, and the kernel adds the controller's error norm in
 numpy's order (``pairwise_sum``), so the steps agree to the last bit; only the dense output (a
@@ -9,6 +9,7 @@ polynomial of degree <= 7 summed in another order) and the NumPy projection and 
 Python path round differently.
 """
 
+import dataclasses
 import re
 
 import numpy as np
@@ -43,16 +44,18 @@ STEPPED_ROUNDOFF = 100 * SAMPLE_ROUNDOFF
 HEAVY_TOP_PROJECTION = ("sim.integrator=dopri5", "sim.formulation=projection", "sim.rtol=1e-5", "sim.atol=1e-7",
                         "sim.dt=0.01")
 #: Scenes with shipped adaptive settings whose runs the kernel covers, and a short t_end [s]: a few
-#: contact events each (flight, onset, law contact in Python, separation), or a swing.
+#: contact events each (flight, onset, law contact in the compiled driver, separation), or a swing.
 SCENES_T_END = {"pendulum_strikes_bar": 4e-4, "impact_bronze_ball": 4e-4, "impact_free_bar": 1.6e-4,
                 "bouncing_sphere": 0.08, "flexible_pendulum": 0.2, "ball_on_flexible_beam": 0.024}
 
 
-def _run(name: str, t_end: float, compiled_driver: bool, overrides=(), controller: Controller | None = None,
-         blowup_speed: float | None = None, monkeypatch=None):
+def _run(name, t_end: float, compiled_driver: bool, overrides=(), controller: Controller | None = None,
+         blowup_speed: float | None = None, monkeypatch=None, python_steps: list | None = None):
     """A headless run (``simulate.run``) through the compiled adaptive driver or the Python adaptive loop;
-    ``(sim, trajectory, kernel calls)``."""
-    scene = with_sim(viz3d.load_scene(SCENES / f"{name}.toml", list(overrides)), t_end=t_end)
+    ``(sim, trajectory, kernel calls)``; the steps the Python loop takes with contacts
+    (``Simulation._event_step``) counted into ``python_steps``. ``name``: a shipped scene or a path."""
+    path = name if not isinstance(name, str) else SCENES / f"{name}.toml"
+    scene = with_sim(viz3d.load_scene(path, list(overrides)), t_end=t_end)
     system, state = viz3d.build(scene)
     cfg = scene.data["sim"]
     sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"],
@@ -60,6 +63,9 @@ def _run(name: str, t_end: float, compiled_driver: bool, overrides=(), controlle
     calls = []
     adaptive = KernelStepper.adaptive
     monkeypatch.setattr(KernelStepper, "adaptive", lambda self, *a, **k: calls.append(1) or adaptive(self, *a, **k))
+    event_step = Simulation._event_step
+    counted = python_steps if python_steps is not None else []
+    monkeypatch.setattr(Simulation, "_event_step", lambda self, *a: counted.append(1) or event_step(self, *a))
     if not compiled_driver:
         monkeypatch.setattr(Simulation, "_adaptive_kernel_covers", lambda self: False)
     traj = run(sim, scene)
@@ -86,18 +92,43 @@ def _assert_same_run(a, b, tol_factor):
         assert kinds[0] == kinds[1], "mismatch: events"
         t_a, t_b = np.array([t for t, _ in sa.contacts.log]), np.array([t for t, _ in sb.contacts.log])
         np.testing.assert_allclose(t_a, t_b, rtol=tol_factor, atol=0, err_msg="mismatch: event times")
+        _assert_same_memory(sa, sb, tol_factor)
+
+
+def _assert_same_memory(sa, sb, tol_factor):
+    """The contacts' memory at the last accepted step: phases, law memory and onset records alike, the
+    counts exactly, the sums over the contact's steps (error estimates of ``alpha_dot``, energy the
+    numerics may have created, the balance after the last step) to round-off of the largest."""
+    for sim in (sa, sb):
+        sim._to_python()
+    for phases_a, phases_b in zip(sa._inner.memory, sb._inner.memory, strict=True):
+        for pa, pb in zip(phases_a, phases_b, strict=True):
+            assert (pa.touching, pa.touches, pa.anchor is None) == (pb.touching, pb.touches, pb.anchor is None), \
+                "mismatch: contact phase"
+            assert (pa.onset is None) == (pb.onset is None), "mismatch: onset"
+            if pa.onset is None:
+                continue
+            a, b = dataclasses.asdict(pa.onset), dataclasses.asdict(pb.onset)
+            assert a["n_steps"] == b["n_steps"] and a["number"] == b["number"], "mismatch: steps of the contact"
+            for key in ("velocity_error", "energy_error", "balance_now"):
+                bound = tol_factor * max(abs(b[key]), abs(b["energy"]), EPS)
+                assert abs(a[key] - b[key]) <= bound, f"mismatch: onset.{key}: {a[key]!r} vs {b[key]!r}"
 
 
 @pytest.mark.parametrize("name", sorted(SCENES_T_END))
 def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
-    """Each shipped adaptive scene the kernel covers: the same steps, rejections, evaluations, events
-    and states to round-off, with and without the compiled driver."""
-    a = _run(name, SCENES_T_END[name], True, monkeypatch=monkeypatch)
+    """Each shipped adaptive scene the kernel covers: the same steps, rejections, evaluations, events,
+    contact memory and states to round-off, with and without the compiled driver; the compiled
+    driver takes the steps of the law contacts (Python only those at events and right after)."""
+    python_steps = []
+    a = _run(name, SCENES_T_END[name], True, monkeypatch=monkeypatch, python_steps=python_steps)
     b = _run(name, SCENES_T_END[name], False, monkeypatch=monkeypatch)
     if name == "flexible_pendulum":
         assert a[0].n_rejected > 0  # the controller has rejections to reproduce
     else:
         assert len(b[0].contacts.log) >= 2  # contact events, located by the Python loop both ways
+        # each event: the step cut at it and the next one (its events start at a root)
+        assert len(python_steps) <= 2 * len(b[0].contacts.log), f"{len(python_steps)} steps in Python"
     # the scenes' default formulation projects after every step (a no-op without constraint rows)
     _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
 
@@ -109,7 +140,9 @@ def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
     ("flexible_pendulum", 0.2, ("sim.formulation=baumgarte",), SAMPLE_ROUNDOFF),
     # Euler parameters, normalised after each step and at each sample (NumPy and compiled round apart)
     ("flexible_pendulum", 0.2, ("sim.rotation=quaternion", "sim.formulation=index1"), STEPPED_ROUNDOFF),
-    ("heavy_top", 1.0, HEAVY_TOP_PROJECTION + ("sim.rotation=quaternion",), STEPPED_ROUNDOFF)])
+    ("heavy_top", 1.0, HEAVY_TOP_PROJECTION + ("sim.rotation=quaternion",), STEPPED_ROUNDOFF),
+    # a loose tolerance: the law contact's step bound (ContactStepping.step_bound) sets its steps
+    ("bouncing_sphere", 0.08, ("sim.rtol=1e-3",), SAMPLE_ROUNDOFF)])
 def test_compiled_adaptive_methods_and_formulations(name, t_end, overrides, tol, monkeypatch):
     """DOP853 (its continuous extension costs three evaluations per sampled step), the projection
     formulation (projected after every step and at every sample: the flexible pendulum's pin is
@@ -130,6 +163,74 @@ def _inner_violation(sim) -> float:
     sim._to_python()
     s = sim._inner
     return float(np.abs(sim._kernel.solved_rows(s.t, s.y, s.chart, s.memory)[1]).max())
+
+
+#: rolling_ball on an adaptive method: a linear law contact from the start, regularised Coulomb friction
+#: (no memory), the step bound of the law contact.
+ROLLING = ("sim.integrator=dopri5", "sim.rtol=1e-6")
+
+
+def test_law_contact_with_friction_in_the_compiled_driver(monkeypatch):
+    """A rolling ball in contact throughout: every step in the compiled driver, its contact's books
+    (steps, error sums) kept from the recorded steps as the Python loop keeps them after each step."""
+    python_steps = []
+    a = _run("rolling_ball", 0.05, True, ROLLING, monkeypatch=monkeypatch, python_steps=python_steps)
+    b = _run("rolling_ball", 0.05, False, ROLLING, monkeypatch=monkeypatch)
+    assert not python_steps and b[0].n_steps > 100
+    assert b[0]._inner.memory[0][0].onset.n_steps == b[0].n_steps  # every step counted in the contact
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+def test_stateful_friction_steps_in_python(monkeypatch, tmp_path):
+    """Bristle friction moves its stick anchors between steps (``ContactStepping._replant``), which
+    changes the force: those steps stay in the Python loop (``ContactStepping.python_steps``)."""
+    text = (SCENES / "rolling_ball.toml").read_text()
+    path = tmp_path / "bristle_ball.toml"
+    path.write_text(text.replace('friction = "coulomb"', 'friction = "bristle"\nmu_static = 0.6\nstick_speed = 1e-3\n'
+                                                          'stick_stiffness = 1e4\nstick_damping = 200'))
+    python_steps = []
+    a = _run(path, 0.02, True, ROLLING, monkeypatch=monkeypatch, python_steps=python_steps)
+    b = _run(path, 0.02, False, ROLLING, monkeypatch=monkeypatch)
+    assert a[0]._inner.memory[0][0].anchor is not None and a[2] == 0  # in contact throughout: no kernel call
+    assert len(python_steps) == b[0].n_steps
+    _assert_same_run((a[0], a[1], 1), b, SAMPLE_ROUNDOFF)
+
+
+#: Five samples per output frame of rolling_ball (dt 0.1 ms).
+FRAMES_OF_5 = ("sim.output_dt=5e-4",)
+
+
+def test_full_step_records(monkeypatch):
+    """Room for one step record per call (``STEP_RECORDS``): calls during the law contact stop at full
+    records (``FULL``, inside a frame: the good frames kept, their records redone) and the next
+    records twice as many; the run is the Python loop's."""
+    import importlib
+
+    with pytest.MonkeyPatch.context() as mp:  # (``viz3d.simulate`` the attribute is the function)
+        mp.setattr(importlib.import_module("viz3d.simulate"), "STEP_RECORDS", 1)
+        a = _run("rolling_ball", 0.05, True, ROLLING + FRAMES_OF_5, monkeypatch=monkeypatch)
+    b = _run("rolling_ball", 0.05, False, ROLLING + FRAMES_OF_5, monkeypatch=monkeypatch)
+    assert a[0]._capacity > 1
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+def test_failed_contact_check_in_recorded_steps_is_diagnosed_as_in_python(monkeypatch):
+    """A contact check that fails on a step the compiled driver took (the bouncing ball of
+    tests/impact/test_contact_resolution.py without the step bound: the energy check): the same
+    diagnosis, after the same frames and steps, as the Python loop's."""
+    from viz3d.events import ContactStepping
+
+    coarse = ("sim.rtol=1e-3", "sim.output_dt=2e-5")  # (at 1e-1 the check fails on the step after onset: Python's)
+    python_steps = []
+    with pytest.MonkeyPatch.context() as mp:  # (``_run`` undoes its own ``monkeypatch`` after each run)
+        mp.setattr(ContactStepping, "step_bound", lambda self, state: np.inf)
+        mp.setattr(ContactStepping, "_restitution_check", lambda self, *a, **k: None)
+        a = _run("bouncing_sphere", 0.4, True, coarse, monkeypatch=monkeypatch, python_steps=python_steps)
+        b = _run("bouncing_sphere", 0.4, False, coarse, monkeypatch=monkeypatch)
+    assert "created by the integration" in b[1].status
+    assert len(python_steps) < b[0].n_steps
+    _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+    assert len(a[1].t) == len(b[1].t), "mismatch: frames kept"
 
 
 def test_events_inside_output_frames(monkeypatch):

@@ -13,8 +13,8 @@ tests/numerics/test_kernel_elements.py compares the two on a random system holdi
 element type.
 
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
-(adaptive runs: error control, dense output, event sign checks), ``projection`` (the
-``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
+(adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection``
+(the ``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
 trial points and band matrices: ``viz3d.ali3p``'s compiled path).
 """
 
@@ -33,12 +33,13 @@ except ImportError:  # pragma: no cover - no numba, or a numba without it: _entr
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.projection import project_state
-from viz3d.kernel.adaptive import EVENT, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, adaptive_frames
+from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, adaptive_frames
 from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
-__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "KernelData", "kernel_for", "kernel_coverage",
-           "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper", "AdaptiveCarry"]
+__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "KernelData",
+           "kernel_for", "kernel_coverage", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
+           "AdaptiveCarry", "StepRecords"]
 
 
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
@@ -154,6 +155,34 @@ class AdaptiveCarry(NamedTuple):
 
     def copy(self) -> "AdaptiveCarry":
         return AdaptiveCarry(*(a.copy() for a in self))
+
+
+class StepRecords(NamedTuple):
+    """The accepted steps of an adaptive call while a law contact acts (``viz3d.kernel.adaptive``'s
+    step records), for the contacts' bookkeeping in Python; ``n[0]`` of the ``capacity`` rows used.
+
+    t : (R,) [s]
+        End time of each step.
+    y, err : (R, n)
+        The settled state at its end and the step's error estimate.
+    chart : (R, nf, 3, 3)
+    n : (1,) int64
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    chart: np.ndarray
+    err: np.ndarray
+    n: np.ndarray
+
+    @classmethod
+    def empty(cls, capacity: int, n: int, n_frames: int) -> "StepRecords":
+        z = np.zeros
+        return cls(z(capacity), z((capacity, n)), z((capacity, n_frames, 3, 3)), z((capacity, n)), z(1, np.int64))
+
+    @property
+    def capacity(self) -> int:
+        return self.t.shape[0]
 
 
 #: Event kinds of ``viz3d.events.EventRow`` as the compiled driver numbers them.
@@ -361,11 +390,13 @@ class KernelStepper:
 
     def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,
                  controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,
-                 max_turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, int]:
+                 max_turn: float, records: StepRecords | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, int]:
         """Up to ``n_frames`` output frames of an adaptive run, ``every`` samples ``dt`` apart, the
         first after sample ``n0`` of a run started at ``t_start`` [s], advancing ``carry`` in place
         (``viz3d.kernel.adaptive.adaptive_frames``) under ``controller`` (``adaptive.Controller``),
-        with the contacts' ``events`` (``viz3d.events.EventRow``) and memory ``memory``. Returns
+        with the contacts' ``events`` (``viz3d.events.EventRow``) and memory ``memory``, each accepted
+        step into ``records`` when given (from ``records.n[0]`` on). Returns
         ``(Ts, Y, charts, frames done, samples done in the next frame, status)``, the first three
         over the frames done: times (N,) [s], states (N, n), charts (N, nf, 3, 3)."""
         d, tab = self.data, self.tableau
@@ -380,9 +411,12 @@ class KernelStepper:
         scratch = (z(n), z(n), z(n), z(n), z((nf, 3, 3)), np.zeros(carry.switches.shape[0], np.int64),
                    z((d.n_contacts, 11)), z(len(events)), z(len(events)))
         Ts, Y, charts = z(n_frames), z((n_frames, n)), z((n_frames, nf, 3, 3))
+        record = records is not None
+        records = records if record else StepRecords.empty(0, n, nf)
         done, partial, status = self._call(
             adaptive_frames, n_frames, every, n0, t_start, dt, int(contact_mode), max_speed, max_turn,
-            *self._method[1], kind, index, floor, direction, d.model, self.view(memory), self.ws[1], d.forces,
+            *self._method[1], kind, index, floor, direction, int(record), *records, d.model, self.view(memory),
+            self.ws[1], d.forces,
             d.rows, d.geometry, *carry, self._k, *scratch, Y, charts, Ts)
         return Ts[:done], Y[:done], charts[:done], done, partial, status
 

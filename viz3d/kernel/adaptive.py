@@ -9,7 +9,11 @@ A call stops *before committing* whatever needs Python, which then redoes it fro
 (the kernel is deterministic) exactly as on a run without the kernel: an event function of the
 contacts changing sign over a step (``EVENT``: Python locates and handles the event), a failed
 evaluation, projection or health check, a step below ``min_step`` (``UNDERFLOW``): Python writes
-the diagnosis.
+the diagnosis. While a law contact acts (``record``), each accepted step's end time, settled state,
+chart and error estimate go to the step records (``rec_t`` (R,), ``rec_y`` (R, n), ``rec_chart``
+(R, nf, 3, 3), ``rec_err`` (R, n), ``n_rec`` (1,)), from which Python brings the contacts' memory
+up to date after the call (``viz3d.events.ContactStepping.after_step``: bookkeeping and checks that
+do not change the vector field); a call whose records are full stops before the next step (``FULL``).
 
 The carry (arrays updated in place, see ``viz3d.kernel.KernelStepper.adaptive``):
 
@@ -33,8 +37,9 @@ from viz3d.kernel.projection import project
 from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
 
 #: Status codes beyond ``viz3d.kernel.field``'s: an event function changed sign over the step
-#: about to be committed; the controller asked for a step below ``min_step``.
-EVENT, UNDERFLOW = 6, 7
+#: about to be committed; the controller asked for a step below ``min_step``; the step records are
+#: full (the next step needs a record).
+EVENT, UNDERFLOW, FULL = 6, 7, 8
 #: Indices of ``times``, ``flags`` and ``counts``.
 T, H, T0, T1, SPAN_H = 0, 1, 2, 3, 4
 HAS_F, SPAN, DENSE = 0, 1, 2
@@ -231,7 +236,8 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
 
 @entry
 def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal,
-                    P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry,
+                    P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
+                    rec_err, n_rec, m, v, w, forces, rows, geometry,
                     y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1,
                     k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, Y, charts, Ts):
     """Up to ``n_frames`` output frames, ``every`` samples apart, of an adaptive run (the carry in
@@ -239,7 +245,8 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
     here is ``n0 + 1``. Frame ``f``'s time, state and chart go to ``Ts[f]``, ``Y[f]``,
     ``charts[f]``. ``contact_mode``: the sampling of a run with contacts (``Simulation._event_steps``:
     no projection or check of samples, the inner state itself within round-off of the output time)
-    and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``.
+    and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``; with
+    ``record`` every accepted step goes to the step records (module docstring).
 
     Returns (frames done, samples done in the next frame, status); on a status other than ``OK``
     nothing of the step or sample that stopped the call is committed."""
@@ -254,12 +261,16 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
                     break
                 if contact_mode and times[T] >= target - slack:
                     break
+                if record and n_rec[0] == rec_t.shape[0]:
+                    return frame, sample, FULL
                 status = _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
                                       ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f,
                                       times, flags, counts, switches, y0, chart0, K, f1, k, yi, y1, err, chart1,
                                       sw, gap_out, g0, g1)
                 if status != OK:
                     return frame, sample, status
+                if record:
+                    _record(times[T], y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec)
             if contact_mode and abs(times[T] - target) <= slack:
                 t_s = times[T]
                 _copy(ys, y)
@@ -275,6 +286,17 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
         _copy(Y[frame], ys)
         _copy_chart(charts[frame], chart1)
     return n_frames, every, OK
+
+
+@jit
+def _record(t, y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec):
+    """The step just committed (end time, settled state and chart, error estimate) as the next record."""
+    r = n_rec[0]
+    rec_t[r] = t
+    _copy(rec_y[r], y)
+    _copy(rec_err[r], err)
+    _copy_chart(rec_chart[r], chart)
+    n_rec[0] = r + 1
 
 
 @jit
