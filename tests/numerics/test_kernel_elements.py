@@ -26,7 +26,7 @@ from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
-from viz3d.formulation import Baumgarte, Index1, Penalty, Projection
+from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.joints import JOINTS, FramedJoint
 from viz3d.kernel.model import FORMULATIONS
 from viz3d.system import System
@@ -219,7 +219,10 @@ def test_the_system_exercises_every_piece(setup):
                          ids=lambda f: f.name)
 def test_compiled_equals_numpy_right_hand_side(setup, formulation):
     system, state = setup
-    assert set(FORMULATIONS) == {"index1", "baumgarte", "penalty", "projection"}
+    assert set(FORMULATIONS) == {"index1", "baumgarte", "penalty", "projection", "ali3p"}
+    # ALI3-P steps itself (tests/numerics/test_kernel_ali3p.py, on systems it covers: no flexible bodies or
+    # contacts, which this one has); the field of its output frames is index-1's
+    assert FORMULATIONS["ali3p"](ALI3P()) == FORMULATIONS["index1"](Index1())
     data = K.kernel_for(system, formulation)
     rhs = VectorField(system, formulation, state.chart, state.memory)
     for t in TIMES:
