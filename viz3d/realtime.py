@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.columns import FrameColumns
+from viz3d.columns import FrameColumns, chunk_frames
 from viz3d.diagnosis import RunComplete, SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals
@@ -34,6 +34,7 @@ from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.scene.visuals import flexible_drawings, live_plots, scene_visuals
 from viz3d.simulate import Simulation, run_checks
+from viz3d.sink import frame_due
 
 #: Frames published per second of wall time [Hz].
 DISPLAY_RATE = 60.0
@@ -75,6 +76,7 @@ class Driver:
                               cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
         self._check = run_checks(self.sim, self.scene)[0]
         self._drawings = flexible_drawings(self.scene, self.system)
+        self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s]
         self.settings = settings
 
     @property
@@ -90,24 +92,29 @@ class Driver:
         return self.scene.data["sim"]["t_end"]
 
     def advance(self, t_target: float, deadline: float, commands: queue.Queue) -> None:
-        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; full-rate
-        sinks get every step and every contact event."""
-        full = [s for s in self.sinks if s.full_rate]
+        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; sinks with a
+        ``frame_dt`` get a frame whenever it has passed (``viz3d.sink.frame_due``) and every contact
+        event's."""
+        sinks = [s for s in self.sinks if s.frame_dt is not None]
         while self.sim.state.t < t_target and time.perf_counter() < deadline and commands.empty():
             self.sim.step()
             events = self.sim.drain_events(self.sim.state.t)
-            for frame in [self._frame(e) for e in events] + [self.frame()] if full else []:
-                for s in full:
-                    s.log(frame)
+            due = [s for s in sinks if frame_due(s, self.sim.state.t, self._last_t.get(id(s), -np.inf))]
+            if not (due or events):
+                continue
+            states = events + [self.sim.state]
+            _, frame_at = chunk_frames(self.sim, states, self._drawings)
+            for i, state in enumerate(states):
+                for s in due if i == len(events) else sinks:
+                    self._last_t[id(s)] = state.t
+                    s.log(frame_at(i))
 
     def step_once(self) -> None:
         self.advance(self.t + 0.5 * self.sim.dt, math.inf, queue.Queue())
 
-    def _frame(self, state) -> Frame:
-        return self.sim.frame(state, self._drawings)
-
     def frame(self) -> Frame:
-        return self._frame(self.sim.state)
+        """The current state's frame (``viz3d.columns.chunk_frames``)."""
+        return chunk_frames(self.sim, [self.sim.state], self._drawings)[1](0)
 
     def check(self, frame: Frame) -> None:
         """The run's frame checks (``viz3d.simulate.run_checks``) on a frame of the current state:

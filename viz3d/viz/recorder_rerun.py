@@ -11,7 +11,7 @@ Layout of the recording (timeline ``sim_time``, a duration in seconds; no ``log_
   at display rate;
 * ``/plots/energy/{kinetic,potential,total}``, ``/plots/constraint_violation``,
   ``/plots/reaction_force/<joint>`` (3 components) and ``/plots/<name>`` for extra frame scalars,
-  at full rate, buffered and written with the columnar API;
+  every ``plot_dt`` (default: every step), buffered and written with the columnar API;
 * ``/events``: text log (final status, contact events).
 
 The default blueprint (3D view beside the plots) is embedded. The recording is made with the
@@ -29,7 +29,7 @@ from viz3d.frames import Frame, SceneVisuals
 from viz3d.rotations import quat_from_matrix
 from viz3d.viz.colors import StressColors
 
-#: Buffered full-rate samples are written to the file (as columns) every this many frames: a
+#: Buffered plot samples are written to the file (as columns) every this many frames: a
 #: 50-link chain's frame holds about 10 kB, so the buffer stays near 20 MB.
 FLUSH_EVERY = 2_000
 APPLICATION_ID = "viz3d"
@@ -49,10 +49,9 @@ class RerunRecorder:
         ``.rrd`` file to create (parent directories are created).
     display_dt : float, optional
         Simulated time between pose/geometry logs [s]; default the scene's ``display_dt``
-        (1/30 s for rigid scenes, ``[display] frame_dt`` for impacts). Plots get every frame.
+        (1/30 s for rigid scenes, ``[display] frame_dt`` for impacts). Plots get every frame it is
+        handed, at most one per ``plot_dt`` (``frame_dt`` asks the run for those frames).
     """
-
-    full_rate = True
 
     def __init__(self, path: str | Path, display_dt: float | None = None, recording_id: str | None = None):
         self.path = Path(path)
@@ -67,6 +66,13 @@ class RerunRecorder:
         self._poses: list = []               # (t, W_r, xyzw) not yet sent
 
     # ------------------------------------------------------------------ Sink protocol
+
+    @property
+    def frame_dt(self) -> float:
+        """The frames it needs [s]: every plot sample (``plot_dt``, 0: every step) and pose
+        (``display_dt``); of the frames it gets, it draws those ``display_dt`` apart."""
+        plot_dt = self.visuals.plot_dt
+        return min(plot_dt, self.display_dt) if plot_dt > 0 else 0.0
 
     def open(self, visuals: SceneVisuals) -> None:
         import rerun as rr
