@@ -1,23 +1,26 @@
 """What an output frame costs, with and without sinks, before and after a change (a benchmark, not a
 test).
 
-    python benchmarks/bench_frames.py [--t-end 1.0] [--repeat 3] [--before /work/main] [--out docs/bench_frames.md]
+    python benchmarks/bench_frames.py [--t-end 0.5,1.5] [--repeat 3] [--before /work/main] [--out docs/bench_frames.md]
 
 Scenes: ``heavy_top`` (dt 1e-3) and ``chain`` at 10 and 50 links (dt 5e-4, ``--set chain.n=N``
-as bench_methods builds them), each ``--t-end`` of simulated time, frames every ``sim.output_dt``
-(10 ms). Runs:
+as bench_methods builds them). Runs:
 
 * ``steps``: the steps alone (``Simulation.steps`` through the compiled kernel, no frame);
-* ``headless``: ``viz3d.simulate`` without sinks (the trajectory's frames);
-* ``NullSink``: with a ``NullSink`` (a frame at each output instant, not read);
+* ``headless``: ``viz3d.simulate`` without sinks, ``sim.output_dt = sim.dt`` (the trajectory's
+  frames, one per step: enough of them to measure);
+* ``NullSink``: the same with a ``NullSink`` (it gets the frame of each output instant, unread);
 * ``recorder``: with a ``RerunRecorder`` at its defaults (plot samples every step, poses every
   ``display_dt``), to a temporary ``.rrd``.
 
 Each is timed as process CPU time (the rerun SDK's writer thread included), the best of
-``--repeat`` after a warm-up run. Cost per frame = (run - steps) / frames delivered, where frames
-are the trajectory's output instants (headless, NullSink) or every frame handed to the recorder
-(one per step and per contact event); it includes the sink's own work. It is also expressed in
-kernel steps (the ``steps`` row's cost per step, of the same code). With ``--before DIR`` the same
+``--repeat`` after a warm-up run, at two lengths ``--t-end T1,T2``: the difference is what the
+extra ``T2 - T1`` of simulated time costs, free of every fixed cost (loading, building, the
+sinks' geometry, opening and closing the file). Cost per frame = (that difference - the steps'
+difference) / the frames' difference, where frames are the trajectory's output instants
+(headless, NullSink) or the frames handed to the recorder (one per step); it includes the sink's
+own work. It is also expressed in kernel steps (the ``steps`` row's cost per step, of the same
+code). With ``--before DIR`` the same
 measurements run in a subprocess on the code in DIR (``PYTHONPATH=DIR``), so old and new are
 measured in one run under the same load. Prints a Markdown table and writes it to ``--out``.
 """
@@ -83,33 +86,37 @@ def _run(path: Path, overrides: list[str], t_end: float, kind: str, tmp: Path) -
     from viz3d.viz.recorder_rerun import RerunRecorder
 
     sinks = {"headless": [], "NullSink": [NullSink()], "recorder": [_Counting(RerunRecorder(tmp / "b.rrd"))]}[kind]
+    if kind != "recorder":  # an output frame every step, as the recorder's (a measurable number of frames)
+        overrides = overrides + [f"sim.output_dt={viz3d.load_scene(path, overrides).data['sim']['dt']!r}"]
     out = {}
     cpu = _cpu(lambda: out.setdefault("traj", viz3d.simulate(path, overrides, t_end=t_end, sinks=sinks)))
     assert out["traj"].status == "ok", out["traj"].status
     return cpu, sinks[0].n if kind == "recorder" else len(out["traj"].t)
 
 
-def measure(t_end: float, repeat: int) -> dict:
-    """{scene: {run: (cpu seconds, frames or steps)}} of the code on ``sys.path``."""
+def measure(t_ends: list[float], repeat: int) -> dict:
+    """{scene: {run: [(cpu seconds, frames or steps) at each of t_ends]}} of the code on ``sys.path``."""
     res = {}
     with tempfile.TemporaryDirectory() as tmp:
         for label, name, over in SCENES:
             path = ROOT / "scenes" / name
             row = {}
             for kind in RUNS:
-                go = (lambda: _steps(path, over, t_end)) if kind == "steps" else (
-                    lambda: _run(path, over, t_end, kind, Path(tmp)))
-                go()  # warm-up (compiled kernels, caches)
-                row[kind] = min((go() for _ in range(repeat)), key=lambda x: x[0])
-                print(f"  {label:>10} {kind:<9} {row[kind][0]:.3f} s CPU, {row[kind][1]} frames/steps",
-                      file=sys.stderr, flush=True)
+                row[kind] = []
+                for t_end in t_ends:
+                    go = (lambda: _steps(path, over, t_end)) if kind == "steps" else (
+                        lambda: _run(path, over, t_end, kind, Path(tmp)))
+                    go()  # warm-up (compiled kernels, caches)
+                    row[kind].append(min((go() for _ in range(repeat)), key=lambda x: x[0]))
+                    print(f"  {label:>10} {kind:<9} t_end {t_end:g}: {row[kind][-1][0]:.3f} s CPU, "
+                          f"{row[kind][-1][1]} frames/steps", file=sys.stderr, flush=True)
             res[label] = row
     return res
 
 
-def _measure_in(code: Path, t_end: float, repeat: int) -> dict:
+def _measure_in(code: Path, t_ends: str, repeat: int) -> dict:
     env = {**os.environ, "PYTHONPATH": str(code)}
-    proc = subprocess.run([sys.executable, __file__, "--measure-only", "--t-end", str(t_end), "--repeat", str(repeat)],
+    proc = subprocess.run([sys.executable, __file__, "--measure-only", "--t-end", t_ends, "--repeat", str(repeat)],
                           env=env, capture_output=True, text=True, cwd=code)
     if proc.returncode:
         raise SystemExit(f"measuring {code} failed:\n{proc.stderr}")
@@ -117,31 +124,31 @@ def _measure_in(code: Path, t_end: float, repeat: int) -> dict:
 
 
 def table(results: dict[str, dict]) -> str:
-    lines = ["| scene | code | step [µs] | run | frames | run CPU [s] | µs per frame | kernel steps per frame |",
+    lines = ["| scene | code | step [µs] | run | frames | CPU of the extra time [s] | µs per frame | kernel steps per frame |",
              "|---|---|---|---|---|---|---|---|"]
     for label, *_ in SCENES:
         for code, res in results.items():
             row = res[label]
-            steps_cpu, n_steps = row["steps"]
-            step = steps_cpu / n_steps
+            (s1, n1), (s2, n2) = row["steps"]
+            step = (s2 - s1) / (n2 - n1)
             for kind in RUNS[1:]:
-                cpu, frames = row[kind]
-                per = (cpu - steps_cpu) / frames
-                lines.append(f"| {label} | {code} | {1e6 * step:.1f} | {kind} | {frames} | {cpu:.3f} | {1e6 * per:.1f} | "
+                (c1, f1), (c2, f2) = row[kind]
+                per = ((c2 - c1) - step * (n2 - n1)) / (f2 - f1)
+                lines.append(f"| {label} | {code} | {1e6 * step:.1f} | {kind} | {f2 - f1} | {c2 - c1:.3f} | {1e6 * per:.1f} | "
                              f"{per / step:.2f} |")
     return "\n".join(lines)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--t-end", type=float, default=1.0)
+    ap.add_argument("--t-end", default="0.5,1.5", help="two run lengths T1,T2 [s]")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--before", type=Path, help="measure the code in this directory too (as 'before')")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_frames.md")
     ap.add_argument("--measure-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.measure_only:
-        print(json.dumps(measure(args.t_end, args.repeat)))
+        print(json.dumps(measure([float(x) for x in args.t_end.split(",")], args.repeat)))
         return
     results = {}
     if args.before is not None:
@@ -149,11 +156,12 @@ def main() -> None:
     results["after" if args.before is not None else "this"] = _measure_in(ROOT, args.t_end, args.repeat)
     load = os.getloadavg()
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    head = (f"Generated by `python benchmarks/bench_frames.py --t-end {args.t_end:g}"
+    head = (f"Generated by `python benchmarks/bench_frames.py --t-end {args.t_end}"
             f"{' --before ' + str(args.before) if args.before else ''}` on {when}, load average "
             f"{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min; 2 cores). CPU time per run, best of "
-            f"{args.repeat}; per frame = (run - steps) / frames; 'kernel steps per frame' divides by the step "
-            "cost measured in the same run of the same code.\n\n")
+            f"{args.repeat}, at two lengths; per frame = (CPU difference - steps' difference) / frames' difference "
+            "(no fixed cost); 'kernel steps per frame' divides by the step cost measured in the same run of the "
+            "same code.\n\n")
     text = table(results)
     print(text)
     args.out.write_text(head + text + "\n")

@@ -55,6 +55,30 @@ def test_a_recording_at_every_step_holds_the_trajectory_at_its_output_instants(t
     np.testing.assert_array_equal(F[k], traj.reaction_force[:, 0])
 
 
+def test_joints_and_reactions_are_recorded_at_the_poses(tmp_path):
+    """Joint points and reaction arrows (sent as columns with the body poses) are the drawn frames'."""
+    path, frames = tmp_path / "dp.rrd", []
+
+    class Keep(NullSink):
+        frame_dt = 0.0
+
+        def log(self, frame):
+            frames.append(frame)
+
+    viz3d.simulate(SCENES / "double_pendulum.toml", t_end=0.3, sinks=[RerunRecorder(path), Keep()])
+    by_t = {round(f.t, 9): f for f in frames}
+    tp, _ = read_column(path, "/world/bodies/lower", "Transform3D:translation")
+    tj, points = read_column(path, "/world/joints", "Points3D:positions")
+    ta, arrows = read_column(path, "/world/reactions", "Arrows3D:vectors")
+    np.testing.assert_allclose(tj, tp, atol=1e-9)
+    np.testing.assert_allclose(ta, tp, atol=1e-9)
+    for t, p, a in zip(tj, points, arrows):
+        f = by_t[round(t, 9)]
+        np.testing.assert_allclose(p.reshape(-1, 3), f.joint_points, atol=FLOAT32_POS_TOL)
+        scale = np.abs(f.reaction_force).max()
+        np.testing.assert_allclose(a.reshape(-1, 3) / np.abs(a).max(), f.reaction_force / scale, atol=1e-6)
+
+
 def test_recording_layout_and_no_wall_clock(tmp_path):
     path = tmp_path / "arm.rrd"
     viz3d.simulate(SCENES / "robot_arm.toml", t_end=0.05, sinks=[RerunRecorder(path)])
