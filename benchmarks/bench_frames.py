@@ -139,6 +139,14 @@ def table(results: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+def _commit(code: Path) -> str:
+    """The commit of the code in ``code`` (and whether its tree has changes)."""
+    def git(*a):
+        return subprocess.run(["git", "-C", str(code), *a], capture_output=True, text=True).stdout.strip()
+
+    return f"{code} at {git('rev-parse', '--short', 'HEAD')}{' (modified)' if git('status', '--porcelain', '--', 'viz3d') else ''}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--t-end", default="0.5,1.5", help="two run lengths T1,T2 [s]")
@@ -162,6 +170,8 @@ def main() -> None:
             f"{args.repeat}, at two lengths; per frame = (CPU difference - steps' difference) / frames' difference "
             "(no fixed cost); 'kernel steps per frame' divides by the step cost measured in the same run of the "
             "same code.\n\n")
+    commits = {code: _commit(d) for code, d in (("before", args.before), ("after", ROOT)) if d is not None}
+    head += "Code: " + ", ".join(f"{k} = {v}" for k, v in commits.items()) + ".\n\n"
     text = table(results)
     print(text)
     args.out.write_text(head + text + "\n")

@@ -109,3 +109,30 @@ def test_a_sink_at_the_output_rate_gets_the_output_frames_only():
     sink = Outputs()
     traj = viz3d.simulate(SCENES / "heavy_top.toml", ["sim.t_end=0.3"], sinks=[sink])
     np.testing.assert_array_equal(sink.t, traj.t)
+
+
+def test_the_live_driver_hands_sinks_the_frames_they_ask_for():
+    """The live viewer's driver: a sink with ``frame_dt = 0`` gets every step's frame, one with
+    ``frame_dt = 10 ms`` every tenth; both are the headless run's frames at those times."""
+    import math
+    import queue
+
+    from viz3d.realtime import make_driver
+
+    class Keep(NullSink):
+        def __init__(self, frame_dt):
+            self.frame_dt, self.frames = frame_dt, []
+
+        def log(self, frame):
+            self.frames.append(frame)
+
+    every, tenth = Keep(0.0), Keep(0.01)
+    scene = viz3d.load_scene(SCENES / "heavy_top.toml", ["sim.t_end=0.05", "sim.output_dt=1e-3"])
+    driver = make_driver(scene, [every, tenth])
+    driver.advance(0.05 - 1e-9, math.inf, queue.Queue())
+    traj = viz3d.simulate(scene)
+    assert [f.t for f in every.frames] == list(traj.t[1:])
+    assert [f.t for f in tenth.frames] == list(traj.t[10::10])
+    for f, i in zip(every.frames, range(1, len(traj.t))):
+        np.testing.assert_array_equal(f.W_r, traj.position[i])
+        assert f.energy_total == traj.energy_total[i]

@@ -76,7 +76,8 @@ class Driver:
                               cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
         self._check = run_checks(self.sim, self.scene)[0]
         self._drawings = flexible_drawings(self.scene, self.system)
-        self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s]
+        self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s] (default: the start)
+        self._t0 = state.t
         self.settings = settings
 
     @property
@@ -96,17 +97,22 @@ class Driver:
         ``frame_dt`` get a frame whenever it has passed (``viz3d.sink.frame_due``) and every contact
         event's."""
         sinks = [s for s in self.sinks if s.frame_dt is not None]
+        states, takers = [], []  # the instants some sink wants, and which sinks
         while self.sim.state.t < t_target and time.perf_counter() < deadline and commands.empty():
             self.sim.step()
-            events = self.sim.drain_events(self.sim.state.t)
-            due = [s for s in sinks if frame_due(s, self.sim.state.t, self._last_t.get(id(s), -np.inf))]
-            if not (due or events):
-                continue
-            states = events + [self.sim.state]
-            _, frame_at = chunk_frames(self.sim, states, self._drawings)
-            for i, state in enumerate(states):
-                for s in due if i == len(events) else sinks:
-                    self._last_t[id(s)] = state.t
+            for event in self.sim.drain_events(self.sim.state.t):
+                states.append(event)
+                takers.append(sinks)
+            due = [s for s in sinks if frame_due(s, self.sim.state.t, self._last_t.get(id(s), self._t0))]
+            for s in due:
+                self._last_t[id(s)] = self.sim.state.t
+            if due:
+                states.append(self.sim.state)
+                takers.append(due)
+        if states:  # their frames in one chunk (viz3d.columns.chunk_frames), in time order
+            frame_at = chunk_frames(self.sim, states, self._drawings)[1]
+            for i, to in enumerate(takers):
+                for s in to:
                     s.log(frame_at(i))
 
     def step_once(self) -> None:
