@@ -136,3 +136,21 @@ def test_the_live_driver_hands_sinks_the_frames_they_ask_for():
     for f, i in zip(every.frames, range(1, len(traj.t))):
         np.testing.assert_array_equal(f.W_r, traj.position[i])
         assert f.energy_total == traj.energy_total[i]
+
+
+def test_a_sink_that_fails_ends_the_run_with_the_frames_it_got():
+    class Fails(NullSink):
+        frame_dt = 0.0
+
+        def __init__(self):
+            self.t = []
+
+        def log(self, frame):
+            if frame.t > 0.2 + 1e-9:
+                raise RuntimeError("disk full")
+            self.t.append(frame.t)
+
+    sink = Fails()
+    traj = viz3d.simulate(SCENES / "heavy_top.toml", ["sim.t_end=0.3"], sinks=[sink])
+    assert traj.status.startswith("stopped by an internal error") and "RuntimeError: disk full" in traj.status
+    assert traj.t[-1] == pytest.approx(0.2) and sink.t[-1] == pytest.approx(0.2)  # the frames up to the failure
