@@ -20,6 +20,7 @@ columns when asked for, the drawing evaluated only for the frames a sink draws).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from contextlib import nullcontext
 from dataclasses import dataclass, field, fields
 from typing import Callable, Iterator
 
@@ -147,7 +148,7 @@ class StateLog:
     def __init__(self, sim, check=None, chunk: int = CHUNK, emit: Callable | None = None, hold: Callable | None = None,
                  drawings: tuple = ()):
         self.sim, self.check, self.chunk = sim, check, chunk
-        self.emit, self.hold, self.drawings = emit, hold, drawings
+        self.emit, self.hold, self.drawings = emit, hold or nullcontext, drawings
         self.states: list[State] = []
         self.outputs: list[bool] = []
         self.notes: list[tuple[int, float, str]] = []   # (instant it precedes, t, text)
@@ -179,25 +180,29 @@ class StateLog:
     def flush(self, check: bool = True) -> None:
         """Turn the instants kept so far into columns, check the output ones, hand the frames on;
         a check that fails at output frame ``i`` of the chunk (its exception's ``frame``) keeps (and
-        hands on) the instants up to that frame only."""
+        hands on) the instants up to that frame only. An interrupt (inside ``hold``) leaves the
+        instants not handed on yet pending (before the check) or drops them (after it)."""
         if not self.states and not self.notes:
             return
-        states, outputs = self.states, np.array(self.outputs, bool)
+        states, outputs = list(self.states), np.array(self.outputs, bool)
         cols, frame_at = self._columns(states) if states else (None, None)
-        notes = self.notes
-        self.states, self.outputs, self.notes = [], [], []  # (the chunk is computed: an interrupt now loses nothing)
         out = np.flatnonzero(outputs)
         part = None if cols is None else cols if out.size == len(states) else cols.take(out)
         limit, failure = len(states), None
+        with self.hold():
+            try:
+                if check and self.check is not None and part is not None:
+                    self.check(part, [states[i] for i in out])
+            except Exception as exc:
+                failure = exc
+                if getattr(exc, "frame", None) is not None:
+                    limit = int(out[exc.frame]) + 1
+        notes, self.handed = self.notes, 0
         try:
-            if check and self.check is not None and part is not None:
-                self.check(part, [states[i] for i in out])
-        except Exception as exc:
-            failure = exc
-            if getattr(exc, "frame", None) is not None:
-                limit = int(out[exc.frame]) + 1
-        self.handed = 0
-        try:
+            with self.hold():  # (without sinks the chunk is taken and kept at once)
+                self.states, self.outputs, self.notes = [], [], []
+                if self.emit is None:
+                    self.handed = limit
             self._hand_on(notes, frame_at, outputs, limit)
         finally:
             if part is not None:
@@ -211,7 +216,6 @@ class StateLog:
         them in ``handed`` (an exception, e.g. an interrupt, may stop it early: the instants handed
         on are kept)."""
         if self.emit is None:
-            self.handed = limit
             return
         k = 0
         for i in range(limit):

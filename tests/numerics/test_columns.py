@@ -179,3 +179,25 @@ def test_sampled_drawings_equal_the_numpy_drawings(name):
     assert set(DRAWING_SCENES[name]) <= {k.partition("/")[0] for k, v in drawn.items() if v.size}, "not drawn"
     for key in keys:
         _close(key, rows(got, key), drawn[key], [moved_rows(m, key) for m in moved], float(np.abs(drawn[key]).max(initial=0.0)))
+
+
+def test_an_interrupt_during_a_chunks_check_leaves_its_states_to_the_last_flush():
+    """Ctrl-C while a chunk is checked: the interrupt waits for the check, the chunk's states stay
+    pending, and the run's last (unchecked) flush keeps them: frames up to the stop."""
+    import signal
+
+    from viz3d.interrupts import InterruptGuard
+
+    sim, states = _run(SCENES / "double_pendulum.toml")
+
+    def check(cols, chunk):
+        signal.raise_signal(signal.SIGINT)
+
+    with InterruptGuard() as guard:
+        log = StateLog(sim, check, hold=guard.held)
+        for s in states[:10]:
+            log.record(s)
+        with pytest.raises(KeyboardInterrupt):
+            log.flush()
+        cols = log.columns(check=False)
+    np.testing.assert_array_equal(cols.t, [s.t for s in states[:10]])
