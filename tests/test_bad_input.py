@@ -326,7 +326,7 @@ def test_an_interrupt_while_a_sink_logs_reaches_neither_half_of_the_frame(tmp_pa
     from viz3d.sink import NullSink
 
     class Counting(NullSink):
-        full_rate = False
+        frame_dt = None
 
         def __init__(self):
             self.logged = []

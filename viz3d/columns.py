@@ -12,18 +12,24 @@ states of a run's output instants and turns them into ``FrameColumns`` a chunk a
   the coordinates of joints on flexible sections, and output elements (gauges);
 * without it, each state's ``Frame`` from ``frame_from_state`` (the NumPy reference).
 
-The live viewer and full-rate recorders still take one ``Frame`` per step (they draw it).
+A run with sinks logs, besides its output instants, the finer ones its sinks ask for; the sinks get
+each instant's ``Frame`` built from its row of the columns (``frame_of``: the scalars read from the
+columns when asked for, the drawing evaluated only for the frames a sink draws).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from contextlib import nullcontext
 from dataclasses import dataclass, field, fields
+from typing import Callable, Iterator
 
 import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.dynamics import flexible_kinetic
-from viz3d.frames import Frame, ledger_scalars
+from viz3d.contact.contacts import Gap
+from viz3d.frames import Frame, drawing_of, ledger_scalars
 from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
 from viz3d.system import State, System
@@ -89,55 +95,139 @@ class FrameColumns:
 
     def head(self, n: int) -> "FrameColumns":
         """The first ``n`` frames."""
-        arrays = {f.name: getattr(self, f.name)[:n] for f in fields(self) if f.name != "scalars"}
-        return FrameColumns(**arrays, scalars={k: v[:n] for k, v in self.scalars.items()})
+        return self.take(slice(0, n))
+
+    def take(self, rows) -> "FrameColumns":
+        """The frames ``rows`` (a slice or an index array)."""
+        arrays = {f.name: getattr(self, f.name)[rows] for f in fields(self) if f.name != "scalars"}
+        return FrameColumns(**arrays, scalars={k: v[rows] for k, v in self.scalars.items()})
+
+
+class ColumnRow(Mapping):
+    """One frame's scalars read from the columns on access (``Frame.scalars`` of sampled frames:
+    a frame whose scalars nobody reads does not copy them)."""
+
+    def __init__(self, scalars: dict, i: int):
+        self._scalars, self._i = scalars, i
+
+    def __getitem__(self, key: str) -> float:
+        return float(self._scalars[key][self._i])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._scalars)
+
+    def __len__(self) -> int:
+        return len(self._scalars)
 
 
 class StateLog:
-    """The states of a run's output instants, turned into ``FrameColumns`` a chunk at a time.
+    """The states of a run's output instants, turned into ``FrameColumns`` a chunk at a time; with
+    ``emit``, also the finer instants the run's sinks ask for, whose frames (and the texts noted
+    between them) are handed on in time order once their chunk is computed and checked.
 
     Parameters
     ----------
     sim : viz3d.simulate.Simulation
         The run (its system, formulation, compiled kernel and contact stepping).
     check : callable, optional
-        ``check(columns)`` on every chunk as it is computed (the run's health checks); it may raise.
+        ``check(columns, states)`` on the output instants of every chunk as it is computed (the
+        run's health checks); it may raise.
+    chunk : int
+        States (all instants) per chunk.
+    emit : callable, optional
+        ``emit(notes, frame, output)``: the texts ``(t, text)`` noted before an instant, then its
+        ``Frame`` and whether it is an output instant (``frame`` None: texts noted after the last
+        instant); called inside ``hold()``.
+    hold : callable, optional
+        A context manager no interrupt cuts (``viz3d.interrupts.InterruptGuard.held``): an instant is
+        handed on and kept in the trajectory, or neither.
+    drawings : tuple of FlexibleDrawing
+        The flexible bodies drawn in the emitted frames.
     """
 
-    def __init__(self, sim, check=None, chunk: int = CHUNK):
+    def __init__(self, sim, check=None, chunk: int = CHUNK, emit: Callable | None = None, hold: Callable | None = None,
+                 drawings: tuple = ()):
         self.sim, self.check, self.chunk = sim, check, chunk
+        self.emit, self.hold, self.drawings = emit, hold or nullcontext, drawings
         self.states: list[State] = []
+        self.outputs: list[bool] = []
+        self.notes: list[tuple[int, float, str]] = []   # (instant it precedes, t, text)
+        self.handed = 0                                  # instants of the chunk being flushed handed on
         self.parts: list[FrameColumns] = []
         system = sim.system
         self.nb, self.nj = system.n_bodies, len(system.joint_names)
 
     @property
     def room(self) -> int:
-        """States that can be recorded before the chunk is computed (at least 1)."""
+        """Instants that can be recorded before the chunk is computed (at least 1)."""
         return max(1, self.chunk - len(self.states))
 
-    def record(self, state: State) -> None:
-        """Keep ``state`` (an output instant); compute the chunk when it is full."""
+    def record(self, state: State, output: bool = True) -> None:
+        """Keep ``state`` (an output instant, else one only the sinks get); compute the chunk when
+        it is full."""
+        if not output and self.emit is None:
+            return
         self.states.append(state)
+        self.outputs.append(output)
         if len(self.states) >= self.chunk:
             self.flush()
 
+    def note(self, t: float, text: str) -> None:
+        """A text for the sinks at time ``t`` [s], handed on after the instants recorded so far."""
+        if self.emit is not None:
+            self.notes.append((len(self.states), t, text))
+
     def flush(self, check: bool = True) -> None:
-        """Turn the states kept so far into columns and check them; a check that fails at frame
-        ``i`` of the chunk (its exception's ``frame``) leaves the frames up to ``i`` only."""
-        if not self.states:
+        """Turn the instants kept so far into columns, check the output ones, hand the frames on;
+        a check that fails at output frame ``i`` of the chunk (its exception's ``frame``) keeps (and
+        hands on) the instants up to that frame only. An interrupt (inside ``hold``) leaves the
+        instants not handed on yet pending (before the check) or drops them (after it)."""
+        if not self.states and not self.notes:
             return
-        states, self.states = self.states, []
-        part = self._columns(states)
+        states, outputs = list(self.states), np.array(self.outputs, bool)
+        cols, frame_at = self._columns(states) if states else (None, None)
+        out = np.flatnonzero(outputs)
+        part = None if cols is None else cols if out.size == len(states) else cols.take(out)
+        limit, failure = len(states), None
+        with self.hold():
+            try:
+                if check and self.check is not None and part is not None:
+                    self.check(part, [states[i] for i in out])
+            except Exception as exc:
+                failure = exc
+                if getattr(exc, "frame", None) is not None:
+                    limit = int(out[exc.frame]) + 1
+        notes, self.handed = self.notes, 0
         try:
-            if check and self.check is not None:
-                self.check(part, states)
-        except Exception as exc:
-            if getattr(exc, "frame", None) is not None:
-                part = part.head(exc.frame + 1)
-            raise
+            with self.hold():  # (without sinks the chunk is taken and kept at once)
+                self.states, self.outputs, self.notes = [], [], []
+                if self.emit is None:
+                    self.handed = limit
+            self._hand_on(notes, frame_at, outputs, limit)
         finally:
-            self.parts.append(part)
+            if part is not None:
+                self.parts.append(part.head(int(np.searchsorted(out, self.handed))))
+        if failure is not None:
+            raise failure
+
+    def _hand_on(self, notes: list, frame_at, outputs: np.ndarray, limit: int) -> None:
+        """Emit the first ``limit`` of the chunk's instants (``outputs``: which are output instants)
+        with the notes before them (and the notes after the last one when all are emitted), counting
+        them in ``handed`` (an exception, e.g. an interrupt, may stop it early: the instants handed
+        on are kept)."""
+        if self.emit is None:
+            return
+        k = 0
+        for i in range(limit):
+            with self.hold():
+                k1 = k
+                while k1 < len(notes) and notes[k1][0] <= i:
+                    k1 += 1
+                self.emit([x[1:] for x in notes[k:k1]], frame_at(i), bool(outputs[i]))
+                k, self.handed = k1, i + 1
+        if limit == len(outputs) and k < len(notes):
+            with self.hold():
+                self.emit([x[1:] for x in notes[k:]], None, False)
 
     def columns(self, check: bool = True) -> FrameColumns:
         """Every frame recorded, as columns (flushes first)."""
@@ -146,14 +236,37 @@ class StateLog:
 
     # ------------------------------------------------------------------ the two paths
 
-    def _columns(self, states: list[State]) -> FrameColumns:
-        stepper = self.sim.kernel_sampler()
-        if stepper is not None:
-            try:
-                return _sampled(self.sim, stepper, states)
-            except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
-                pass
-        return FrameColumns.from_frames([self.sim.frame(s) for s in states], self.nb, self.nj)
+    def _columns(self, states: list[State]) -> tuple[FrameColumns, Callable[[int], Frame]]:
+        return chunk_frames(self.sim, states, self.drawings)
+
+
+def chunk_frames(sim, states: list[State], drawings: tuple = ()) -> tuple[FrameColumns, Callable[[int], Frame]]:
+    """The ``FrameColumns`` of ``states`` and the ``Frame`` of each, by index (drawing the flexible
+    bodies of ``drawings``): from the kernel's samples in one call (``frame_of``) when it covers the
+    run, else each state's NumPy frame (``Simulation.frame``)."""
+    stepper = sim.kernel_sampler()
+    if stepper is not None:
+        try:
+            cols, s = _sampled(sim, stepper, states)
+            return cols, lambda i: frame_of(sim.system, states[i], cols, s, i, stepper.data, drawings)
+        except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
+            pass
+    frames = [sim.frame(s, drawings) for s in states]
+    return FrameColumns.from_frames(frames, sim.system.n_bodies, len(sim.system.joint_names)), frames.__getitem__
+
+
+def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, drawings: tuple = ()) -> Frame:
+    """The ``Frame`` of instant ``i`` of ``cols`` (``state``, its kernel samples ``s``): its row of the
+    columns; the drawing from the samples, evaluated when read (``viz3d.frames.drawing_of``)."""
+    def draw():
+        cfg = _configuration(data, cols.t[i], s, i)
+        gaps = tuple(Gap(s.gap[i, x, 0], s.gap[i, x, 1], s.gap[i, x, 2:5], s.gap[i, x, 5:8], s.gap[i, x, 8:11])
+                     for x in data.contact_slices)
+        return drawing_of(system, state, cfg, gaps, s.lam[i], drawings)
+
+    return Frame(cols.t[i], cols.W_r[i], cols.R_WB[i], cols.W_v[i], cols.W_omega[i], cols.reaction_force[i],
+                 cols.energy_kinetic[i], cols.energy_potential[i], cols.constraint_violation[i],
+                 ColumnRow(cols.scalars, i), draw)
 
 
 def _groups(states: list[State]) -> list[tuple[int, int]]:
@@ -166,8 +279,8 @@ def _groups(states: list[State]) -> list[tuple[int, int]]:
     return out
 
 
-def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
-    """Columns of ``states`` from the kernel's samples (see the module docstring)."""
+def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
+    """Columns of ``states`` from the kernel's samples (see the module docstring), and the samples."""
     system = sim.system
     nb = system.n_bodies
     ts = np.array([s.t for s in states])
@@ -197,7 +310,7 @@ def _sampled(sim, stepper, states: list[State]) -> FrameColumns:
         V = V + U.sum(axis=1)
     if system.has_ledger:
         _ledger_columns(sim, states, T, s.V, strain, U if system.contacts else np.zeros((len(states), 0)), scalars)
-    return FrameColumns(ts, W_G, s.R[:, :nb], W_v, s.wW[:, :nb], T, V, violation, reactions, scalars)
+    return FrameColumns(ts, W_G, s.R[:, :nb], W_v, s.wW[:, :nb], T, V, violation, reactions, scalars), s
 
 
 def _centres_of_mass(system: System, data, s) -> tuple[FloatArray, FloatArray]:
@@ -225,9 +338,14 @@ def _section_coordinates(joints, cfgs: list[Configuration] | None) -> dict[str, 
 
 def _configurations(data, ts: FloatArray, s) -> list[Configuration]:
     """Each state's ``Configuration`` from the samples (for the NumPy-only quantities)."""
+    return [_configuration(data, ts[i], s, i) for i in range(len(ts))]
+
+
+def _configuration(data, t: float, s, i: int) -> Configuration:
+    """State ``i``'s ``Configuration`` from the samples ``s``."""
     sl = data.elastic_slices
-    return [Configuration(ts[i], Pose(s.r[i], s.R[i]), Twist(s.vW[i], s.wB[i], s.wW[i]),
-                          tuple(s.eta[i, x] for x in sl), tuple(s.eta_dot[i, x] for x in sl)) for i in range(len(ts))]
+    return Configuration(t, Pose(s.r[i], s.R[i]), Twist(s.vW[i], s.wB[i], s.wW[i]), tuple(s.eta[i, x] for x in sl),
+                         tuple(s.eta_dot[i, x] for x in sl))
 
 
 def _rows(system: System, s) -> tuple[FloatArray, FloatArray]:
@@ -248,7 +366,6 @@ def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatA
     """The contacts' scalars (force, indentation per contact) into ``scalars``; returns each contact's
     elastic energy (n, k) [J]. A contact's law force and stored energy are zero unless it overlaps
     or touches: only such states are evaluated one by one."""
-    from viz3d.contact.contacts import Gap
     from viz3d.events import contact_forces
 
     system = sim.system
@@ -263,9 +380,7 @@ def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatA
         gaps = tuple(Gap(g[x, 0], g[x, 1], g[x, 2:5], g[x, 5:8], g[x, 8:11]) for x in data.contact_slices)
         cfg = None
         if any(f is not None and f.stateful for c in system.contacts for f in c.friction):  # bristles: the pose
-            cfg = Configuration(st.t, Pose(s.r[i], s.R[i]), Twist(s.vW[i], s.wB[i], s.wW[i]),
-                                tuple(s.eta[i, x] for x in data.elastic_slices),
-                                tuple(s.eta_dot[i, x] for x in data.elastic_slices))
+            cfg = _configuration(data, st.t, s, i)
         for k, (c, x, gp) in enumerate(zip(system.contacts, data.contact_slices, gaps)):
             U[i, x] = c.elastic_energy(cfg, st.memory[k] if st.memory else c.initial_phases(), gp)
         F[i] = np.concatenate(contact_forces(system, st, s.lam[i], gaps))

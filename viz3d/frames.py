@@ -6,6 +6,8 @@ formulations; conversions to a back-end's conventions (quaternion order) happen 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
 
 import numpy as np
 
@@ -139,8 +141,38 @@ class SceneVisuals:
 
 
 @dataclass(frozen=True)
+class Drawing:
+    """What a frame draws beyond the bodies' poses (evaluated only for the frames a sink draws).
+
+    Attributes
+    ----------
+    joint_points : ndarray, shape (nj, 3)
+        Joint points (on body 1), world [m].
+    springs : ndarray, shape (ns, 2, 3)
+        Spring end points, world [m].
+    deformed : dict of str -> ndarray (V, 3)
+        World vertices of each deformable mesh [m].
+    stress : dict of str -> ndarray (V,)
+        Surface bending stress at each vertex of each deformable mesh, float32 [Pa] (tension > 0).
+    contact_points, contact_forces : ndarray, shape (k, 3)
+        Active contacts: world points [m] and the force on the struck body there [N].
+    """
+
+    joint_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    springs: FloatArray = field(default_factory=lambda: np.zeros((0, 2, 3)))
+    deformed: dict = field(default_factory=dict)
+    stress: dict = field(default_factory=dict)
+    contact_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    contact_forces: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+@dataclass(frozen=True)
 class Frame:
     """The state of a scene at one instant, as consumers need it.
+
+    The drawing (``Drawing``: joint points, springs, contacts, deformed meshes and their stress) is
+    evaluated when a consumer first reads one of its attributes, by ``draw`` (a pure function of the
+    frame's state): a sink that plots a frame without drawing it does not pay for it.
 
     Attributes
     ----------
@@ -151,23 +183,15 @@ class Frame:
         World-from-body rotations.
     W_v, W_omega : ndarray, shape (nb, 3)
         Velocities [m/s] and angular velocities [rad/s], world.
-    joint_points : ndarray, shape (nj, 3)
-        Joint points (on body 1), world [m].
     reaction_force : ndarray, shape (nj, 3)
         World force on body 1 of each joint [N].
-    springs : ndarray, shape (ns, 2, 3)
-        Spring end points, world [m].
     energy_kinetic, energy_potential : float [J]
     constraint_violation : float
         max |C| [m].
     scalars : dict of str -> float
         Further named quantities (for plots), in SI units; keys are plot paths ("contact/force").
-    deformed : dict of str -> ndarray (V, 3)
-        World vertices of each deformable mesh [m].
-    stress : dict of str -> ndarray (V,)
-        Surface bending stress at each vertex of each deformable mesh, float32 [Pa] (tension > 0).
-    contact_points, contact_forces : ndarray, shape (k, 3)
-        Active contacts: world points [m] and the force on the struck body there [N].
+    draw : callable () -> Drawing
+        Evaluates the drawing (default: nothing to draw).
     """
 
     t: float
@@ -175,21 +199,29 @@ class Frame:
     R_WB: FloatArray
     W_v: FloatArray
     W_omega: FloatArray
-    joint_points: FloatArray
     reaction_force: FloatArray
-    springs: FloatArray
     energy_kinetic: float
     energy_potential: float
     constraint_violation: float
     scalars: dict = field(default_factory=dict)
-    deformed: dict = field(default_factory=dict)
-    stress: dict = field(default_factory=dict)
-    contact_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    contact_forces: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    draw: Callable[[], Drawing] = field(default=Drawing, repr=False, compare=False)
 
     @property
     def energy_total(self) -> float:
         return self.energy_kinetic + self.energy_potential
+
+    @cached_property
+    def drawing(self) -> Drawing:
+        """The frame's ``Drawing``, evaluated on first use (``cached_property`` writes the instance's
+        ``__dict__``, which a frozen dataclass allows)."""
+        return self.draw()
+
+    joint_points = property(lambda self: self.drawing.joint_points, doc="``Drawing.joint_points``")
+    springs = property(lambda self: self.drawing.springs, doc="``Drawing.springs``")
+    deformed = property(lambda self: self.drawing.deformed, doc="``Drawing.deformed``")
+    stress = property(lambda self: self.drawing.stress, doc="``Drawing.stress``")
+    contact_points = property(lambda self: self.drawing.contact_points, doc="``Drawing.contact_points``")
+    contact_forces = property(lambda self: self.drawing.contact_forces, doc="``Drawing.contact_forces``")
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,7 +291,8 @@ def surface_stress_rows(bar, x: FloatArray, ring: FloatArray) -> FloatArray | No
 def frame_from_state(system: System, formulation, state: State, drawings: tuple = (),
                      reference_energy: float | None = None, solved: tuple | None = None,
                      kinematics: tuple | None = None) -> Frame:
-    """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side).
+    """Evaluate everything a ``Frame`` holds at ``state`` (costs about one right-hand side; the
+    drawing only when it is read): the NumPy reference of ``viz3d.columns``' frames.
 
     ``drawings``: the ``FlexibleDrawing`` of each flexible body to draw deformed; with contacts,
     ``reference_energy`` (the ledger's initial total) gives the scalar ``energy/balance_error``;
@@ -280,7 +313,7 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         T, V = led.kinetic, led.potential + led.strain + led.contact_elastic
     else:
         T, V = energies(system, state, cfg, gaps)
-    reactions, points, violation = [], [], 0.0
+    reactions, violation = [], 0.0
     joints = [(js, sl) for js, sl in zip(system.joints.joints, system.joints.row_slices()) if js.is_joint]
     lam = C = J = None
     if solved is not None:
@@ -295,11 +328,6 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
         for js, sl in joints:
             reactions.append(js.reaction_force(J[sl].reshape(js.n_joints, js.n_eq, 2, 6),
                                                lam[sl].reshape(js.n_joints, js.n_eq)))
-            points.append(js.points(cfg))
-    springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
-    memories = state.element_memory or (None,) * len(system.forces)
-    contacts = [e.contacts(cfg) if m is None else e.contacts(cfg, m)
-                for e, m in zip(system.forces, memories) if hasattr(e, "contacts")]
     scalars: dict[str, float] = {}
     reaction_force = _stack(reactions, (0, 3))
     for out in system.outputs:
@@ -312,29 +340,52 @@ def frame_from_state(system: System, formulation, state: State, drawings: tuple 
     joint_values.update(drive_efforts(system.joints.joints, system.joints.row_slices(), lam))
     scalars.update({k: float(x) for k, x in joint_values.items()})
     if system.contacts:
-        contacts += _contact_display(system, state, gaps, lam, scalars)
+        scalars.update(_contact_scalars(system, state, gaps, lam))
     if system.has_ledger:
         scalars.update(ledger_scalars(led, reference_energy))
     W_G, W_v = centres_of_mass(system, cfg)
     return Frame(
         t=state.t, W_r=W_G, R_WB=cfg.pose.R_WB[:-1], W_v=W_v, W_omega=cfg.twist.W_omega[:-1],
-        joint_points=_stack(points, (0, 3)), reaction_force=reaction_force,
-        springs=_stack(springs, (0, 2, 3)), energy_kinetic=T, energy_potential=V,
-        constraint_violation=violation, scalars=scalars,
+        reaction_force=reaction_force, energy_kinetic=T, energy_potential=V, constraint_violation=violation,
+        scalars=scalars, draw=lambda: drawing_of(system, state, cfg, gaps, lam, drawings))
+
+
+def drawing_of(system: System, state: State, cfg, gaps: tuple, lam: FloatArray, drawings: tuple = ()) -> Drawing:
+    """The ``Drawing`` of ``state`` from its ``Configuration`` ``cfg``, each contact set's ``Gap`` and
+    the multipliers ``lam`` (n_c,); ``drawings``: the ``FlexibleDrawing`` of each flexible body to
+    draw deformed."""
+    points = [js.points(cfg) for js in system.joints.joints if js.is_joint]
+    springs = [e.endpoints(cfg)[0] for e in system.forces if isinstance(e, SpringDamper)]
+    memories = state.element_memory or (None,) * len(system.forces)
+    contacts = [e.contacts(cfg) if m is None else e.contacts(cfg, m)
+                for e, m in zip(system.forces, memories) if hasattr(e, "contacts")]
+    if system.contacts:
+        contacts += _contact_arrows(system, state, gaps, lam)
+    return Drawing(
+        joint_points=_stack(points, (0, 3)), springs=_stack(springs, (0, 2, 3)),
         deformed={d.name: d.vertices(cfg) for d in drawings},
         stress={d.name: d.stresses(cfg) for d in drawings if d.stress_rows is not None},
         contact_points=_stack([c[0] for c in contacts], (0, 3)), contact_forces=_stack([c[1] for c in contacts], (0, 3)))
 
 
-def _contact_display(system: System, state: State, gaps: tuple, lam, scalars: dict) -> list:
-    """Contact points and forces of every contact set (for display), and their scalars."""
+def _contact_scalars(system: System, state: State, gaps: tuple, lam) -> dict:
+    """Force and indentation of every contact of every contact set (plot scalars)."""
+    from viz3d.events import contact_forces
+
+    out = {}
+    for c, gp, F in zip(system.contacts, gaps, contact_forces(system, state, lam, gaps)):
+        for i, name in enumerate(c.names):
+            out[f"contact/{name}/force"] = float(F[i])
+            out[f"contact/{name}/indentation"] = float(max(gp.alpha[i], 0.0))
+    return out
+
+
+def _contact_arrows(system: System, state: State, gaps: tuple, lam) -> list:
+    """Points and forces of the contacts that carry a force, per contact set (for display)."""
     from viz3d.events import contact_forces
 
     out = []
-    for c, gp, F in zip(system.contacts, gaps, contact_forces(system, state, lam, gaps)):
-        for i, name in enumerate(c.names):
-            scalars[f"contact/{name}/force"] = float(F[i])
-            scalars[f"contact/{name}/indentation"] = float(max(gp.alpha[i], 0.0))
+    for gp, F in zip(gaps, contact_forces(system, state, lam, gaps)):
         on = F > 0.0
         if on.any():
             out.append((gp.point[on], F[on, None] * gp.n[on]))

@@ -7,7 +7,7 @@ the sinks, an archive half written. Inside ``InterruptGuard.held()`` such a sign
 delivered (to the handler it replaced) when the outermost held section ends, so the write completes.
 
 Installing the guard costs two ``sigaction`` calls per run; a held section costs a counter
-increment (a frame is emitted every step for full-rate sinks, so swapping handlers there would
+increment (a frame is handed to sinks every step when one asks for it, so swapping handlers there would
 not do: about 12 us per swap).
 """
 

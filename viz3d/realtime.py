@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viz3d.columns import FrameColumns
+from viz3d.columns import FrameColumns, chunk_frames
 from viz3d.diagnosis import RunComplete, SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals
@@ -34,6 +34,7 @@ from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.scene.visuals import flexible_drawings, live_plots, scene_visuals
 from viz3d.simulate import Simulation, run_checks
+from viz3d.sink import frame_due
 
 #: Frames published per second of wall time [Hz].
 DISPLAY_RATE = 60.0
@@ -75,6 +76,8 @@ class Driver:
                               cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
         self._check = run_checks(self.sim, self.scene)[0]
         self._drawings = flexible_drawings(self.scene, self.system)
+        self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s] (default: the start)
+        self._t0 = state.t
         self.settings = settings
 
     @property
@@ -90,24 +93,34 @@ class Driver:
         return self.scene.data["sim"]["t_end"]
 
     def advance(self, t_target: float, deadline: float, commands: queue.Queue) -> None:
-        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; full-rate
-        sinks get every step and every contact event."""
-        full = [s for s in self.sinks if s.full_rate]
+        """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; sinks with a
+        ``frame_dt`` get a frame whenever it has passed (``viz3d.sink.frame_due``) and every contact
+        event's."""
+        sinks = [s for s in self.sinks if s.frame_dt is not None]
+        states, takers = [], []  # the instants some sink wants, and which sinks
         while self.sim.state.t < t_target and time.perf_counter() < deadline and commands.empty():
             self.sim.step()
-            events = self.sim.drain_events(self.sim.state.t)
-            for frame in [self._frame(e) for e in events] + [self.frame()] if full else []:
-                for s in full:
-                    s.log(frame)
+            for event in self.sim.drain_events(self.sim.state.t):
+                states.append(event)
+                takers.append(sinks)
+            due = [s for s in sinks if frame_due(s, self.sim.state.t, self._last_t.get(id(s), self._t0))]
+            for s in due:
+                self._last_t[id(s)] = self.sim.state.t
+            if due:
+                states.append(self.sim.state)
+                takers.append(due)
+        if states:  # their frames in one chunk (viz3d.columns.chunk_frames), in time order
+            frame_at = chunk_frames(self.sim, states, self._drawings)[1]
+            for i, to in enumerate(takers):
+                for s in to:
+                    s.log(frame_at(i))
 
     def step_once(self) -> None:
         self.advance(self.t + 0.5 * self.sim.dt, math.inf, queue.Queue())
 
-    def _frame(self, state) -> Frame:
-        return self.sim.frame(state, self._drawings)
-
     def frame(self) -> Frame:
-        return self._frame(self.sim.state)
+        """The current state's frame (``viz3d.columns.chunk_frames``)."""
+        return chunk_frames(self.sim, [self.sim.state], self._drawings)[1](0)
 
     def check(self, frame: Frame) -> None:
         """The run's frame checks (``viz3d.simulate.run_checks``) on a frame of the current state:

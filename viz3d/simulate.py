@@ -42,7 +42,7 @@ from viz3d.rotations import euler_from_matrix
 from viz3d.scene.build import build, make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
-from viz3d.sink import Sink
+from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
 from viz3d.system import State, System
@@ -861,53 +861,53 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
 
 
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
-    """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory (their
-    frames computed a chunk at a time, ``viz3d.columns``, and checked), and frames to the ``sinks``
-    (after every step for full-rate sinks)."""
+    """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory, and to the
+    ``sinks`` the frames of the finer instants they ask for (``Sink.frame_dt``) and the events, in
+    time order. The states come from the kernel in batched calls when it takes them
+    (``Simulation.output_states``), at the finest interval anyone needs; their frames are computed
+    a chunk at a time (``viz3d.columns.StateLog``) and checked before the sinks get them."""
     cfg = scene.data["sim"]
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
-    full_rate = any(s.full_rate for s in sinks)
     bar = ProgressBar(n_steps) if progress else None
     status, wall0 = "ok", time.perf_counter()
     check, has_goal = run_checks(sim, scene)
-    # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
-    chunk = CHUNK if not has_goal else max(1, round(GOAL_CHECK_INTERVAL / (every * cfg["dt"])))
-    log = StateLog(sim, check, chunk)
     with InterruptGuard() as guard:
-        emitter = _Emitter(sim, log, sinks, guard)
+        emitter = _Emitter(sim, sinks, guard)
+        log = emitter.start(check)
         try:
             emitter.open(scene)
-            emitter.emit(output=True)
+            fine = emitter.interval(every, cfg["dt"])  # steps between the instants anyone needs (divides every)
+            if has_goal:  # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
+                log.chunk = max(1, round(GOAL_CHECK_INTERVAL / (fine * cfg["dt"])))
+            log.record(sim.state)
             n = 0
-            batched = not sinks and sim.batches_frames  # output frames a chunk at a time, in one kernel call
-            while n < n_steps:  # to the next output frame in one call (every step for full-rate sinks)
-                if batched and n % every == 0 and n_steps - n >= every:
-                    want = min((n_steps - n) // every, log.room)
-                    states = sim.output_states(want, every)
-                    emitter.record(states)
-                    n += len(states) * every
+            while n < n_steps:  # to the next instant in one call, or as many instants as fit the chunk
+                if sim.batches_frames and n % fine == 0 and n_steps - n >= fine:
+                    want = min((n_steps - n) // fine, log.room)
+                    states = sim.output_states(want, fine)
+                    for state in states:
+                        n += fine
+                        log.record(state, n % every == 0 or n == n_steps)  # (may compute and check the chunk)
                     if bar is not None:
                         bar.update(n)
                     if len(states) == want:
-                        continue  # else the failing frame below, one step at a time, for its diagnosis
-                k = 1 if full_rate else min(every - n % every, n_steps - n)
+                        continue  # else the failing instant below, one step at a time, for its diagnosis
+                k = min(fine - n % fine, n_steps - n)
                 sim.steps(k)
                 n += k
-                emitter.emit_events()
-                output = n % every == 0 or n == n_steps
-                if output or full_rate:
-                    emitter.emit(output)
+                emitter.events()
+                log.record(sim.state, n % every == 0 or n == n_steps)
                 if bar is not None:
                     bar.update(n)
-            emitter.emit_events()
+            emitter.events(last=True)
             log.flush()
         except SimulationFailure as exc:
             status = _earliest_failure(log, exc)
         except RunComplete as done:  # the goal reached: frames up to it kept, status ok
             emitter.announce([(log.parts[-1].t[-1], str(done))])
         except KeyboardInterrupt:
-            status = f"interrupted at t = {sim.state.t:.6g} s"
+            status = "interrupted"
         except Exception as exc:  # a defect, not an input error: keep the frames and report it loudly
             import traceback
 
@@ -919,8 +919,10 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             with guard.held(deliver=False):  # the run ends here anyway: an interrupt now cuts no file
                 if status != "ok":  # the frames of events before the stop, unchecked (the run has stopped)
                     log.check = None
-                    emitter.emit_events()
-                cols = log.columns(check=False)
+                    emitter.events(last=True)
+                cols = log.columns(check=False)  # (the instants computed before the stop, to the sinks too)
+                if status == "interrupted":
+                    status = f"interrupted at t = {cols.t[-1] if len(cols) else sim.state.t:.6g} s"
                 verdict = run_verdict(scene.data, cols, sim.system.bodies.names)
                 emitter.announce(run_events(scene.data, cols)
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
@@ -948,53 +950,66 @@ def _earliest_failure(log: StateLog, exc: SimulationFailure) -> str:
 
 
 class _Emitter:
-    """Hands the run's output states to the trajectory's log and frames to the sinks."""
+    """Opens and closes the run's sinks and hands them, through the trajectory's ``StateLog``, the
+    frames of the instants they need and the events, in time order."""
 
-    def __init__(self, sim, log: StateLog, sinks, guard: InterruptGuard):
-        self.sim, self.log, self.sinks, self.guard = sim, log, list(sinks), guard
+    def __init__(self, sim, sinks, guard: InterruptGuard):
+        self.sim, self.sinks, self.guard = sim, list(sinks), guard
         self.opened: list[Sink] = []
-        self.drawings: tuple = ()
         self.logged = 0
+        self.log: StateLog | None = None
+        self.last_t: dict[int, float] = {}  # the time of each sink's last frame [s]
 
     def open(self, scene: Scene) -> None:
         if self.sinks:
             from viz3d.scene.visuals import flexible_drawings, scene_visuals
 
             visuals = scene_visuals(scene, self.sim.system)
-            self.drawings = flexible_drawings(scene, self.sim.system)
+            self.log.drawings = flexible_drawings(scene, self.sim.system)
             for s in self.sinks:
                 s.open(visuals)
                 self.opened.append(s)
 
-    def emit(self, output: bool) -> None:
-        self._deliver(self.sim.state, output)
+    def interval(self, every: int, dt: float) -> int:
+        """Steps between the instants the run computes frames of: the greatest common divisor of
+        the output interval ``every`` and each opened sink's ``frame_dt`` (in steps of ``dt``)."""
+        fine = every
+        for s in self.opened:
+            if s.frame_dt is not None:
+                fine = math.gcd(fine, max(1, round(s.frame_dt / dt)))
+        return fine
 
-    def emit_events(self) -> None:
-        """The states at the contact events since the last call (every sink gets them), and their texts."""
-        for state in self.sim.drain_events(self.sim.state.t):
-            self._deliver(state, True)
+    def start(self, check) -> StateLog:
+        """The run's ``StateLog``, emitting to the sinks when there are any."""
+        emit = self._emit if self.sinks else None
+        self.log = StateLog(self.sim, check, CHUNK, emit, self.guard.held)
+        return self.log
+
+    def events(self, last: bool = False) -> None:
+        """The states at the contact events up to the current state (every sink gets them; they are
+        on the trajectory), and their texts (adaptive steps may have run ahead: later ones wait for
+        their time, unless this is the ``last`` call)."""
+        t = self.sim.state.t
+        for state in self.sim.drain_events(t):
+            self.log.record(state)
         contacts = self.sim.contacts
         if contacts is not None:
-            with self.guard.held():
-                for t, text in contacts.log[self.logged:]:
-                    for s in self.opened:
-                        s.event(t, text)
-                self.logged = len(contacts.log)
+            while self.logged < len(contacts.log) and (last or contacts.log[self.logged][0] <= t):
+                self.log.note(*contacts.log[self.logged])
+                self.logged += 1
 
-    def _deliver(self, state: State, output: bool) -> None:
-        to = [s for s in self.sinks if output or s.full_rate]
-        frame = self.sim.frame(state, self.drawings) if to else None
-        with self.guard.held():  # the trajectory and every sink get the state, or none does
-            for s in to:
+    def _emit(self, notes: list, frame: Frame | None, output: bool) -> None:
+        """``StateLog``'s ``emit``: the texts, then the frame to every sink that wants it (an output
+        instant's to all; else to those whose ``frame_dt`` has passed since their last frame)."""
+        for t, text in notes:
+            for s in self.opened:
+                s.event(t, text)
+        if frame is None:
+            return
+        for k, s in enumerate(self.opened):
+            if output or frame_due(s, frame.t, self.last_t.get(k, -np.inf)):
+                self.last_t[k] = frame.t
                 s.log(frame)
-            if output:
-                self.log.record(state)  # (may compute a chunk of frames and fail its checks)
-
-    def record(self, states: list[State]) -> None:
-        """Output states of a run without sinks, to the trajectory's log."""
-        with self.guard.held():
-            for state in states:
-                self.log.record(state)  # (may compute a chunk of frames and fail its checks)
 
     def announce(self, events: list[tuple[float, str]]) -> None:
         """Milestones found after the run (``viz3d.stowage.run_events``, the verdict) to every sink."""

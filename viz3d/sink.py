@@ -2,8 +2,13 @@
 
 A run calls ``open(visuals)`` once, ``log(frame)`` for each frame it produces, ``event(t, text)``
 for discrete events (contact start/end, the final status), and ``close()`` exactly once, also
-after a failure or Ctrl-C. A sink with ``full_rate = True`` receives a frame after every
-integration step; otherwise only at the run's output interval.
+after a failure or Ctrl-C. Frames and events arrive in time order.
+
+Which frames: a sink gets the frame of every output instant (the trajectory's, ``sim.output_dt``)
+and of every contact event, and, when its ``frame_dt`` [s] is not None, a frame whenever
+``frame_dt`` of simulated time has passed since its last one (0: after every step; the run then
+computes its states at the finest interval any sink needs, a multiple of ``sim.dt``). A frame's
+drawing (``viz3d.frames.Drawing``) is evaluated only if the sink reads it.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ from viz3d.frames import Frame, SceneVisuals
 
 
 class Sink(Protocol):
-    full_rate: bool
+    frame_dt: float | None   # read after ``open``
 
     def open(self, visuals: SceneVisuals) -> None: ...
 
@@ -25,10 +30,20 @@ class Sink(Protocol):
     def close(self) -> None: ...
 
 
+#: A sink's frame is due this much [s] before ``frame_dt`` has passed (round-off of step times).
+FRAME_SLACK = 1e-12
+
+
+def frame_due(sink, t: float, last: float) -> bool:
+    """Whether ``sink`` wants the frame at ``t`` [s] beyond the output instants, its last frame
+    having been at ``last`` [s] (-inf: none yet)."""
+    return sink.frame_dt is not None and t >= last + sink.frame_dt - FRAME_SLACK
+
+
 class NullSink:
     """Accepts and discards everything."""
 
-    full_rate = False
+    frame_dt = None
 
     def open(self, visuals):
         pass

@@ -133,3 +133,71 @@ def test_a_check_that_fails_keeps_the_frames_up_to_the_failing_one():
         log.flush()
     cols = log.columns(check=False)
     np.testing.assert_array_equal(cols.t, [s.t for s in states[:5]])
+
+
+DRAWN = ("joint_points", "springs", "contact_points", "contact_forces")
+#: Scenes whose frames draw joints, springs, contacts acting and deformed bars.
+#: Scenes and what their frames must draw (the comparison is not empty).
+DRAWING_SCENES = {"robot_arm": ("joint_points", "springs"), "flexible_four_bar": ("joint_points", "deformed", "stress"),
+                  "bouncing_sphere": ("contact_points", "contact_forces"),
+                  "pendulum_strikes_bar": ("joint_points", "deformed", "contact_points")}
+
+
+@pytest.mark.parametrize("name", DRAWING_SCENES)
+def test_sampled_drawings_equal_the_numpy_drawings(name):
+    """The drawing of a frame built from the kernel's samples (``columns.frame_of``) equals the
+    NumPy reference's (``frame_from_state``) to round-off, as the columns do."""
+    from viz3d.columns import chunk_frames
+    from viz3d.scene.visuals import flexible_drawings
+
+    sim, states = _run(SCENES / f"{name}.toml")
+    drawings = flexible_drawings(viz3d.load_scene(SCENES / f"{name}.toml"), sim.system)
+    pick = sorted(set(np.linspace(0, len(states) - 1, SPREAD).round().astype(int).tolist()
+                      + [i for i, s in enumerate(states) if _touching(sim, s)]))
+    chosen = [states[i] for i in pick]
+    _, frame_at = chunk_frames(sim, chosen, drawings)
+    got = [frame_at(i).drawing for i in range(len(chosen))]
+    rng = np.random.default_rng(1)
+    ref, *moved = [[frame_from_state(sim.system, sim.formulation, s, drawings, sim.reference_energy).drawing
+                    for s in batch] for batch in [chosen] + [[_perturbed(s, rng) for s in chosen] for _ in range(2)]]
+    keys = list(DRAWN) + [f"deformed/{d.name}" for d in drawings] + [f"stress/{d.name}" for d in drawings
+                                                                      if d.stress_rows is not None]
+
+    def value(drawing, key):
+        kind, _, sub = key.partition("/")
+        return getattr(drawing, kind)[sub].astype(float) if sub else getattr(drawing, kind)
+
+    def rows(drawings_, key):  # every frame's items (joints, contacts acting, vertices), one after another
+        return np.concatenate([value(d, key) for d in drawings_])
+
+    def moved_rows(m, key):  # a perturbed state at a touch's onset may draw a contact the state does not:
+        return rows([d if value(d, key).shape == value(r, key).shape else r for d, r in zip(m, ref)], key)  # no estimate there
+
+    for key in keys:
+        assert [value(d, key).shape for d in got] == [value(d, key).shape for d in ref], f"{key}: other items drawn"
+    drawn = {key: rows(ref, key) for key in keys}
+    assert set(DRAWING_SCENES[name]) <= {k.partition("/")[0] for k, v in drawn.items() if v.size}, "not drawn"
+    for key in keys:
+        _close(key, rows(got, key), drawn[key], [moved_rows(m, key) for m in moved], float(np.abs(drawn[key]).max(initial=0.0)))
+
+
+def test_an_interrupt_during_a_chunks_check_leaves_its_states_to_the_last_flush():
+    """Ctrl-C while a chunk is checked: the interrupt waits for the check, the chunk's states stay
+    pending, and the run's last (unchecked) flush keeps them: frames up to the stop."""
+    import signal
+
+    from viz3d.interrupts import InterruptGuard
+
+    sim, states = _run(SCENES / "double_pendulum.toml")
+
+    def check(cols, chunk):
+        signal.raise_signal(signal.SIGINT)
+
+    with InterruptGuard() as guard:
+        log = StateLog(sim, check, hold=guard.held)
+        for s in states[:10]:
+            log.record(s)
+        with pytest.raises(KeyboardInterrupt):
+            log.flush()
+        cols = log.columns(check=False)
+    np.testing.assert_array_equal(cols.t, [s.t for s in states[:10]])

@@ -26,10 +26,8 @@ def test_recording_matches_the_trajectory(tmp_path):
     assert len(t) == 601 and np.allclose(np.diff(t), 5e-4, atol=1e-9)
     np.testing.assert_allclose(t, traj.t, atol=1e-9)
     idx = np.arange(len(t))
-    # The recorder's frames come from NumPy, the trajectory's from the compiled kernel: the same
-    # sums in another order, equal to a few ulps of their largest term (|T| + |V|; 16 terms at most).
-    scale = np.max(np.abs(traj.energy_kinetic) + np.abs(traj.energy_potential))
-    np.testing.assert_allclose(E[idx, 0], traj.energy_total, rtol=0, atol=16 * np.finfo(float).eps * scale)
+    # the recorder's frames are rows of the trajectory's columns: the same numbers
+    np.testing.assert_array_equal(E[idx, 0], traj.energy_total)
     _, C = read_scalars(path, "/plots/constraint_violation")
     np.testing.assert_array_equal(C[idx, 0], traj.constraint_violation)  # the same kernel rows
     _, F = read_scalars(path, "/plots/reaction_force/shoulder")
@@ -41,6 +39,44 @@ def test_recording_matches_the_trajectory(tmp_path):
     k = np.searchsorted(traj.t, tp - 1e-9)
     np.testing.assert_allclose(traj.t[k], tp, atol=1e-9)              # on the trajectory's timeline
     np.testing.assert_allclose(xyz.reshape(-1, 3), traj.position[k, traj.body("lower")], atol=FLOAT32_POS_TOL)
+
+
+def test_a_recording_at_every_step_holds_the_trajectory_at_its_output_instants(tmp_path):
+    """Plot samples every step (dt = 1 ms), trajectory frames every 10 ms: at the trajectory's times
+    the recording holds the trajectory's numbers."""
+    path = tmp_path / "top.rrd"
+    traj = viz3d.simulate(SCENES / "heavy_top.toml", t_end=0.3, sinks=[RerunRecorder(path)])
+    t, E = read_scalars(path, "/plots/energy/total")
+    assert len(t) == 301 and len(traj.t) == 31
+    k = np.searchsorted(t, traj.t - 1e-9)
+    np.testing.assert_allclose(t[k], traj.t, atol=1e-9)  # (sim_time is stored in nanoseconds)
+    np.testing.assert_array_equal(E[k, 0], traj.energy_total)
+    _, F = read_scalars(path, "/plots/reaction_force/tip")
+    np.testing.assert_array_equal(F[k], traj.reaction_force[:, 0])
+
+
+def test_joints_and_reactions_are_recorded_at_the_poses(tmp_path):
+    """Joint points and reaction arrows (sent as columns with the body poses) are the drawn frames'."""
+    path, frames = tmp_path / "dp.rrd", []
+
+    class Keep(NullSink):
+        frame_dt = 0.0
+
+        def log(self, frame):
+            frames.append(frame)
+
+    viz3d.simulate(SCENES / "double_pendulum.toml", t_end=0.3, sinks=[RerunRecorder(path), Keep()])
+    by_t = {round(f.t, 9): f for f in frames}
+    tp, _ = read_column(path, "/world/bodies/lower", "Transform3D:translation")
+    tj, points = read_column(path, "/world/joints", "Points3D:positions")
+    ta, arrows = read_column(path, "/world/reactions", "Arrows3D:vectors")
+    np.testing.assert_allclose(tj, tp, atol=1e-9)
+    np.testing.assert_allclose(ta, tp, atol=1e-9)
+    for t, p, a in zip(tj, points, arrows):
+        f = by_t[round(t, 9)]
+        np.testing.assert_allclose(p.reshape(-1, 3), f.joint_points, atol=FLOAT32_POS_TOL)
+        scale = np.abs(f.reaction_force).max()
+        np.testing.assert_allclose(a.reshape(-1, 3) / np.abs(a).max(), f.reaction_force / scale, atol=1e-6)
 
 
 def test_recording_layout_and_no_wall_clock(tmp_path):
@@ -58,7 +94,7 @@ def test_recording_layout_and_no_wall_clock(tmp_path):
 
 
 class _Interrupt(NullSink):
-    full_rate = True
+    frame_dt = 0.0
 
     def __init__(self, after):
         self.after, self.n = after, 0

@@ -28,7 +28,7 @@ LINKS = ("coupler", "rocker")
 class _Frames:
     """A sink keeping every frame (to compare the recording with)."""
 
-    full_rate = True
+    frame_dt = 0.0
 
     def __init__(self):
         self.frames = []
