@@ -250,30 +250,13 @@ def _write_cells(report: StowageReport, path: Path) -> None:
 
 
 def _chart(report: StowageReport, path: Path) -> None:
-    import matplotlib
+    """Verdict (colour) and peak hauling force per run of the grid."""
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    keys = report.keys if len(report.keys) == 2 else (*report.keys, "")
-    xs = sorted({r.values[0] for r in report.runs})
-    ys = sorted({r.values[1] for r in report.runs}) if len(report.keys) == 2 else [0.0]
-    fig, ax = plt.subplots(figsize=(1.6 + 1.3 * len(xs), 1.2 + 1.0 * len(ys)))
-    for r in report.runs:
-        i, j = xs.index(r.values[0]), ys.index(r.values[1] if len(report.keys) == 2 else 0.0)
-        ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, color=COLORS[r.outcome]))
+    def cell(r):
         force = "" if np.isnan(r.peak_force) else f"\n{r.peak_force / 1e3:.0f} kN"
-        ax.text(i, j, f"{r.outcome}{force}", ha="center", va="center", fontsize=8)
-    ax.set_xlim(-0.5, len(xs) - 0.5)
-    ax.set_ylim(-0.5, len(ys) - 0.5)
-    ax.set_xticks(range(len(xs)), [f"{x:g}" for x in xs])
-    ax.set_yticks(range(len(ys)), [f"{y:g}" for y in ys])
-    ax.set_xlabel(keys[0])
-    ax.set_ylabel(keys[1])
-    ax.set_title(f"{report.scene}: verdict and peak hauling force")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        return COLORS[r.outcome], f"{r.outcome}{force}"
+
+    _grid_chart(report, report.runs, cell, f"{report.scene}: verdict and peak hauling force", path, (1.6, 1.3, 1.2, 1.0))
 
 
 def _fraction_chart(report: StowageReport, path: Path) -> None:
@@ -281,22 +264,36 @@ def _fraction_chart(report: StowageReport, path: Path) -> None:
     95 % Wilson interval written in it."""
     import matplotlib
 
+    cmap = matplotlib.colormaps["RdYlGn"]
+
+    def cell(c):
+        if not c.n_verdicts:
+            return COLORS["failed"], f"{len(c.runs)} failed"
+        lo, hi = c.interval
+        return cmap(0.15 + 0.7 * c.fraction_seated), f"{c.count('seated')}/{c.n_verdicts} seated\n[{lo:.2f}, {hi:.2f}]"
+
+    _grid_chart(report, report.cells, cell, f"{report.scene}: fraction seated of {report.ensemble.n} members [95 % Wilson]",
+                path, (2.4, 1.6, 1.4, 1.1), title_size=9)
+
+
+def _grid_chart(report: StowageReport, items, cell, title: str, path: Path, size: tuple, title_size=None) -> None:
+    """One coloured square per grid point of ``items`` (each with ``values``: one or two study keys),
+    ``cell(item) -> (colour, text)``; ``size``: figure width and height as (base, per column, base,
+    per row) [in]."""
+    import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    keys = report.keys if len(report.keys) == 2 else (*report.keys, "")
-    cells = report.cells
-    xs = sorted({c.values[0] for c in cells})
-    ys = sorted({c.values[1] for c in cells}) if len(report.keys) == 2 else [0.0]
-    cmap = matplotlib.colormaps["RdYlGn"]
-    fig, ax = plt.subplots(figsize=(2.4 + 1.6 * len(xs), 1.4 + 1.1 * len(ys)))
-    for c in cells:
-        i, j = xs.index(c.values[0]), ys.index(c.values[1] if len(report.keys) == 2 else 0.0)
-        color = COLORS["failed"] if not c.n_verdicts else cmap(0.15 + 0.7 * c.fraction_seated)
+    two = len(report.keys) == 2
+    keys = report.keys if two else (*report.keys, "")
+    xs = sorted({r.values[0] for r in items})
+    ys = sorted({r.values[1] for r in items}) if two else [0.0]
+    fig, ax = plt.subplots(figsize=(size[0] + size[1] * len(xs), size[2] + size[3] * len(ys)))
+    for r in items:
+        i, j = xs.index(r.values[0]), ys.index(r.values[1] if two else 0.0)
+        color, text = cell(r)
         ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, color=color))
-        lo, hi = c.interval
-        text = (f"{c.count('seated')}/{c.n_verdicts} seated\n[{lo:.2f}, {hi:.2f}]" if c.n_verdicts
-                else f"{len(c.runs)} failed")
         ax.text(i, j, text, ha="center", va="center", fontsize=8)
     ax.set_xlim(-0.5, len(xs) - 0.5)
     ax.set_ylim(-0.5, len(ys) - 0.5)
@@ -304,7 +301,7 @@ def _fraction_chart(report: StowageReport, path: Path) -> None:
     ax.set_yticks(range(len(ys)), [f"{y:g}" for y in ys])
     ax.set_xlabel(keys[0])
     ax.set_ylabel(keys[1])
-    ax.set_title(f"{report.scene}: fraction seated of {report.ensemble.n} members [95 % Wilson]", fontsize=9)
+    ax.set_title(title, fontsize=title_size)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
