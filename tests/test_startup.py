@@ -69,11 +69,25 @@ def test_a_warm_run_loads_its_kernel_without_numbas_target_refresh(tmp_path):
     assert not offending(modules, NUMBA_TARGET)
 
 
+def test_a_warm_rigid_run_imports_no_scipy_linalg(tmp_path):
+    """A run the kernel covers projects its initial state there (``scene.build.kernel_projection``), not
+    with LAPACK's ``dposv`` (``viz3d.constraints.schur_solve``): with numba's cache warm, nothing imports
+    scipy.linalg (compiling, on a cold cache, does: numba's target refresh imports it)."""
+    pytest.importorskip("numba")
+    out = tmp_path / "top.npz"
+    run = ("from viz3d.cli import main\n"
+           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
+    loaded_after(run)  # warms numba's cache
+    modules = loaded_after(run + "from viz3d.kernel import stepping\n"
+                                 "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
+    assert not offending(modules, ("scipy.linalg", "scipy.linalg.lapack", "scipy.linalg.cython_lapack"))
+
+
 def test_the_compiled_kernel_needs_no_lapack():
     """The kernel's solves are its own loops (no ``np.linalg`` in compiled code, which would make numba
     import scipy.linalg.cython_lapack when the code runs): stepping, projecting and sampling a top on a
     ball joint in the kernel, compiled or loaded from numba's cache, imports no scipy.linalg, so that a
-    run's one use of LAPACK is its initial projection (``viz3d.constraints.schur_solve``). The system
+    run the kernel covers needs no LAPACK (its initial projection is the kernel's too). The system
     is built without the contact modules: packing registers every piece itself (the kernel's types
     do not depend on the caller's imports)."""
     pytest.importorskip("numba")

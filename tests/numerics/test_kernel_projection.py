@@ -2,9 +2,11 @@
 steps the NumPy path takes (``Projection.post_step``: ``viz3d.stabilization``), to round-off, and
 leaves the joints closed to the projection's tolerance."""
 
+import warnings
+
 import numpy as np
 import pytest
-from kernel_runs import agreement_bound, off_constraints, run
+from kernel_runs import EPS, ROUNDOFF_FACTOR, SENSITIVITY_SAMPLES, agreement_bound, off_constraints, run, with_y
 
 import viz3d
 from viz3d import kernel as K
@@ -13,7 +15,7 @@ from viz3d.diagnosis import SimulationFailure
 from viz3d.dynamics import body_state
 from viz3d.integrators import make_integrator
 from viz3d.integrators.tableaus import RK4
-from viz3d.scene.build import make_formulation
+from viz3d.scene.build import consistent_state, make_formulation
 from viz3d.simulate import Simulation
 
 from conftest import SCENES
@@ -104,3 +106,44 @@ def test_projection_that_does_not_converge_stops_the_run_with_the_numpy_diagnosi
         messages.append(str(exc.value))
     head = [m.split(" = ")[:2] for m in messages]  # "t = 0.001 s: position projection left max |C|", value
     assert head[0] == head[1] and "position projection left max |C|" in messages[0], messages
+
+
+def _initial_projection(system, state, tol, form):
+    return consistent_state(system, state, "test", tol, form)
+
+
+@pytest.mark.parametrize("name", SCENE_NAMES[:3])
+def test_the_initial_state_projected_in_the_kernel_is_numpys_to_round_off(name, monkeypatch):
+    """A run that steps in the kernel projects its initial state there (``scene.build.kernel_projection``,
+    with the run's formulation, here index-1, whose steps project nothing): once, and to the NumPy projection's state
+    within ROUNDOFF_FACTOR x that projection's round-off (eps times its condition number: its change under
+    relative perturbations of eps of the state, at least eps |y|, as ``kernel_runs.step_roundoff``);
+    the joints closed to the tolerance."""
+    scene = viz3d.load_scene(SCENES / f"{name}.toml", {"sim.formulation": "index1"})
+    system, state = viz3d.build(scene)
+    form, tol = make_formulation(scene.data["sim"]), scene.data["sim"]["projection_tol"]
+    assert form.name != "projection" and K.kernel_coverage(system, form)[1] is None
+    start = off_constraints(state, OFF_CONSTRAINTS)
+    calls = []
+    project = K.KernelStepper.project
+
+    def counted(self, *a):
+        calls.append(project(self, *a))
+        return calls[-1]
+
+    monkeypatch.setattr(K.KernelStepper, "project", counted)
+    with pytest.warns(UserWarning, match="projected onto the joints"):
+        compiled = _initial_projection(system, start, tol, form)
+    monkeypatch.undo()
+    assert [ok for _, ok in calls] == [True], "the kernel's projection was not the one used"
+    with pytest.warns(UserWarning, match="projected onto the joints"):
+        numpy = _initial_projection(system, start, tol, None)
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(SENSITIVITY_SAMPLES, start.y.size))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        change = max(np.abs(_initial_projection(system, with_y(system, start, start.y * (1 + EPS * s)), tol, None).y
+                            - numpy.y).max() for s in signs)
+    bound = ROUNDOFF_FACTOR * max(change, EPS * np.abs(numpy.y).max())
+    diff = np.abs(compiled.y - numpy.y).max()
+    assert diff <= bound, f"{name}: kernel and NumPy initial projections differ by {diff:.2e} > {bound:.2e}"
+    assert _max_abs_C(system, compiled) <= tol

@@ -9,7 +9,7 @@ the correction.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -36,7 +36,7 @@ from viz3d.scene.contacts import contact_law, friction_law
 from viz3d.scene.contacts import materials as contact_materials
 from viz3d.scene.load import Scene
 from viz3d.scene.schema import SceneError
-from viz3d.stabilization import ProjectionError, project_positions, project_velocities
+from viz3d.stabilization import MAX_ITER, ProjectionError, project_positions, project_velocities
 from viz3d.system import State, System
 from viz3d.timefunctions import PROFILE_KINDS, TimeFunctions
 
@@ -89,7 +89,8 @@ def build(scene: Scene) -> tuple[System, State]:
     q = system.join_q(W_r0[frames], theta)
     v = initial_velocities(scene, R0, system)
     state = State(0.0, q, v, chart, np.zeros(system.n_aux), tuple(c.initial_phases() for c in contacts))
-    return system, consistent_state(system, state, src, sim["projection_tol"])
+    formulation = make_formulation(sim) if sim["compiled"] else None
+    return system, consistent_state(system, state, src, sim["projection_tol"], formulation)
 
 
 def build_bodies(scene: Scene) -> tuple[Bodies, tuple[str, ...]]:
@@ -595,14 +596,21 @@ def build_stowage_outputs(scene: Scene, bodies: Bodies, joints: tuple, W_r0: Flo
 # ---------------------------------------------------------------- initial conditions
 
 
-def consistent_state(system: System, state: State, source: str, tol: float) -> State:
-    """Project ``state`` onto ``C = 0`` and ``C_v v + C_t = 0`` (drives included, at ``state.t``); warn with the
-    size of the corrections."""
+def consistent_state(system: System, state: State, source: str, tol: float, formulation=None) -> State:
+    """Project ``state`` onto ``C = 0`` (to ``max |C| <= tol`` [m]) and ``C_v v + C_t = 0`` (drives included,
+    at ``state.t``); warn with the size of the corrections. With the run's ``formulation`` (None: a run on
+    the NumPy path, ``sim.compiled = false``) the projection is the compiled kernel's when it covers the
+    system, as the run's steps will be, and the system is rigid (``kernel_projection``); else, or when that fails, NumPy's, which
+    raises the diagnosis."""
     if system.n_c == 0:
         return state
+    projected = None if formulation is None else kernel_projection(system, state, tol, formulation)
     try:
-        q, _ = project_positions(system, state.q, state.chart, tol=tol, memory=state.memory, t=state.t)
-        v = project_velocities(system, q, state.v, state.chart, state.memory, t=state.t)
+        if projected is None:
+            q, _ = project_positions(system, state.q, state.chart, tol=tol, memory=state.memory, t=state.t)
+            v = project_velocities(system, q, state.v, state.chart, state.memory, t=state.t)
+        else:
+            q, v = projected.q, projected.v
     except SingularConstraintError:
         names = redundant_joints(system, *constraint_jacobian(system.joints, _configuration(system, state)))
         who = f"joints {', '.join(map(repr, names))} are redundant or degenerate" if names else "the joints lose rank"
@@ -620,6 +628,27 @@ def consistent_state(system: System, state: State, source: str, tol: float) -> S
             f"(initial max |C| = {np.max(np.abs(C0)):.3g}: m, or the sine of an angle for axis rows and angle drives), "
             f"velocities changed by up to {dv:.3g} m/s or rad/s"),
             stacklevel=2)
+    return state.replace(q=q, v=v)
+
+
+def kernel_projection(system: System, state: State, tol: float, formulation) -> State | None:
+    """``state`` projected as ``project_positions`` (to ``max |C| <= tol`` [m], at most ``MAX_ITER``
+    corrections) then ``project_velocities`` do, in the compiled kernel (``viz3d.kernel.projection``: the
+    same Newton corrections and velocity step, its own banded Cholesky solves, no LAPACK), when the kernel
+    covers ``system`` with ``formulation``; None when it does not, when the projection fails, and for
+    systems with flexible bodies: on the flexible four-bar the kernel's correction leaves half the elastic
+    coordinates where they were and NumPy's moves them (by 8e-13, 1 % of the 8e-11 correction: more than
+    round-off, and the run amplifies it), a difference to mend in the kernel first."""
+    from viz3d.kernel import KernelStepper, kernel_for
+
+    data = None if system.bodies.flexible else kernel_for(system, formulation)
+    if data is None:
+        return None
+    model = data.model._replace(projection_tol=float(tol), projection_iter=MAX_ITER)
+    y, ok = KernelStepper(replace(data, model=model), None).project(state.t, state.y, state.chart, state.memory)
+    if not ok:
+        return None
+    q, v, _ = system.split_y(y)
     return state.replace(q=q, v=v)
 
 
