@@ -4,17 +4,20 @@
 
 Each case runs in a fresh interpreter; the wall time of the whole process is measured, and its CPU
 time (user + system, of the process and its threads), which the load of a shared machine inflates far
-less: on an idle machine the two agree (warm caches: nothing to wait for). Best of ``--repeat``, the
+less (warm caches: nothing to wait for; on a lightly loaded machine the CPU time exceeds the wall time,
+threads such as numpy's BLAS pool starting in parallel). Best of ``--repeat``, the
 cases interleaved (one round runs every case once) so that the load falls on all of them alike. Warm caches, as a user has them after the first run: every tree
 is run once untimed first (numba's on-disk cache of the kernel, ``NUMBA_CACHE_DIR`` if set, and the
 modules' bytecode: ``PYTHONDONTWRITEBYTECODE`` is dropped for the children).
 
-Cases: Python alone, ``import numpy``, ``import numba``, ``import numba, scipy.linalg`` (what any run
-imports: the kernel, and LAPACK for the initial projection), ``import viz3d``, ``import viz3d.cli``,
+Cases: Python alone, ``import numpy``, ``import numba``, ``import numba, scipy.linalg`` (what a run
+imported while its initial projection called LAPACK; a rigid run the kernel covers now projects in the
+kernel and imports numba only), ``import viz3d``, ``import viz3d.cli``,
 and ``viz3d run scenes/heavy_top.toml --t-end 0.01`` (10 steps). ``--before DIR`` measures a second source
 tree too (an earlier version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through
 PYTHONPATH, in the same rounds. A last table splits one run into its phases (imports, scene load and
-build, the kernel's first call = loading the run's stepping entry, ``advance_frames``, from numba's
+build, the initial projection included: in the kernel for a covered rigid system, its projection entry
+loaded from numba's cache; the kernel's first call = loading the run's stepping entry, ``advance_frames``, from numba's
 cache, the rest of the run: its sampling entry loaded, the steps, the output), wall and CPU time,
 best of ``--repeat``.
 The load average is quoted before and after.
