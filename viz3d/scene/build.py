@@ -599,9 +599,9 @@ def build_stowage_outputs(scene: Scene, bodies: Bodies, joints: tuple, W_r0: Flo
 def consistent_state(system: System, state: State, source: str, tol: float, formulation=None) -> State:
     """Project ``state`` onto ``C = 0`` (to ``max |C| <= tol`` [m]) and ``C_v v + C_t = 0`` (drives included,
     at ``state.t``); warn with the size of the corrections. With the run's ``formulation`` (None: a run on
-    the NumPy path, ``sim.compiled = false``) the projection is the compiled kernel's when it covers the
-    system, as the run's steps will be, and the system is rigid (``kernel_projection``); else, or when that fails, NumPy's, which
-    raises the diagnosis."""
+    the NumPy path, ``sim.compiled = false``) the projection is the compiled kernel's when the kernel covers
+    the system, as the run's steps will be, and the system is rigid (``kernel_projection``); else, or when
+    that fails, NumPy's, which raises the diagnosis."""
     if system.n_c == 0:
         return state
     projected = None if formulation is None else kernel_projection(system, state, tol, formulation)
