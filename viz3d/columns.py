@@ -27,7 +27,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from viz3d._typing import FloatArray
-from viz3d.dynamics import flexible_kinetic
+from viz3d.dynamics import flexible_kinetics
 from viz3d.contact.contacts import Gap
 from viz3d.frames import Frame, drawing_of, ledger_scalars
 from viz3d.joints import drive_efforts, relative_coordinates
@@ -293,7 +293,7 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs) else None
     for k, fb in enumerate(system.bodies.flexible):
         sl = stepper.data.elastic_slices[k]
-        T += [flexible_kinetic(fb, cfg, k) for cfg in cfgs]
+        T += flexible_kinetics(fb, s, sl)
         strain += 0.5 * np.einsum("ni,ij,nj->n", s.eta[:, sl], fb.bar.K, s.eta[:, sl])
     V = s.V[:, 0] + s.V[:, 1] + strain
     scalars: dict[str, FloatArray] = {}

@@ -355,6 +355,16 @@ def flexible_kinetic(fb, cfg: Configuration, i: int) -> float:
     return ffr.kinetic_energy(fb.bar, cfg.pose.R_WB[fb.index], cfg.eta[i], v)
 
 
+def flexible_kinetics(fb, s, sl: slice) -> FloatArray:
+    """``flexible_kinetic`` of flexible body ``fb`` at N states at once (N,) [J], from kernel samples
+    ``s`` (``viz3d.kernel.Samples``; ``sl`` the body's slice of their elastic coordinates)."""
+    eta_dot = s.eta_dot[:, sl]
+    if not fb.floating:
+        return 0.5 * np.einsum("ni,ij,nj->n", eta_dot, fb.bar.M_ee, eta_dot)
+    b = fb.index
+    return ffr.kinetic_energies(fb.bar, s.R[:, b], s.eta[:, sl], np.concatenate([s.vW[:, b], s.wB[:, b], eta_dot], axis=1))
+
+
 def centres_of_mass(system: System, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
     """World positions and velocities of the bodies' centres of mass, shapes (nb, 3) [m, m/s]: the
     frame origins, shifted on flexible bodies by their deflection ``R S eta / m``."""

@@ -18,7 +18,7 @@ each contact was resolved.
 * **Who steps** (``ContactStepping.python_steps``, the one place that decides) adaptive runs with the
   compiled driver (``viz3d.kernel.adaptive``): in flight and while kinematic contacts touch, the
   driver (it checks the signs of the event functions); while law contacts touch, the driver too,
-  its steps bounded by ``step_bound`` and recorded, ``after_step`` run on the records after the call
+  its steps bounded by ``step_bound`` and recorded, ``after_steps`` run on the records after the call
   (it keeps books and checks, and leaves the vector field alone) — unless a touching law contact has
   stateful friction, whose stick anchors move between steps and change the force: Python. Locating
   an event (brentq on the dense output), handling it and the step after it (its events start at a
@@ -39,7 +39,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.constraints import apply_jacobian, apply_jacobian_transpose, constraint_rows, schur_solve
-from viz3d.contact.contacts import ContactPhase, ContactRows, Onset
+from viz3d.contact.contacts import ContactPhase, ContactRows, Gap, Onset
 from viz3d.contact.resolution import (
     STEP_FRACTION,
     contact_time_scale,
@@ -51,7 +51,8 @@ from viz3d.contact.resolution import (
     restitution_diagnosis,
 )
 from viz3d.diagnosis import SimulationFailure
-from viz3d.dynamics import accelerations, body_state, centres_of_mass, flat_velocity, split_velocity, system_mass
+from viz3d.dynamics import (accelerations, body_state, centres_of_mass, flat_velocity, flexible_kinetics, split_velocity,
+                            system_mass)
 from viz3d.forces import AppliedForce, Gravity
 from viz3d.integrators.adaptive import Event
 from viz3d.system import State, System
@@ -132,7 +133,11 @@ def work_integrals(system: System, state: State) -> FloatArray:
 
 def impulse_loss(system: System, state: State) -> float:
     """Kinetic energy taken by every contact's impulses so far [J]."""
-    memory = state.memory or tuple(c.initial_phases() for c in system.contacts)
+    return memory_loss(state.memory or tuple(c.initial_phases() for c in system.contacts))
+
+
+def memory_loss(memory: tuple) -> float:
+    """Kinetic energy taken by the impulses recorded in the contacts' ``memory`` [J]."""
     return float(sum(p.impulse_loss for phases in memory for p in phases))
 
 
@@ -543,9 +548,7 @@ class ContactStepping:
         the error estimates allow, so a run that creates more energy than its tolerance admits
         stops; and any dissipation that went backwards).
         """
-        under_way = [(k, i) for k, c in enumerate(self.system.contacts) if c.located
-                     for i, phase in enumerate(state.memory[k])
-                     if phase.touching and c.models[i] == "law" and phase.onset is not None]
+        under_way = self._under_way(state)
         if not under_way:
             return state
         state = self._replant(state, under_way)
@@ -553,6 +556,78 @@ class ContactStepping:
         balance = self.balance(led)
         low = None if error is None else self.balance(self.ledger(self.state_at(state.t, state.y - error, state)))
         dvs = None if error is None else self._normal_velocity_errors(state, error)
+        return self._book_step(state, under_way, led, balance, low, dvs)
+
+    def after_steps(self, like: State, ts: FloatArray, Y: FloatArray, charts: FloatArray,
+                    errors: FloatArray) -> tuple[list[tuple], int | None]:
+        """``after_step`` on N steps in order, ending at ``(ts[r], Y[r], charts[r])`` (N,), (N, n_y),
+        (N, nf, 3, 3) with error estimates ``errors`` (N, n_y), from ``like``'s memory on: the
+        contacts' memory after each step, and the index of the first step whose check fails (None
+        when none does). With the kernel and no stateful friction (the memory then changes only in the
+        onsets' books between events), the ledgers of all steps come from two kernel samples."""
+        under_way = self._under_way(like)
+        stateful = any(f is not None and f.stateful for c in self.system.contacts for f in c.friction)  # bristles: the pose
+        if not under_way or stateful or self.kernel is None:
+            return self._steps_one_by_one(like, ts, Y, charts, errors)
+        try:
+            led, low = self.ledgers(ts, Y, charts, like.memory), self.ledgers(ts, Y - errors, charts, like.memory)
+        except np.linalg.LinAlgError:
+            return self._steps_one_by_one(like, ts, Y, charts, errors)
+        balance, low = self.balance(led), self.balance(low)
+        memories, state = [], like
+        for r in range(ts.shape[0]):
+            state = self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r]))
+            dvs = self._normal_velocity_errors(state, errors[r])
+            led_r = Ledger(*(float(getattr(led, f.name)[r]) for f in dataclasses.fields(Ledger)))
+            try:
+                state = self._book_step(state, under_way, led_r, float(balance[r]), float(low[r]), dvs)
+            except SimulationFailure:
+                return memories, r
+            memories.append(state.memory)
+        return memories, None
+
+    def _steps_one_by_one(self, like: State, ts, Y, charts, errors) -> tuple[list[tuple], int | None]:
+        """``after_steps`` one ``after_step`` call at a time."""
+        memories, state = [], like
+        for r in range(ts.shape[0]):
+            try:
+                state = self.after_step(self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r])), errors[r])
+            except SimulationFailure:
+                return memories, r
+            memories.append(state.memory)
+        return memories, None
+
+    def ledgers(self, ts: FloatArray, Y: FloatArray, charts: FloatArray, memory: tuple) -> Ledger:
+        """The ledgers of N states sharing the contacts' ``memory`` (fields (N,)), from one kernel
+        sample (``KernelStepper.sample``: rigid kinetic and force elements' potential energies, gaps)
+        and the flexible bodies' energies over all states at once."""
+        s, data = self.system, self.kernel.data
+        smp = self.kernel.sample(ts, Y, charts, memory)
+        T, strain = smp.T.copy(), np.zeros(ts.shape[0])
+        for k, fb in enumerate(s.bodies.flexible):
+            sl = data.elastic_slices[k]
+            T += flexible_kinetics(fb, smp, sl)
+            strain += 0.5 * np.einsum("ni,ij,nj->n", smp.eta[:, sl], fb.bar.K, smp.eta[:, sl])
+        U = np.zeros((ts.shape[0], data.n_contacts))
+        for r in np.flatnonzero((smp.gap[:, :, 0] > 0.0).any(axis=1) | any(p.touching for ph in memory for p in ph)):
+            for k, (c, x) in enumerate(zip(s.contacts, data.contact_slices)):
+                g = smp.gap[r, x]
+                U[r, x] = c.elastic_energy(None, memory[k], Gap(g[:, 0], g[:, 1], g[:, 2:5], g[:, 5:8], g[:, 8:11]))
+        W = Y[:, s.n_q + s.n_v:] if Y.shape[1] > s.n_q + s.n_v else np.zeros((ts.shape[0], U.shape[1] + 2))
+        losses = np.full(ts.shape[0], memory_loss(memory))
+        return ledger_of(T, smp.V[:, 0] + smp.V[:, 1], smp.V[:, 0], strain, U, W, losses)
+
+    def _under_way(self, state: State) -> list[tuple[int, int]]:
+        """The law contacts under way at ``state``: (set, contact) pairs."""
+        return [(k, i) for k, c in enumerate(self.system.contacts) if c.located
+                for i, phase in enumerate(state.memory[k])
+                if phase.touching and c.models[i] == "law" and phase.onset is not None]
+
+    def _book_step(self, state: State, under_way: list, led: Ledger, balance: float, low: float | None,
+                   dvs: FloatArray | None) -> State:
+        """``after_step``'s books and checks of the law contacts ``under_way`` after a step ending at
+        ``state``: its ledger ``led`` and balance, the balance ``low`` at ``y - error`` and the normal
+        velocity errors ``dvs`` (None for fixed steps)."""
         for k, i in under_way:
             o = state.memory[k][i].onset
             dv = 0.0 if dvs is None else float(dvs[self._k0[k] + i])

@@ -559,19 +559,13 @@ class Simulation:
         return self._records
 
     def _contact_steps(self, records, like: State) -> tuple[list[tuple], int | None]:
-        """``ContactStepping.after_step`` on each recorded step in order, as the Python loop runs it
+        """``ContactStepping.after_steps`` on the recorded steps in order, as the Python loop runs ``after_step``
         after each step: the contacts' memory after each step, and the index of the first step whose
         check fails (None when none does)."""
-        memories, memory = [], like.memory
-        for r in range(0 if records is None else int(records.n[0])):
-            state = _state_at(self.system, float(records.t[r]), records.y[r], like.replace(chart=records.chart[r],
-                                                                                         memory=memory))
-            try:
-                memory = self._contacts.after_step(state, records.err[r]).memory
-            except SimulationFailure:
-                return memories, r
-            memories.append(memory)
-        return memories, None
+        if records is None:
+            return [], None
+        n = int(records.n[0])
+        return self._contacts.after_steps(like, records.t[:n], records.y[:n], records.chart[:n], records.err[:n])
 
     def _frames_before(self, records, r: int, t_call: float, done: int, every: int) -> int:
         """How many of the ``done`` frames of a call started at ``t_call`` [s] the Python loop outputs

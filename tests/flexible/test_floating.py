@@ -28,6 +28,7 @@ from viz3d.flexible.floating import (
     floating_bar_from_fields,
     gravity_forces,
     gravity_potential,
+    kinetic_energies,
     kinetic_energy,
     linear_momentum,
     mass_matrix,
@@ -533,3 +534,18 @@ def test_fields_must_share_one_bar():
         floating_bar(bend, second=(E_X, mode_set("axial_free_free")(2 * L, steel, sec, 2)))
     with pytest.raises(ValueError, match="second moment"):       # a rectangle bends differently about z
         floating_bar_from_fields([(E_Y, bend), (E_Z, bend)])
+
+
+@pytest.mark.parametrize("name", ["soft", *CASES])
+def test_kinetic_energies_of_many_states_are_each_states_kinetic_energy(name):
+    """``kinetic_energies`` (the blocks of M over N states) against ``kinetic_energy`` (1/2 v^T M v
+    with M formed) of each, at large deformations (every coupling of M on): a sum of (6 + n)^2
+    products, so within (6 + n) eps of 1/2 |v|^T |M| |v| (the sum of the products' magnitudes), times 4."""
+    bar = soft_bar() if name == "soft" else sympy_case(name)[0]
+    states = [random_state(bar.n, scale_eta=0.3) for _ in range(6)]
+    R, v, eta = (np.array(x) for x in zip(*states))
+    T = kinetic_energies(bar, R, eta, v)
+    for i in range(len(states)):
+        M = mass_matrix(bar, R[i], eta[i])
+        bound = 4 * (6 + bar.n) * EPS * 0.5 * np.abs(v[i]) @ np.abs(M) @ np.abs(v[i])
+        assert abs(T[i] - kinetic_energy(bar, R[i], eta[i], v[i])) <= bound

@@ -272,3 +272,29 @@ def test_pairwise_sum_adds_in_numpys_order(n):
 @njit
 def _sum(x):
     return pairwise_sum(x, 0, x.shape[0])
+
+
+def test_ledgers_of_recorded_steps_are_the_ledgers_one_by_one(monkeypatch):
+    """``ContactStepping.ledgers`` (one kernel sample and the flexible bodies' energies over all the
+    recorded steps of a call) against ``ContactStepping.ledger`` of each state (``energy_terms``,
+    NumPy), at the steps' ends and at ``y - error``, on a floating flexible bar in a law contact.
+    Each term is a sum of at most 6 + n_e products per body (the FFR quadratic forms), a few roundings
+    each: (6 + n_e) eps of the sum of the terms' magnitudes, times 8."""
+    from viz3d.events import ContactStepping, Ledger
+
+    calls = []
+    after_steps = ContactStepping.after_steps
+    monkeypatch.setattr(ContactStepping, "after_steps",
+                        lambda self, *a: calls.append((self, *(np.array(x) for x in a[1:]), a[0])) or after_steps(self, *a))
+    sim = _run("pendulum_strikes_bar", 4e-4, True, monkeypatch=monkeypatch)[0]
+    contacts, ts, Y, charts, errors, like = max(calls, key=lambda c: c[1].shape[0])
+    assert ts.shape[0] > 10
+    n_e = sum(fb.n for fb in sim.system.bodies.flexible)
+    for Ys in (Y, Y - errors):
+        batch = contacts.ledgers(ts, Ys, charts, like.memory)
+        for r in range(ts.shape[0]):
+            one = contacts.ledger(contacts.state_at(float(ts[r]), Ys[r], like.replace(chart=charts[r])))
+            scale = sum(abs(getattr(one, f.name)) for f in dataclasses.fields(Ledger))
+            for f in dataclasses.fields(Ledger):
+                a, b = float(getattr(batch, f.name)[r]), float(getattr(one, f.name))
+                assert abs(a - b) <= 8 * (6 + n_e) * EPS * scale, f"mismatch: {f.name} at step {r}: {a!r} vs {b!r}"

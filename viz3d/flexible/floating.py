@@ -577,6 +577,23 @@ def kinetic_energy(bar: FloatingBar, R_WB: FloatArray, eta: FloatArray, v: Float
     return 0.5 * float(v @ mass_matrix(bar, R_WB, eta) @ v)
 
 
+def kinetic_energies(bar: FloatingBar, R_WB: FloatArray, eta: FloatArray, v: FloatArray) -> FloatArray:
+    """``kinetic_energy`` of N states at once: ``R_WB`` (N, 3, 3), ``eta`` (N, n), ``v`` (N, 6 + n) ->
+    T (N,) [J], from the blocks of M (``mass_matrix``) without forming it."""
+    W_v, w, eta_dot = v[:, :3], v[:, 3:6], v[:, 6:]
+    F = bar.A + np.einsum("ijpq,np->nijq", bar.B, eta)                         # (N, 3, 3, n)
+    Sigma2 = bar.I0 + np.einsum("ijq,nq->nji", bar.A, eta) + np.einsum("nijq,nq->nij", F, eta)
+    J = np.trace(Sigma2, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Sigma2
+    G = np.stack([F[:, 1, 2] - F[:, 2, 1], F[:, 2, 0] - F[:, 0, 2], F[:, 0, 1] - F[:, 1, 0]], axis=1)  # (N, 3, n)
+    B_v = np.einsum("nji,nj->ni", R_WB, W_v)                                   # W_v in body axes
+    s_c = eta @ bar.S.T
+    return (0.5 * bar.mass * np.einsum("ni,ni->n", W_v, W_v)
+            + np.einsum("ni,ni->n", B_v, np.cross(w, s_c) + eta_dot @ bar.S.T)
+            + 0.5 * np.einsum("ni,nij,nj->n", w, J, w)
+            + np.einsum("ni,niq,nq->n", w, G, eta_dot)
+            + 0.5 * np.einsum("ni,ij,nj->n", eta_dot, bar.M_ee, eta_dot))
+
+
 def strain_energy(bar: FloatingBar, eta: FloatArray) -> float:
     """U = 1/2 eta^T K eta [J]."""
     return 0.5 * float(eta @ bar.K @ eta)
