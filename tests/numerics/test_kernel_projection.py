@@ -147,3 +147,29 @@ def test_the_initial_state_projected_in_the_kernel_is_numpys_to_round_off(name, 
     diff = np.abs(compiled.y - numpy.y).max()
     assert diff <= bound, f"{name}: kernel and NumPy initial projections differ by {diff:.2e} > {bound:.2e}"
     assert _max_abs_C(system, compiled) <= tol
+
+
+@pytest.mark.xfail(strict=True, reason="known defect (stop 26): the kernel's correction leaves elastic coordinates 1 "
+                   "and 3 of each bar of the flexible four-bar unmoved; cause not found yet")
+def test_the_kernel_correction_on_floating_flexible_bars_is_the_mass_orthogonal_one():
+    """One Newton correction of the kernel's projection on the flexible four-bar, 1e-6 off its joints,
+    against the dense minimum-M-norm correction ``-M^-1 C_v^T (C_v M^-1 C_v^T)^-1 C`` (which NumPy's
+    equals to 4e-20): equal to round-off of the correction's size. Strict xfail: it passes once the
+    kernel is mended, and then fails here to be turned into a plain test."""
+    from dataclasses import replace
+
+    from viz3d.constraints import dense_jacobian
+    from viz3d.mass import dense_mass_matrix
+
+    system, state, form = _setup("flexible_four_bar")
+    cfg = body_state(system, state.q, np.zeros(system.n_v), state.chart, state.t)
+    rows = constraint_rows(system.joints, cfg, state.memory)
+    Cv, M = dense_jacobian(system, rows.J, rows.Je), dense_mass_matrix(system, cfg)
+    exact = -np.linalg.solve(M, Cv.T @ np.linalg.solve(Cv @ np.linalg.solve(M, Cv.T), rows.C))
+    data = K.kernel_for(system, form)
+    stepper = K.KernelStepper(replace(data, model=data.model._replace(projection_tol=0.0, projection_iter=1)), None)
+    y, _ = stepper.project(state.t, state.y.copy(), state.chart, state.memory)
+    n_frames_q, n_frames_v = system.n_frames * system.n_q_body, 6 * system.n_frames
+    d_eta = (y - state.y)[n_frames_q:system.n_q]
+    scale = np.abs(exact).max()
+    np.testing.assert_allclose(d_eta, exact[n_frames_v:], rtol=0, atol=1e3 * EPS * np.linalg.cond(M) * scale)
