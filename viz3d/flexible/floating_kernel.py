@@ -135,7 +135,7 @@ def _first_moment(fx_i, pool, fx, x, x0, out):
 
 
 @jit
-def _shape_moments(fx_i, pool, bij, work, fx, eta):
+def shape_moments(fx_i, pool, bij, work, fx, eta):
     """``F = A + B . eta`` (3, 3, n) into the body's scratch."""
     n, e0, A, F = fx_i[fx, FX_N], fx_i[fx, FX_E0], fx_i[fx, FX_A], fx_i[fx, FX_WORK]
     for k in range(9 * n):
@@ -211,7 +211,7 @@ def _velocity_forces(fx_i, fx_f, pool, bij, work, fx, R, om, eta, eta_dot, Q, Qe
     """Add Q_velocity of a floating bar to its frame row ``Q`` (6,) and to ``Qe``."""
     i = fx_i[fx]
     n, e0 = i[FX_N], i[FX_E0]
-    _shape_moments(fx_i, pool, bij, work, fx, eta)
+    shape_moments(fx_i, pool, bij, work, fx, eta)
     sc, scd, t1, t2 = v3[10], v3[11], v3[12], v3[13]
     _first_moment(fx_i, pool, fx, eta, e0, sc)
     _first_moment(fx_i, pool, fx, eta_dot, e0, scd)

@@ -14,6 +14,7 @@ Velocities, at the projected positions: ``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 (C
 from __future__ import annotations
 
 from viz3d.compiled import entry, inline, jit
+from viz3d.flexible.floating_kernel import FX_FLOATING, shape_moments
 from viz3d.kernel.field import (
     OK,
     PROJECTION,
@@ -76,6 +77,9 @@ def _rows_at(t, y, chart, m, v, w, rows):
     mass block is not positive definite."""
     frames(m, v, w, y, chart)
     kinematics(m, v, w)
+    for fx in range(m.fx_i.shape[0]):  # the floating bars' shape moments at this eta, which the field's
+        if m.fx_i[fx, FX_FLOATING] == 1:  # velocity forces leave for the mass blocks (factor): not run here
+            shape_moments(m.fx_i, m.fx_pool, m.fx_bij, w.fx_work, fx, w.eta)
     if not factor_blocks(m, v, w):
         return False
     fill_rows(m, v, t, rows)

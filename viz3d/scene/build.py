@@ -636,9 +636,9 @@ def kernel_projection(system: System, state: State, tol: float, formulation) -> 
     corrections) then ``project_velocities`` do, in the compiled kernel (``viz3d.kernel.projection``: the
     same Newton corrections and velocity step, its own banded Cholesky solves, no LAPACK), when the kernel
     covers ``system`` with ``formulation``; None when it does not, when the projection fails, and for
-    systems with flexible bodies: on the flexible four-bar the kernel's correction leaves half the elastic
-    coordinates where they were and NumPy's moves them (by 8e-13, 1 % of the 8e-11 correction: more than
-    round-off, and the run amplifies it), a difference to mend in the kernel first."""
+    systems with flexible bodies (not yet compared with NumPy's from their initial states: the kernel's
+    correction on floating bars lacked their rotation-elastic coupling until it computed the bars' shape
+    moments itself, ``tests/numerics/test_kernel_projection.py``)."""
     from viz3d.kernel import KernelStepper, kernel_for
 
     data = None if system.bodies.flexible else kernel_for(system, formulation)
