@@ -310,11 +310,18 @@ def add_row(v, row, side, p, u, sign):
     for c in range(3):
         v.J[row, side, c] += sign * u[c]
         v.J[row, side, 3 + c] += sign * t[c]
+    _add_elastic(v, v.pt_N, row, side, off, n, uB, sign)
+
+
+@inline
+def _add_elastic(v, table, row, side, off, n, uB, sign):
+    """Add ``sign table^T uB`` (``table`` a point's (3, n) block at ``off``: ``N`` or ``P``) to the elastic
+    part of side ``side`` of constraint row ``row``."""
     j0 = v.row_je[row, side]
     for q in range(n):
         acc = 0.0
         for c in range(3):
-            acc += v.pt_N[off + c * n + q] * uB[c]
+            acc += table[off + c * n + q] * uB[c]
         v.Je[j0 + q] += sign * acc
 
 
@@ -332,12 +339,7 @@ def add_turn(v, row, side, p, u, u0, sign):
         v.J[row, side, 3 + c] += sign * uB[c]
     if n > 0:
         tmatvec3(v.R[b], u0, uB)
-        j0 = v.row_je[row, side]
-        for q in range(n):
-            acc = 0.0
-            for c in range(3):
-                acc += v.pt_P[off + c * n + q] * uB[c]
-            v.Je[j0 + q] += sign * acc
+        _add_elastic(v, v.pt_P, row, side, off, n, uB, sign)
 
 
 @inline
