@@ -30,20 +30,22 @@ O(N) in the number of links, not the O(N^3) of a dense LU; below, dense matrices
 less. The finite-difference tangents difference the columns of bodies that share no neighbour
 together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any length.
 
-The method is written once, here; what costs (the trial points' positions, forces and rows, the
-mass matrix, the tangents' storage and factors) comes from a *path* held by the memory:
-``NumPyPath`` (the reference, the matrices above) or ``viz3d.kernel.ali3p.KernelPath`` (the
-compiled kernel's evaluations, band matrices in body order and LAPACK's banded LU), which
-``viz3d.simulate.Simulation`` picks when the kernel covers the system.
+The method is written here, on NumPy: the reference. When the compiled kernel covers the system,
+``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``, and each
+attempt of a step (``_one_step``) is one compiled call of the same iteration (the same stopping
+tests, ``small_update`` and ``too_slow`` compiled from this module, the same tangents and counts
+of evaluations) on band matrices in body order and LAPACK's banded LU; the halvings stay here.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.compiled import entry
 from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
 from viz3d.dynamics import accelerations, aux_rates, body_state, drive_power, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
@@ -64,6 +66,8 @@ SLOW_RATE = 0.5
 STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
 #: A step that fails is retried as two halves, down to ``h / 2**MAX_HALVINGS``.
 MAX_HALVINGS = 3
+#: Why an attempt failed, besides ``no_convergence`` (the reason in the step's diagnosis).
+NONFINITE_STATE, SINGULAR_MATRIX = "non-finite state", "singular iteration matrix"
 #: Systems up to this many velocity unknowns factor T densely (21 rigid bodies; above, multithreaded
 #: LAPACK on this 2-core machine took 28 ms for the 150 x 150 T of 25 links where SuperLU takes 3.6 ms).
 DENSE_MAX = 128
@@ -90,8 +94,9 @@ class ALI3PMemory:
     w_dot : ndarray, shape (n_aux,)
         Rates of the energy ledger's work integrals at the current state [W] (``aux_rates``): the
         step integrates them by the trapezoidal rule, like the motion.
-    path : NumPyPath or viz3d.kernel.ali3p.KernelPath
-        Where the evaluations and the linear algebra run (module docstring).
+    kernel : viz3d.kernel.ali3p.KernelALI3P or None
+        Takes the steps in the compiled kernel (then ``K``, ``D`` are its band matrices); None: here,
+        on NumPy (module docstring).
     """
 
     v_dot: FloatArray
@@ -101,7 +106,7 @@ class ALI3PMemory:
     n_evals: int = 0
     plan: tuple = ()
     w_dot: FloatArray = field(default_factory=lambda: np.zeros(0))
-    path: object = None
+    kernel: object = None
 
 
 @dataclass(frozen=True)
@@ -117,14 +122,17 @@ class _Point:
     M: object  # sparse (n_v, n_v)
 
 
-def init_memory(system: System, formulation, state: State, path=None) -> ALI3PMemory:
+def init_memory(system: System, formulation, state: State, kernel=None) -> ALI3PMemory:
     """Initial accelerations and multipliers from ``formulation.start`` (the penalty method);
-    ``path``: where the steps run (default ``NumPyPath``)."""
-    path = NumPyPath() if path is None else path
+    ``kernel``: a ``viz3d.kernel.ali3p.KernelALI3P`` that takes the steps (None: NumPy)."""
     acc = accelerations(system, formulation.start, state.t, state.q, state.v, state.chart,
                         elements=state.element_memory)
-    w_dot = path.work_rates(system, formulation, state.replace(memory=())) if system.n_aux else np.zeros(0)
-    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system), w_dot, path)
+    w_dot = np.zeros(0)
+    if system.n_aux:
+        start = state.replace(memory=())
+        w_dot = (work_rates(system, formulation, start) if kernel is None
+                 else kernel.work_rates(system, formulation, start))
+    return ALI3PMemory(acc.v_dot, acc.lam, None, None, 1, sparse_fd_plan(system), w_dot, kernel)
 
 
 def _work_rates(system: System, state: State, acc) -> FloatArray:
@@ -153,65 +161,93 @@ def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3
 
 def _one_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory
               ) -> tuple[State, ALI3PMemory, Status]:
+    """The attempts of a step: with the kept force tangent, then with a fresh one (or only with a
+    fresh one); in the compiled kernel when the memory has one."""
+    if memory.kernel is not None:
+        return memory.kernel.step(system, formulation, state, h, memory)
     with np.errstate(all="ignore"):
         for fresh in ((False, True) if memory.K is not None else (True,)):
             if fresh:
-                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory,
-                                     memory.path)
+                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory)
                 memory = replace(memory, K=K, D=D, n_evals=memory.n_evals + 2 * len(memory.plan[0]) + 1)
-            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh and _smooth(system))
+            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh and smooth_forces(system))
             if isinstance(result, tuple):
                 return result + (Status.OK,)
             memory = replace(memory, n_evals=memory.n_evals + evals)
-    return state, memory, Status.failed(f"t = {state.t:.6g} s: ALI3-P iteration did not converge in {MAX_ITER} "
-                                        f"iterations with h = {h:.3g} s ({result}); try a smaller sim.dt or "
-                                        f"another sim.ali3p_alpha")
+    return state, memory, failure(state, h, result)
+
+
+def failure(state: State, h: float, reason: str) -> Status:
+    """The failed status of a step of ``h`` [s] from ``state`` whose last attempt failed for ``reason``."""
+    return Status.failed(f"t = {state.t:.6g} s: ALI3-P iteration did not converge in {MAX_ITER} iterations with "
+                         f"h = {h:.3g} s ({reason}); try a smaller sim.dt or another sim.ali3p_alpha")
+
+
+def no_convergence(step: float, C_max: float) -> str:
+    """The reason of an attempt that used up its iterations: its last update [m, rad] and max |C| [m]."""
+    return f"last update {step:.2e}, max |C| = {C_max:.2e} m"
+
+
+def refresh_tangent(evals: int) -> bool:
+    """Does a step that took ``evals`` evaluations rebuild the force tangent for the next?"""
+    return evals > REFRESH_ITER
 
 
 def _iterate(system, formulation, state, h, memory, exact_ok: bool):
     """Newton-Raphson + multiplier updates, then projections: ``(result, evaluations)``, the
     result a reason string if it fails. With ``exact_ok``, an iteration that would not converge
     within ``MAX_ITER`` at its present rate switches to the exact tangent."""
-    alpha, tol, t1, path = formulation.alpha, formulation.tol, state.t + h, memory.path
-    M = path.mass_matrix(system, state)
+    alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
+    M = mass_matrix(system, state)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = memory.lam.copy()
     dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
     lu, step, prev, exact, evals = None, np.inf, np.inf, False, 0
     for it in range(MAX_ITER):
-        p = _Point(*path.point(system, state, memory.v_dot, dx, h, t1, M))
+        p = _point(system, state, memory.v_dot, dx, h, t1, M)
         evals += 1
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
-            return "non-finite state", evals
+            return NONFINITE_STATE, evals
         rate = np.inf
         if it > 0:
             lam += alpha * p.C
             rate = step / prev if np.isfinite(prev) else np.inf
-            # the update, or the error still ahead of a contracting iteration, is below tol
-            # or it stopped contracting at the round-off floor of the penalty forces
-            # (about alpha h^2 / (4 m) eps |q|, comparable to tol for stiff alpha)
-            small = (step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
-                     or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
-            if small and np.max(np.abs(p.C), initial=0.0) <= tol:
-                return _finish(system, formulation, state, p, W, h, t1, lam, memory, evals), evals
+            if small_update(step, rate, tol) and np.max(np.abs(p.C), initial=0.0) <= tol:
+                try:
+                    return _finish(system, formulation, state, p, W, h, t1, lam, memory, evals), evals
+                except RuntimeError:
+                    return SINGULAR_MATRIX, evals
         prev = step
         residual = _residual(p, alpha, lam, h)
         if lu is None:
-            lu = path.factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
-        elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or _too_slow(step, rate, tol, MAX_ITER - it)):
+            try:
+                lu = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
+            except RuntimeError:
+                return SINGULAR_MATRIX, evals
+        elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
-            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan,
-                                        path)
+            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan)
             evals += len(memory.plan[0])
             try:
-                lu, exact = path.factor(path.matrix(tangent)), True
+                lu, exact = _factor(_matrix(tangent)), True
             except RuntimeError:  # a singular difference tangent: go on with the approximate one
                 exact_ok = False
         ddx = lu.solve(-residual)
         step = np.max(np.abs(ddx))
         dx = dx + ddx
-    return f"last update {step:.2e}, max |C| = {np.max(np.abs(p.C), initial=0.0):.2e} m", evals
+    return no_convergence(step, np.max(np.abs(p.C), initial=0.0)), evals
+
+
+@entry
+def small_update(step: float, rate: float, tol: float) -> bool:
+    """Has an iteration whose last update was ``step`` [m, rad], contracting at ``rate``, converged
+    (with max |C| <= tol)? The update, or the error still ahead of a contracting iteration, is below
+    ``tol``, or it stopped contracting at the round-off floor of the penalty forces (about
+    alpha h^2 / (4 m) eps |q|, comparable to tol for stiff alpha). Compiled: the kernel's iteration
+    takes this same test."""
+    return (step <= tol or (rate < 1.0 and rate / (1.0 - rate) * step <= tol)
+            or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
 
 
 def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
@@ -219,30 +255,35 @@ def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals:
     accelerations (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged
     positions. A step that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent
     for the next."""
-    alpha, path = formulation.alpha, memory.path
-    T = path.factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
-    C_t = path.rows(system, p.q, p.v, state.chart, t1)[0]
+    alpha = formulation.alpha
+    T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
+    C_t = _rows(system, p.q, p.v, state.chart, t1)[0]
     v = T.solve(W @ p.v if C_t is None else W @ p.v - 0.25 * h * h * alpha * (p.Cv.T @ C_t))
-    gamma = path.rows(system, p.q, v, state.chart, t1)[1]
+    gamma = _rows(system, p.q, v, state.chart, t1)[1]
     a = T.solve(W @ p.a + 0.25 * h * h * alpha * (p.Cv.T @ gamma))
-    keep = evals <= REFRESH_ITER
+    keep = not refresh_tangent(evals)
     new = State(t1, p.q, v, state.chart, element_memory=state.element_memory)  # (renewed by the simulation)
     w_dot = np.zeros(0)
     if system.n_aux:  # the ledger's work integrals by the trapezoidal rule; the drives' power from the
         # index-1 multipliers at the new state (those the frames report), not lam*
         new = new.replace(memory=state.memory)
-        w_dot = path.work_rates(system, formulation, new)
+        w_dot = work_rates(system, formulation, new)
         new = new.replace(w=state.w + 0.5 * h * (memory.w_dot + w_dot))
     return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
                         n_evals=memory.n_evals + evals + 1 + (1 if w_dot.size else 0), w_dot=w_dot)
 
 
 class _DenseLU:
-    """LAPACK's LU of a dense matrix with SuperLU's ``solve`` interface."""
+    """LAPACK's LU of a dense matrix with SuperLU's ``solve`` interface; ``RuntimeError`` if the
+    matrix is singular (as SuperLU raises)."""
 
     def __init__(self, A):
         from scipy.linalg import lu_factor
-        self.lu = lu_factor(A)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # scipy warns of an exactly singular matrix: raised below
+            self.lu = lu_factor(A, check_finite=False)
+        if not np.all(np.diag(self.lu[0])):
+            raise RuntimeError("singular matrix")
 
     def solve(self, b):
         from scipy.linalg import lu_solve
@@ -257,7 +298,7 @@ def _factor(A):
     return splu(sp.csc_matrix(A)) if sp.issparse(A) else _DenseLU(A)
 
 
-def _smooth(system: System) -> bool:
+def smooth_forces(system: System) -> bool:
     """Are the applied forces smooth in the positions? Not with shape contacts (a force element with
     ``smooth = False``): their contact sets change between iterates, a difference tangent taken
     across such a change sends Newton's iterate anywhere (through a thin triangle surface, where
@@ -265,8 +306,10 @@ def _smooth(system: System) -> bool:
     return all(e.smooth for e in system.forces)
 
 
-def _too_slow(step: float, rate: float, tol: float, left: int) -> bool:
-    """Would an iteration contracting at ``rate`` miss ``tol`` within ``left`` more updates?"""
+@entry
+def too_slow(step: float, rate: float, tol: float, left: int) -> bool:
+    """Would an iteration contracting at ``rate`` miss ``tol`` within ``left`` more updates? (Compiled,
+    like ``small_update``.)"""
     return rate >= 1.0 or step * rate**left > tol
 
 
@@ -275,12 +318,12 @@ def _residual(p: _Point, alpha, lam, h) -> FloatArray:
     return 0.25 * h * h * (p.M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
 
 
-def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan, path):
+def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan):
     """``d residual / d dx`` at fixed multipliers by forward differences, sparse (n_v, n_v), columns
     grouped by ``plan`` (``viz3d.sparsity``): everything the seed's tangent (eq. 3.26) leaves out
     (the geometric stiffness of the constraint forces, the rotation kinematics, gyroscopic terms at
     the iterate) is in it."""
-    return grouped_fd_jacobian(lambda x: _residual(_Point(*path.point(system, state, a0, x, h, t1, M)), alpha, lam, h),
+    return grouped_fd_jacobian(lambda x: _residual(_point(system, state, a0, x, h, t1, M), alpha, lam, h),
                                dx, r0, *plan, FD_REL * np.maximum(np.abs(dx), 1.0))
 
 
@@ -297,68 +340,51 @@ def _dense(system: System) -> bool:
 
 
 def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart: FloatArray, plan: tuple = (),
-                  elements: tuple = (), path=None):
-    """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), in ``path``'s storage (default ``NumPyPath``:
-    dense or sparse, ``_dense``), by forward differences of the applied and gyroscopic forces
+                  elements: tuple = ()):
+    """``K = -dQ/dx`` and ``D = -dQ/dv``, (n_v, n_v), dense or sparse (``_dense``), by forward
+    differences of the applied and gyroscopic forces
     (``dx``: velocity-space displacement of the positions), columns grouped by ``plan``
     (``viz3d.sparsity.sparse_fd_plan``; default: built here); ``elements``: the force elements'
     memory (``State.element_memory``), fixed during a step."""
-    path = NumPyPath() if path is None else path
-
     def forces(q_, v_):
-        return path.forces(system, t, q_, v_, chart, elements)
+        return flat_velocity(system, *generalized_forces(system, body_state(system, q_, v_, chart, t),
+                                                         elements=elements))
 
     plan = plan or sparse_fd_plan(system)
     Q0 = forces(q, v)
     zero = np.zeros(system.n_v)
-    K = -grouped_fd_jacobian(lambda w: forces(path.retract(system, q, w, chart), v), zero, Q0, *plan,
+    K = -grouped_fd_jacobian(lambda w: forces(retract(system, q, w, chart), v), zero, Q0, *plan,
                              FD_REL * np.ones(system.n_v))
     D = -grouped_fd_jacobian(lambda v_: forces(q, v_), v, Q0, *plan, FD_REL * np.maximum(np.abs(v), 1.0))
-    return path.matrix(K), path.matrix(D)
+    return _matrix(K), _matrix(D)
 
 
-class NumPyPath:
-    """The reference path: NumPy evaluations (``viz3d.dynamics``, ``viz3d.constraints``), dense
-    matrices and LAPACK's LU up to ``DENSE_MAX`` unknowns, sparse ones and SuperLU above."""
+def _point(system: System, state: State, a0, dx, h: float, t1: float, M) -> _Point:
+    """The trial point of the increment ``dx`` (n_v,) from ``state`` with accelerations ``a0``; ``M``:
+    the constant mass matrix of a rigid system (flexible ones carry their own)."""
+    q1 = retract(system, state.q, dx, state.chart)
+    v1 = 2.0 / h * dx - state.v
+    a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
+    cfg = body_state(system, q1, v1, state.chart, t1)
+    C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
+    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
+    if system.n_elastic:
+        M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
+    return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
 
-    name = "NumPy"
 
-    def point(self, system, state, a0, dx, h: float, t1: float, M):
-        """``(q1, v1, a1, C, C_v, Q, M)`` at the trial increment ``dx`` (``_Point``'s fields); ``M``: the
-        constant mass matrix of a rigid system (flexible ones carry their own)."""
-        q1 = retract(system, state.q, dx, state.chart)
-        v1 = 2.0 / h * dx - state.v
-        a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
-        cfg = body_state(system, q1, v1, state.chart, t1)
-        C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
-        Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
-        if system.n_elastic:
-            M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
-        return q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M
+def _rows(system: System, q, v, chart, t: float):
+    """``(C_t, gamma)`` at ``(t, q, v)`` (``C_t`` None without drives)."""
+    rows = constraint_rows(system.joints, body_state(system, q, v, chart, t))
+    return rows.C_t, rows.gamma
 
-    def mass_matrix(self, system, state):
-        return mass_matrix(system, state)
 
-    def forces(self, system, t: float, q, v, chart, elements=()) -> FloatArray:
-        """Applied and gyroscopic forces (n_v,) at ``(t, q, v)``."""
-        return flat_velocity(system, *generalized_forces(system, body_state(system, q, v, chart, t), elements=elements))
+def _matrix(S):
+    """A finite-difference tangent (sparse CSC) dense or sparse (``_dense``)."""
+    return S.toarray() if S.shape[0] <= DENSE_MAX else S.tocsr()
 
-    def rows(self, system, q, v, chart, t: float):
-        """``(C_t, gamma)`` at ``(t, q, v)`` (``C_t`` None without drives)."""
-        rows = constraint_rows(system.joints, body_state(system, q, v, chart, t))
-        return rows.C_t, rows.gamma
 
-    def retract(self, system, q, dx, chart) -> FloatArray:
-        return retract(system, q, dx, chart)
-
-    def matrix(self, S):
-        """A finite-difference tangent (sparse CSC) in this path's storage."""
-        return S.toarray() if S.shape[0] <= DENSE_MAX else S.tocsr()
-
-    def factor(self, A):
-        return _factor(A)
-
-    def work_rates(self, system, formulation, state) -> FloatArray:
-        """The ledger's work rates at ``state`` (n_aux,) [W] (index-1 multipliers for the drives' power)."""
-        return _work_rates(system, state, accelerations(system, formulation, state.t, state.q, state.v, state.chart,
-                                                        state.memory, elements=state.element_memory))
+def work_rates(system: System, formulation, state: State) -> FloatArray:
+    """The ledger's work rates at ``state`` (n_aux,) [W] (index-1 multipliers for the drives' power)."""
+    return _work_rates(system, state, accelerations(system, formulation, state.t, state.q, state.v, state.chart,
+                                                    state.memory, elements=state.element_memory))

@@ -195,9 +195,9 @@ class ALI3P(Index1):
         system) is given, else in NumPy."""
         if kernel is None:
             return init_memory(system, self, state)
-        from viz3d.kernel.ali3p import KernelPath
+        from viz3d.kernel.ali3p import KernelALI3P
 
-        return init_memory(system, self, state, KernelPath(system, kernel))
+        return init_memory(system, self, state, KernelALI3P(system, kernel))
 
     def step(self, system: System, state: State, h: float, memory: ALI3PMemory) -> tuple[State, ALI3PMemory, Status]:
         """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``)."""

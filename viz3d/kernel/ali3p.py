@@ -1,21 +1,27 @@
-"""ALI3-P's evaluations and linear algebra in the kernel: the compiled path of ``viz3d.ali3p``.
+"""ALI3-P's steps in the compiled kernel: the compiled path of ``viz3d.ali3p``.
 
-``viz3d.ali3p`` holds the method once (predictor, Newton iteration, multiplier updates, the
-switch to the exact tangent, projections, halvings); it asks a *path* for what costs: the
-positions, forces and constraint rows at a trial increment, the mass matrix, the force tangents
-and the factors of its matrices. ``KernelPath`` answers in the kernel:
+``viz3d.ali3p`` holds the method (predictor, Newton iteration, multiplier updates, the switch to
+the exact tangent, projections, halvings) on NumPy: the reference. Here one compiled call
+(``ali3p_step``) takes the same attempt(s) of a step for a system the kernel covers, with the same
+stopping tests, tangents and counts of evaluations, so it takes the reference's iterates; the
+halvings of a failed step stay in ``viz3d.ali3p`` (they call it again). In the call:
 
 * a trial increment ``dx`` is retracted (``W_r + dW_r``; Euler parameters turned by
   ``turn_quaternion``; ZXZ Euler angles through ``R exp(skew(B_dphi))`` on the branch and turn
   of the old angles, as ``viz3d.coordinates.EulerZXZ.advance``), and forces, gyroscopic terms,
   constraint rows ``C``, ``C_v`` and ``gamma`` are evaluated by the field's own stages
-  (``viz3d.kernel.field``), one compiled call;
-* matrices over the velocity unknowns are ``Band``: general band storage in body order, of
-  half-bandwidth ``6 d + 5`` where ``d`` is the largest distance in body order of two coupled
-  bodies (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. ``C_v^T C_v``
-  is assembled from the rows' (2, 6) blocks, the finite-difference tangents are scattered into
-  the band, and ``T`` (not symmetric once ``K``, ``D`` are in it) is factored by LAPACK's banded
-  LU with partial pivoting (``gbtrf``/``gbtrs``): O(N) per step on a chain.
+  (``viz3d.kernel.field``);
+* matrices over the velocity unknowns are in LAPACK's band storage, in body order, of
+  half-bandwidth ``bw = 6 d + 5`` where ``d`` is the largest distance in body order of two coupled
+  bodies (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. Column ``j`` of a band
+  matrix ``A`` (n, n) is row ``j`` of a C array ``ab`` (n, 3 bw + 1), ``A[i, j] = ab[j, 2 bw + i - j]``
+  (Fortran's ``AB`` of ``gbtrf`` with ``LDAB = 3 bw + 1``; the first ``bw`` entries of a column
+  room for the LU's fill). ``C_v^T C_v`` is assembled from the rows' (2, 6) blocks, the
+  finite-difference tangents (columns grouped as ``viz3d.sparsity.sparse_fd_plan`` groups them)
+  are written into the band, and ``T`` (not symmetric once ``K``, ``D`` are in it) is factored by
+  LAPACK's banded LU with partial pivoting (``dgbtrf``/``dgbtrs`` of ``scipy.linalg.cython_lapack``,
+  called from compiled code): O(N) per step on a chain. (A banded LU written here took 1.0-1.4x
+  LAPACK's time at 2-200 links on random band matrices that need pivoting.)
 
 Covered: rigid bodies, every joint and force element with a compiled piece. Not covered (the run
 keeps the NumPy path and says why, ``viz3d.kernel.model._check_stepping``): flexible bodies, contacts, force elements that
@@ -25,20 +31,33 @@ remember (shape contacts' anchors).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.compiled import entry, jit
+from viz3d.ali3p import (MAX_ITER, NONFINITE_STATE, SINGULAR_MATRIX, SLOW_RATE, failure, no_convergence,
+                         refresh_tangent, small_update, smooth_forces, too_slow)
+from viz3d.compiled import entry, jit, numba
+from viz3d.integrators.base import Status
+from viz3d.integrators.implicit import FD_REL
 from viz3d.kernel import _c
-from viz3d.kernel.field import NONFINITE, OK, clear, fill_rows, force_piece, frames, generalized_forces, turn_quaternion
+from viz3d.kernel.field import (NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces,
+                                turn_quaternion)
 from viz3d.points import kinematics
 from viz3d.rotations import GIMBAL_EPS
+from viz3d.system import State
 
 try:
     from numba import literal_unroll
 except ImportError:  # pragma: no cover
     def literal_unroll(x):
         return x
+
+#: Outcomes of ``ali3p_step``: converged (the step is done), the iteration did not converge within
+#: ``MAX_ITER``, a trial point was not finite, an iteration matrix was singular, the index-1 field
+#: (the ledger's work rates) failed at the new state.
+CONVERGED, NOT_CONVERGED, NONFINITE_POINT, SINGULAR_LU, WORK_RATES = 0, 1, 2, 3, 4
 
 
 # ---------------------------------------------------------------------------- compiled pieces
@@ -130,60 +149,59 @@ def _forces_and_rows(t, y, chart, m, v, w, forces, rows, Q):
     return OK if ok else NONFINITE
 
 
-@entry
-def trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q):
-    """ALI3-P's trial point of the increment ``dx`` (n_v,) from ``(q0, v0, a0)``: ``y = [q1, v1]``,
-    ``a1`` (eqs. 3.19, 3.20), forces ``Q`` and the rows at ``t1`` (in ``v``); the status."""
-    _retract(m, q0, dx, y)
-    n_q = m.n_q
-    for i in range(m.n_v):
-        y[n_q + i] = 2.0 / h * dx[i] - v0[i]
-        a1[i] = 4.0 / (h * h) * (dx[i] - h * v0[i]) - a0[i]
-    return _forces_and_rows(t1, y, chart, m, v, w, forces, rows, Q)
+
+# ---------------------------------------------------------------------------- LAPACK's banded LU
+
+if numba is not None:
+    import llvmlite.binding as _llvm
+    from numba import types as _t
+    from numba.extending import get_cython_function_address
+
+    # the symbols by name (not ctypes pointers, which numba's disk cache refuses): bound at import,
+    # before any cached code that calls them is loaded
+    for _name in ("dgbtrf", "dgbtrs"):
+        _llvm.add_symbol(f"viz3d_{_name}", get_cython_function_address("scipy.linalg.cython_lapack", _name))
+    _p = _t.voidptr
+    _dgbtrf = _t.ExternalFunction("viz3d_dgbtrf", _t.void(_p, _p, _p, _p, _p, _p, _p, _p))
+    _dgbtrs = _t.ExternalFunction("viz3d_dgbtrs", _t.void(_p, _p, _p, _p, _p, _p, _p, _p, _p, _p, _p))
 
 
-@entry
-def state_point(t, y, chart, m, v, w, forces, rows, Q):
-    """Forces ``Q`` (n_v,) and the rows (in ``v``) at the state ``y = [q, v]``; the status."""
-    return _forces_and_rows(t, y, chart, m, v, w, forces, rows, Q)
+@jit
+def _band_factor(ab, bw, piv, ints):
+    """LU of the band matrix ``ab`` (n, 3 bw + 1) in place (``dgbtrf``), row swaps into ``piv`` (n,)
+    int32; ``ints`` (5,) int32 scratch for LAPACK's arguments. Returns ``info``: 0, or the first
+    zero pivot (1-based: the matrix is singular)."""
+    ints[0], ints[1], ints[2], ints[3], ints[4] = ab.shape[0], bw, ab.shape[1], 0, 1
+    _dgbtrf(ints.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ab.ctypes, ints[2:].ctypes, piv.ctypes,
+            ints[3:].ctypes)
+    return ints[3]
 
 
-@entry
-def retracted(m, q0, dx, y):
-    """``y[:n_q]`` = ``q0`` moved by ``dx`` (``_retract`` callable from Python)."""
-    _retract(m, q0, dx, y)
+@jit
+def _band_solve(ab, bw, piv, b, ints, trans):
+    """``b = A^-1 b`` in place from ``_band_factor``'s ``ab``, ``piv`` (``dgbtrs``; ``trans`` the
+    character 'N' as a uint8 array)."""
+    ints[0], ints[1], ints[2], ints[3], ints[4] = ab.shape[0], bw, ab.shape[1], 0, 1
+    _dgbtrs(trans.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ints[4:].ctypes, ab.ctypes, ints[2:].ctypes,
+            piv.ctypes, b.ctypes, ints.ctypes, ints[3:].ctypes)
 
 
-@entry
-def rows_times(col, J, x, out):
-    """``out = C_v x`` (n_c,) for the rows' blocks ``J`` (n_c, 2, 6) and their bodies' first velocity
-    columns ``col`` (n_c, 2) (-1: ground)."""
-    for r in range(J.shape[0]):
-        acc = 0.0
-        for s in range(2):
-            c = col[r, s]
-            if c >= 0:
-                for i in range(6):
-                    acc += J[r, s, i] * x[c + i]
-        out[r] = acc
-
-
-@entry
-def rows_transposed_times(col, J, lam, out):
-    """``out = C_v^T lam`` (n_v,)."""
-    for i in range(out.shape[0]):
+@jit
+def _band_times(ab, bw, x, out):
+    """``out = A x`` (n,) for ``A`` in band storage."""
+    n = x.shape[0]
+    for i in range(n):
         out[i] = 0.0
-    for r in range(J.shape[0]):
-        for s in range(2):
-            c = col[r, s]
-            if c >= 0:
-                for i in range(6):
-                    out[c + i] += J[r, s, i] * lam[r]
+    for j in range(n):
+        xj = x[j]
+        for i in range(max(0, j - bw), min(n, j + bw + 1)):
+            out[i] += ab[j, 2 * bw + i - j] * xj
 
 
-@entry
-def add_gram(col, J, scale, bw, ab):
-    """``A += scale C_v^T C_v`` in the band storage ``ab`` of half-bandwidth ``bw`` (``Band``)."""
+@jit
+def _add_gram(col, J, scale, bw, ab):
+    """``A += scale C_v^T C_v`` in band storage; ``C_v`` as the rows' blocks ``J`` (n_c, 2, 6) and
+    their bodies' first velocity columns ``col`` (n_c, 2) (-1: ground)."""
     for r in range(J.shape[0]):
         for s in range(2):
             ci = col[r, s]
@@ -196,203 +214,371 @@ def add_gram(col, J, scale, bw, ab):
                 for i in range(6):
                     f = scale * J[r, s, i]
                     for j in range(6):
-                        ab[2 * bw + ci + i - cj - j, cj + j] += f * J[r, u, j]
+                        ab[cj + j, 2 * bw + ci + i - cj - j] += f * J[r, u, j]
+
+
+@jit
+def _rows_transposed_times(col, J, lam, out):
+    """``out = C_v^T lam`` (n_v,)."""
+    for i in range(out.shape[0]):
+        out[i] = 0.0
+    for r in range(J.shape[0]):
+        for s in range(2):
+            c = col[r, s]
+            if c >= 0:
+                for i in range(6):
+                    out[c + i] += J[r, s, i] * lam[r]
+
+
+@jit
+def _iteration_matrix(W, col, J, scale, bw, out):
+    """``out = W + scale C_v^T C_v`` (band storage)."""
+    for j in range(W.shape[0]):
+        for i in range(W.shape[1]):
+            out[j, i] = W[j, i]
+    _add_gram(col, J, scale, bw, out)
+
+# ---------------------------------------------------------------------------- the step
+
+
+class Scratch(NamedTuple):
+    """What ``ali3p_step`` works in (n = n_v, L = 3 bw + 1; ``n_y = n_q + n_v + n_aux``); the system's
+    constant parts first.
+
+    M : (n, L) the mass matrix, band storage [kg, kg m^2]
+    col : (n_c, 2) int64 the rows' bodies' first velocity columns (-1: ground)
+    group_ptr, group_col : (G + 1,), (n,) int64 the columns differenced together (group g:
+        ``group_col[group_ptr[g]:group_ptr[g + 1]]``, ``viz3d.sparsity.sparse_fd_plan``)
+    row_ptr, row_idx : (n + 1,), int64 the rows each column reaches (column c:
+        ``row_idx[row_ptr[c]:row_ptr[c + 1]]``)
+    trans : (1,) uint8 'N' for ``dgbtrs``
+    W : (n, L) ``M + h/2 D + h^2/4 K``
+    lu : (2, n, L), piv : (2, n) int32 the current and a new factorisation; ints : (5,) int32
+    y, yp, f : (n_y,) the trial point ``[q1, v1]``, perturbed points, a field evaluation
+    a1, ap, Q, Qp, Q0 : (n,) accelerations and forces at the trial and perturbed points
+    dx, ddx, x, res, rp, ma, r1 : (n,) the increment, its update, a perturbed one, residuals, products
+    cx : (n_c,) scratch
+    """
+
+    M: np.ndarray
+    col: np.ndarray
+    group_ptr: np.ndarray
+    group_col: np.ndarray
+    row_ptr: np.ndarray
+    row_idx: np.ndarray
+    trans: np.ndarray
+    W: np.ndarray
+    lu: np.ndarray
+    piv: np.ndarray
+    ints: np.ndarray
+    y: np.ndarray
+    yp: np.ndarray
+    f: np.ndarray
+    a1: np.ndarray
+    ap: np.ndarray
+    Q: np.ndarray
+    Qp: np.ndarray
+    Q0: np.ndarray
+    dx: np.ndarray
+    ddx: np.ndarray
+    x: np.ndarray
+    res: np.ndarray
+    rp: np.ndarray
+    ma: np.ndarray
+    r1: np.ndarray
+    cx: np.ndarray
+
+
+@jit
+def _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q):
+    """ALI3-P's trial point of the increment ``dx`` (n_v,) from ``(q0, v0, a0)``: ``y = [q1, v1]``,
+    ``a1`` (eqs. 3.19, 3.20), forces ``Q`` and the rows at ``t1`` (in ``v``); the status."""
+    _retract(m, q0, dx, y)
+    n_q = m.n_q
+    for i in range(m.n_v):
+        y[n_q + i] = 2.0 / h * dx[i] - v0[i]
+        a1[i] = 4.0 / (h * h) * (dx[i] - h * v0[i]) - a0[i]
+    return _forces_and_rows(t1, y, chart, m, v, w, forces, rows, Q)
+
+
+@jit
+def _residual(h, alpha, s, bw, J, C, lam, a1, Q, out):
+    """Equations of motion at ``t1`` scaled by ``h^2 / 4`` (eq. 3.23; ``viz3d.ali3p._residual``) into
+    ``out`` (n_v,) [N s^2], from the point's rows ``J``, ``C``, accelerations ``a1`` and forces ``Q``."""
+    for r in range(C.shape[0]):
+        s.cx[r] = alpha * C[r] + lam[r]
+    _band_times(s.M, bw, a1, s.ma)
+    _rows_transposed_times(s.col, J, s.cx, out)
+    scale = 0.25 * h * h
+    for i in range(out.shape[0]):
+        out[i] = scale * (s.ma[i] + out[i] - Q[i])
+
+
+@jit
+def _scatter(s, bw, g, step_floor, x0, d, d0, sign, out):
+    """The columns of group ``g`` of a forward-difference Jacobian into the band ``out``: column c's
+    rows r get ``sign (d[r] - d0[r]) / step_c``, ``step_c = FD_REL max(|x0[c]|, step_floor)``
+    (``viz3d.sparsity.grouped_fd_jacobian``'s steps)."""
+    for k in range(s.group_ptr[g], s.group_ptr[g + 1]):
+        c = s.group_col[k]
+        step = FD_REL * max(abs(x0[c]), step_floor)
+        for e in range(s.row_ptr[c], s.row_ptr[c + 1]):
+            r = s.row_idx[e]
+            out[c, 2 * bw + r - c] = sign * ((d[r] - d0[r]) / step)
+
+
+@jit
+def _perturbed(s, g, step_floor, x0, x):
+    """``x = x0`` with the columns of group ``g`` moved by their steps (``_scatter``)."""
+    for i in range(x0.shape[0]):
+        x[i] = x0[i]
+    for k in range(s.group_ptr[g], s.group_ptr[g + 1]):
+        c = s.group_col[k]
+        x[c] = x0[c] + FD_REL * max(abs(x0[c]), step_floor)
+
+
+@jit
+def _force_tangent(t, q0, v0, chart, bw, m, v, w, forces, rows, s, K, D):
+    """``K = -dQ/dx`` and ``D = -dQ/dv`` (band storage) at ``(t, q0, v0)`` by grouped forward
+    differences (``viz3d.ali3p.force_tangent``): 2 G + 1 force evaluations."""
+    n_q, n = m.n_q, m.n_v
+    y = s.yp
+    for i in range(n_q):
+        y[i] = q0[i]
+    for i in range(n):
+        y[n_q + i] = v0[i]
+    _forces_and_rows(t, y, chart, m, v, w, forces, rows, s.Q0)
+    K[:, :] = 0.0
+    D[:, :] = 0.0
+    for i in range(n):
+        s.r1[i] = 0.0  # the position increment's origin
+    for g in range(s.group_ptr.shape[0] - 1):
+        _perturbed(s, g, 1.0, s.r1, s.x)  # FD_REL on the group's columns
+        _retract(m, q0, s.x, y)
+        _forces_and_rows(t, y, chart, m, v, w, forces, rows, s.Qp)
+        _scatter(s, bw, g, 1.0, s.r1, s.Qp, s.Q0, -1.0, K)
+    for i in range(n_q):
+        y[i] = q0[i]
+    for g in range(s.group_ptr.shape[0] - 1):
+        _perturbed(s, g, 1.0, v0, y[n_q:n_q + n])
+        _forces_and_rows(t, y, chart, m, v, w, forces, rows, s.Qp)
+        _scatter(s, bw, g, 1.0, v0, s.Qp, s.Q0, -1.0, D)
+    return 2 * (s.group_ptr.shape[0] - 1) + 1
+
+
+@jit
+def _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, s, out):
+    """``d residual / d dx`` at ``s.dx`` and fixed multipliers (band storage) by grouped forward
+    differences (``viz3d.ali3p._residual_tangent``), ``s.res`` the residual at ``s.dx``: G trial points."""
+    out[:, :] = 0.0
+    for g in range(s.group_ptr.shape[0] - 1):
+        _perturbed(s, g, 1.0, s.dx, s.x)
+        _trial_point(t1, q0, v0, a0, s.x, h, chart, m, v, w, forces, rows, s.yp, s.ap, s.Qp)
+        _residual(h, alpha, s, bw, v.J, v.C, lam, s.ap, s.Qp, s.rp)
+        _scatter(s, bw, g, 1.0, s.dx, s.rp, s.res, 1.0, out)
+    return s.group_ptr.shape[0] - 1
+
+
+@jit
+def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a_out, w_dot1):
+    """Velocities and accelerations projected (eqs. 3.27, 3.28; ``viz3d.ali3p._finish``) at the
+    converged point (``s.y``, ``s.a1``, rows in ``v``) into ``y1 = [q1, v1, w1]`` and ``a_out``; the
+    ledger's work rates at the new state into ``w_dot1`` and its work integrals by the trapezoidal
+    rule. Returns the outcome."""
+    n_q, n, scale = m.n_q, m.n_v, 0.25 * h * h * alpha
+    lu, piv = s.lu[0], s.piv[0]
+    _iteration_matrix(s.W, s.col, v.J, scale, bw, lu)
+    if _band_factor(lu, bw, piv, s.ints) != 0:
+        return SINGULAR_LU
+    for i in range(n_q + n):
+        y1[i] = s.y[i]
+    _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # C_t at (q1, v1)
+    _rows_transposed_times(s.col, v.J, v.Ct, s.r1)
+    _band_times(s.W, bw, s.y[n_q:n_q + n], s.ma)
+    for i in range(n):
+        s.ma[i] -= scale * s.r1[i]
+    _band_solve(lu, bw, piv, s.ma, s.ints, s.trans)
+    for i in range(n):
+        y1[n_q + i] = s.ma[i]
+    _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # gamma at (q1, v)
+    _rows_transposed_times(s.col, v.J, v.gam, s.r1)
+    _band_times(s.W, bw, s.a1, a_out)
+    for i in range(n):
+        a_out[i] += scale * s.r1[i]
+    _band_solve(lu, bw, piv, a_out, s.ints, s.trans)
+    n_aux = w0.shape[0]
+    if n_aux:
+        for k in range(n_aux):
+            y1[n_q + n + k] = w0[k]
+        if evaluate(t1, y1, chart, m, v, w, forces, rows, s.f) != OK:
+            return WORK_RATES
+        for k in range(n_aux):
+            w_dot1[k] = s.f[n_q + n + k]
+            y1[n_q + n + k] = w0[k] + 0.5 * h * (w_dot0[k] + w_dot1[k])
+    return CONVERGED
+
+
+@jit
+def _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, exact_ok, K, D, m, v, w, forces, rows, s,
+             y1, a_out, lam, w_dot1):
+    """One attempt with the force tangents ``K``, ``D`` (``viz3d.ali3p._iterate``, the same tests in the
+    same order): ``(outcome, evaluations, last update, max |C|)``; ``lam`` the multipliers."""
+    t1, n, n_c = t0 + h, m.n_v, lam0.shape[0]
+    scale = 0.25 * h * h * alpha
+    for j in range(n):
+        for i in range(s.W.shape[1]):
+            s.W[j, i] = s.M[j, i] + 0.5 * h * D[j, i] + 0.25 * h * h * K[j, i]
+    for r in range(n_c):
+        lam[r] = lam0[r]
+    for i in range(n):
+        s.dx[i] = h * v0[i] + 0.5 * h * h * a0[i]  # predictor: a1 = a0
+    cur, have_lu, step, prev, exact, evals, C_max = 0, False, np.inf, np.inf, False, 0, 0.0
+    for it in range(MAX_ITER):
+        status = _trial_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, s.y, s.a1, s.Q)
+        evals += 1
+        if status != OK:
+            return NONFINITE_POINT, evals, step, np.nan
+        C_max = 0.0
+        for r in range(n_c):
+            C_max = max(C_max, abs(v.C[r]))
+        rate = np.inf
+        if it > 0:
+            for r in range(n_c):
+                lam[r] += alpha * v.C[r]
+            rate = step / prev if math.isfinite(prev) else np.inf
+            if small_update(step, rate, tol) and C_max <= tol:
+                outcome = _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a_out, w_dot1)
+                return outcome, evals, step, C_max
+        prev = step
+        _residual(h, alpha, s, bw, v.J, v.C, lam, s.a1, s.Q, s.res)
+        if not have_lu:
+            _iteration_matrix(s.W, s.col, v.J, scale, bw, s.lu[cur])
+            if _band_factor(s.lu[cur], bw, s.piv[cur], s.ints) != 0:
+                return SINGULAR_LU, evals, step, C_max
+            have_lu = True
+        elif (exact_ok and (exact or it >= 3) and rate > SLOW_RATE
+              and (exact or too_slow(step, rate, tol, MAX_ITER - it))):
+            # slow: Newton on the exact tangent, rebuilt at every iterate while the contraction stays slow
+            new = 1 - cur
+            evals += _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, s, s.lu[new])
+            if _band_factor(s.lu[new], bw, s.piv[new], s.ints) == 0:
+                cur, exact = new, True
+            else:  # a singular difference tangent: go on with the approximate one
+                exact_ok = False
+        step = 0.0
+        for i in range(n):
+            s.ddx[i] = -s.res[i]
+        _band_solve(s.lu[cur], bw, s.piv[cur], s.ddx, s.ints, s.trans)
+        for i in range(n):
+            step = max(step, abs(s.ddx[i]))
+            s.dx[i] = s.dx[i] + s.ddx[i]
+    return NOT_CONVERGED, evals, step, C_max
 
 
 @entry
-def band_times(ab, bw, x, out):
-    """``out = A x`` for ``A`` in band storage (``Band``)."""
-    n = x.shape[0]
-    for i in range(n):
-        acc = 0.0
-        for j in range(max(0, i - bw), min(n, i + bw + 1)):
-            acc += ab[2 * bw + i - j, j] * x[j]
-        out[i] = acc
-
-
-# ---------------------------------------------------------------------------- matrices
-
-
-class Band:
-    """A square matrix (n, n) of half-bandwidth ``bw`` in LAPACK's band storage for ``gbtrf``:
-    ``ab`` (3 bw + 1, n), ``A[i, j] = ab[2 bw + i - j, j]``, the first ``bw`` rows room for the
-    LU's fill. Supports ``A + B``, ``c * A``, ``A @ x`` and ``factor``."""
-
-    __array_ufunc__ = None  # numpy scalars defer to __rmul__
-
-    def __init__(self, ab: np.ndarray, bw: int):
-        self.ab, self.bw = ab, bw
-
-    @classmethod
-    def zeros(cls, n: int, bw: int) -> "Band":
-        return cls(np.zeros((3 * bw + 1, n)), bw)
-
-    @classmethod
-    def from_sparse(cls, S, bw: int) -> "Band":
-        """The band of the sparse (n, n) ``S``; ``ValueError`` if an entry lies outside it."""
-        S = S.tocsr().tocoo()  # duplicates summed: each entry once
-        if S.nnz and np.max(np.abs(S.row - S.col)) > bw:
-            raise ValueError(f"entry outside the half-bandwidth {bw}")
-        out = cls.zeros(S.shape[0], bw)
-        out.ab[2 * bw + S.row - S.col, S.col] = S.data
-        return out
-
-    def __add__(self, other: "Band") -> "Band":
-        return Band(self.ab + other.ab, self.bw)
-
-    def __mul__(self, c: float) -> "Band":
-        return Band(float(c) * self.ab, self.bw)
-
-    __rmul__ = __mul__
-
-    def __matmul__(self, x: np.ndarray) -> np.ndarray:
-        out = np.empty(self.ab.shape[1])
-        band_times(self.ab, self.bw, np.ascontiguousarray(x, dtype=float), out)
-        return out
-
-    def toarray(self) -> np.ndarray:
-        n, bw = self.ab.shape[1], self.bw
-        A = np.zeros((n, n))
-        for i in range(n):
-            for j in range(max(0, i - bw), min(n, i + bw + 1)):
-                A[i, j] = self.ab[2 * bw + i - j, j]
-        return A
-
-    def factor(self) -> "BandLU":
-        return BandLU(self)
-
-
-class BandLU:
-    """LAPACK's banded LU with partial pivoting (``gbtrf``) of a ``Band``, with ``solve(b)``;
-    ``RuntimeError`` if the matrix is singular (as SuperLU raises)."""
-
-    def __init__(self, A: Band):
-        from scipy.linalg.lapack import dgbtrf
-
-        self.bw = A.bw
-        self.lu, self.piv, info = dgbtrf(A.ab, A.bw, A.bw)
-        if info != 0:
-            raise RuntimeError(f"singular banded matrix (gbtrf info {info})")
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        from scipy.linalg.lapack import dgbtrs
-
-        x, info = dgbtrs(self.lu, self.bw, self.bw, b, self.piv)
-        return x
-
-
-class BlockRows:
-    """``C_v`` (n_c, n_v) as the rows' (2, 6) blocks ``J`` and their bodies' first columns ``col``
-    (n_c, 2) (-1: ground): ``C_v @ x``, ``C_v.T @ lam``, ``C_v.T @ C_v`` (a ``Band`` of half-bandwidth
-    ``bw``)."""
-
-    def __init__(self, col: np.ndarray, J: np.ndarray, n_v: int, bw: int, transposed: bool = False):
-        self.col, self.J, self.n_v, self.bw, self.transposed = col, J, n_v, bw, transposed
-
-    @property
-    def T(self) -> "BlockRows":
-        return BlockRows(self.col, self.J, self.n_v, self.bw, not self.transposed)
-
-    def __matmul__(self, x):
-        if isinstance(x, BlockRows):
-            assert self.transposed and not x.transposed
-            out = Band.zeros(self.n_v, self.bw)
-            add_gram(self.col, self.J, 1.0, self.bw, out.ab)
-            return out
-        x = np.ascontiguousarray(x, dtype=float)
-        if self.transposed:
-            out = np.empty(self.n_v)
-            rows_transposed_times(self.col, self.J, x, out)
+def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
+               w, forces, rows, s, y1, a_out, lam, w_dot1):
+    """One step of ``viz3d.ali3p._one_step``: with the kept force tangents ``K``, ``D`` when ``have_K``,
+    then (or else only) with fresh ones written into ``K_new``, ``D_new``. On convergence ``y1``
+    (n_q + n_v + n_aux,) holds the new state, ``a_out`` its accelerations, ``lam`` the multipliers,
+    ``w_dot1`` the work rates. Returns ``(outcome, evaluations, evaluations of the last attempt,
+    fresh tangents built, last update, max |C|)`` (``NaN`` max |C| when a point was not finite)."""
+    total = 0
+    built = False
+    outcome, evals, step, C_max = NOT_CONVERGED, 0, np.inf, 0.0
+    for attempt in range(2 if have_K else 1):
+        fresh = attempt == 1 or not have_K
+        if fresh:
+            total += _force_tangent(t0, q0, v0, chart, bw, m, v, w, forces, rows, s, K_new, D_new)
+            built = True
+            outcome, evals, step, C_max = _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, smooth,
+                                                   K_new, D_new, m, v, w, forces, rows, s, y1, a_out, lam, w_dot1)
         else:
-            out = np.empty(self.J.shape[0])
-            rows_times(self.col, self.J, x, out)
-        return out
+            outcome, evals, step, C_max = _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, False,
+                                                   K, D, m, v, w, forces, rows, s, y1, a_out, lam, w_dot1)
+        total += evals
+        if outcome == CONVERGED or outcome == WORK_RATES:
+            break
+    return outcome, total, evals, built, step, C_max
+
+# ---------------------------------------------------------------------------- from Python
 
 
-# ---------------------------------------------------------------------------- the path
-
-
-class KernelPath:
-    """What ``viz3d.ali3p`` asks of a path, answered in the kernel for one packed system
-    (``stepper``: its ``viz3d.kernel.KernelStepper``; ``system``: covered, see ``viz3d.kernel.model._check_stepping``)."""
+class KernelALI3P:
+    """ALI3-P's steps in the kernel for one packed system (``stepper``: its
+    ``viz3d.kernel.KernelStepper``; ``system``: covered, see ``viz3d.kernel.model._check_stepping``),
+    held by ``viz3d.ali3p.ALI3PMemory``; the force tangents it keeps there are band matrices
+    (n_v, 3 bw + 1)."""
 
     name = "compiled kernel"
 
     def __init__(self, system, stepper):
-        from viz3d.sparsity import body_adjacency
+        from viz3d.sparsity import body_adjacency, sparse_fd_plan
 
         self.stepper, d = stepper, stepper.data
         m = d.model
-        self.m, self.n_v = m, m.n_v
+        self.m, n = m, m.n_v
         A = body_adjacency(system)
         frame_of = m.body_frame[: m.nb]
         i, j = np.nonzero(A)
-        self.bw = int(6 * np.max(np.abs(frame_of[i] - frame_of[j]), initial=0) + 5)
-        self.col = np.where(m.body_frame[m.row_body] >= 0, 6 * m.body_frame[m.row_body], -1).astype(np.int64)
-        self.y = np.zeros(m.n_q + m.n_v + m.n_aux)
-        self.a1, self.Q = np.zeros(m.n_v), np.zeros(m.n_v)
-        self.M = self._mass()
+        self.bw = bw = int(6 * np.max(np.abs(frame_of[i] - frame_of[j]), initial=0) + 5)
+        L, n_c, n_y = 3 * bw + 1, m.row_body.shape[0], m.n_q + m.n_v + m.n_aux
+        col = np.where(m.body_frame[m.row_body] >= 0, 6 * m.body_frame[m.row_body], -1).astype(np.int64)
+        groups, rows_of = sparse_fd_plan(system)
+        ptr = lambda parts: np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)  # noqa: E731
+        cat = lambda parts: np.concatenate([np.asarray(p, np.int64) for p in parts] or [np.zeros(0, np.int64)])  # noqa: E731
+        z = np.zeros
+        self.s = Scratch(self._mass(m, bw), np.ascontiguousarray(col), ptr(groups), cat(groups), ptr(rows_of),
+                         cat(rows_of), np.frombuffer(b"N", np.uint8).copy(), z((n, L)), z((2, n, L)),
+                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(12)),
+                         z(n_c))
 
-    def _mass(self) -> Band:
-        """``diag(m I3, I)`` per rigid body (constant)."""
-        m, M = self.m, Band.zeros(self.n_v, self.bw)
+    @staticmethod
+    def _mass(m, bw: int) -> np.ndarray:
+        """``diag(m I3, I)`` per rigid body (constant), band storage (n_v, 3 bw + 1)."""
+        M = np.zeros((m.n_v, 3 * bw + 1))
         for k, b in enumerate(m.frame_body):
             block = np.zeros((6, 6))
             block[:3, :3] = np.eye(3) / m.mass_inv[b]
             block[3:, 3:] = m.inertia[b]
             for i in range(6):
                 for j in range(6):
-                    M.ab[2 * self.bw + i - j, 6 * k + j] = block[i, j]
+                    M[6 * k + j, 2 * bw + i - j] = block[i, j]
         return M
 
-    def mass_matrix(self, system, state) -> Band:
-        return self.M
-
-    def point(self, system, state, a0, dx, h: float, t1: float, M=None):
-        """``(q1, v1, a1, C, C_v, Q, M)`` at the trial increment ``dx`` (``viz3d.ali3p._Point``'s
-        fields; ``C`` nan where the evaluation is not finite)."""
-        st, d = self.stepper, self.stepper.data
+    def step(self, system, formulation, state: State, h: float, memory) -> tuple[State, object, Status]:
+        """``viz3d.ali3p._one_step`` in one compiled call: ``(state, memory, status)``."""
+        st, d, m = self.stepper, self.stepper.data, self.m
+        n, L, n_q, n_v = m.n_v, 3 * self.bw + 1, m.n_q, m.n_v
+        K_new, D_new = np.empty((n, L)), np.empty((n, L))
+        have_K = memory.K is not None
+        y1, a, lam, w_dot = np.empty(n_q + n_v + m.n_aux), np.empty(n_v), np.empty(memory.lam.shape[0]), np.empty(m.n_aux)
+        w0 = _c(state.w) if m.n_aux else np.zeros(0)
         v, w = st.ws
-        status = st._call(trial_point, t1, _c(state.q), _c(state.v), _c(a0), _c(dx), h, _c(state.chart), d.model, v, w,
-                          d.forces, d.rows, self.y, self.a1, self.Q)
-        n_q = self.m.n_q
-        C = v.C.copy() if status == OK else np.full(v.C.shape, np.nan)
-        return (self.y[:n_q].copy(), self.y[n_q: n_q + self.n_v].copy(), self.a1.copy(), C,
-                BlockRows(self.col, v.J.copy(), self.n_v, self.bw), self.Q.copy(), self.M)
-
-    def forces(self, system, t: float, q, v_, chart, elements=()) -> np.ndarray:
-        """Applied and gyroscopic forces (n_v,) at ``(t, q, v)``."""
-        self._state_point(t, q, v_, chart)
-        return self.Q.copy()
-
-    def rows(self, system, q, v_, chart, t: float):
-        """``(C_t, gamma)`` (n_c,) at ``(t, q, v)``."""
-        self._state_point(t, q, v_, chart)
-        vw = self.stepper.ws[0]
-        return vw.Ct.copy(), vw.gam.copy()
-
-    def _state_point(self, t, q, v_, chart) -> None:
-        st, d = self.stepper, self.stepper.data
-        n_q = self.m.n_q
-        self.y[:n_q], self.y[n_q: n_q + self.n_v] = q, v_
-        st._call(state_point, t, self.y, _c(chart), d.model, *st.ws, d.forces, d.rows, self.Q)
-
-    def retract(self, system, q, dx, chart) -> np.ndarray:
-        out = np.empty(self.m.n_q)
-        self.stepper._call(retracted, self.m, _c(q), _c(dx), out)
-        return out
+        outcome, evals, last, built, step, C_max = st._call(
+            ali3p_step, state.t, h, _c(state.q), _c(state.v), _c(memory.v_dot), _c(memory.lam), w0,
+            _c(memory.w_dot) if m.n_aux else np.zeros(0), _c(state.chart), float(formulation.alpha),
+            float(formulation.tol), self.bw, have_K, smooth_forces(system), memory.K if have_K else K_new,
+            memory.D if have_K else D_new, K_new, D_new, d.model, v, w, d.forces, d.rows, self.s, y1, a, lam, w_dot)
+        if built:
+            memory = replace(memory, K=K_new, D=D_new)
+        memory = replace(memory, n_evals=memory.n_evals + evals)
+        if outcome == WORK_RATES:
+            raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
+        if outcome != CONVERGED:
+            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX}.get(outcome)
+            return state, memory, failure(state, h, reason or no_convergence(step, C_max))
+        new = State(state.t + h, y1[:n_q], y1[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
+        if m.n_aux:
+            new = new.replace(memory=state.memory, w=y1[n_q + n_v:])
+        keep = not refresh_tangent(last)
+        return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
+                            n_evals=memory.n_evals + 1 + (1 if m.n_aux else 0), w_dot=w_dot), Status.OK
 
     def work_rates(self, system, formulation, state) -> np.ndarray:
         """The ledger's work rates at ``state`` (n_aux,) [W]: the kernel's index-1 field's."""
-        out = np.empty(self.y.size)
+        out = np.empty(self.m.n_q + self.m.n_v + self.m.n_aux)
         if self.stepper.evaluate(state.t, state.y, state.chart, self.stepper.view(()), out) != OK:
             raise np.linalg.LinAlgError(f"t = {state.t:.6g} s: constraint matrix is not positive definite")
-        return out[self.m.n_q + self.n_v:].copy()
+        return out[self.m.n_q + self.m.n_v:].copy()
 
-    def matrix(self, S) -> Band:
-        """A finite-difference tangent (sparse) as a ``Band``."""
-        return Band.from_sparse(S, self.bw)
-
-    @staticmethod
-    def factor(A: Band) -> BandLU:
-        return A.factor()
