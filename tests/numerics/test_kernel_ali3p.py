@@ -1,6 +1,9 @@
-"""ALI3-P in the compiled kernel (``viz3d.kernel.ali3p``) takes the NumPy path's steps (``viz3d.ali3p``,
-the reference): the same Newton iterates, hence the same evaluation counts, and states that agree to
-Newton's stopping tolerance and round-off (``kernel_runs.ali3p_agreement_bound``)."""
+"""ALI3-P in the compiled kernel (``viz3d.kernel.ali3p``: each attempt of a step one compiled call) takes
+the NumPy path's steps (``viz3d.ali3p``, the reference): the same Newton iterates, hence the same
+evaluation counts, states that agree to Newton's stopping tolerance and round-off
+(``kernel_runs.ali3p_agreement_bound``), and the same diagnosis when a step fails."""
+
+import re
 
 import numpy as np
 import pytest
@@ -8,6 +11,7 @@ from kernel_runs import ali3p_agreement_bound, run
 
 import viz3d
 from viz3d import kernel as K
+from viz3d.diagnosis import SimulationFailure
 from viz3d.integrators import make_integrator
 from viz3d.scene.build import make_formulation
 from viz3d.simulate import Simulation
@@ -17,10 +21,12 @@ from conftest import SCENES
 #: Steps compared (the NumPy path costs 1-30 ms a step).
 N_STEPS = 40
 
-#: Rigid ball joints and gravity (heavy top, Euler angles in charts), a 10-link chain (banded rows; also in
-#: Euler parameters), a driven mechanism (revolute, ball, universal, prismatic joints, a velocity drive:
-#: C_t != 0 and the ledger's drive power).
-CASES = [("heavy_top", {}), ("chain", {}), ("chain", {"sim.rotation": "quaternion"}), ("slider_crank", {})]
+#: Rigid ball joints and gravity (heavy top, Euler angles in charts; at dt = 0.01 s its iterations slow down
+#: and switch to the exact tangent: 99 times in these steps), chains of 2, 10 and 50 links (banded rows;
+#: also in Euler parameters), a driven mechanism (revolute, ball, universal, prismatic joints, a velocity
+#: drive: C_t != 0 and the ledger's drive power).
+CASES = [("heavy_top", {}), ("heavy_top", {"sim.dt": 0.01}), ("chain", {"chain.n": 2}), ("chain", {}),
+         ("chain", {"sim.rotation": "quaternion"}), ("chain", {"chain.n": 50}), ("slider_crank", {})]
 
 
 def _setup(name, overrides=None):
@@ -30,7 +36,7 @@ def _setup(name, overrides=None):
     return system, state, make_formulation(scene.data["sim"]), scene.data["sim"]["dt"]
 
 
-@pytest.mark.parametrize("name, overrides", CASES, ids=lambda c: c if isinstance(c, str) else ",".join(c.values()))
+@pytest.mark.parametrize("name, overrides", CASES, ids=lambda c: c if isinstance(c, str) else ",".join(map(str, c.values())))
 def test_compiled_ali3p_takes_the_numpy_steps(name, overrides):
     system, state, form, dt = _setup(name, overrides)
     compiled = run(system, state, form, N_STEPS, dt, compiled=True, method="trapezoidal")
@@ -46,6 +52,27 @@ def test_compiled_ali3p_takes_the_numpy_steps(name, overrides):
     # one iteration's evaluations either way, never more than 2 % of them
     assert abs(compiled.n_rhs - numpy.n_rhs) <= max(2, 0.02 * numpy.n_rhs), (compiled.n_rhs, numpy.n_rhs)
     assert np.array_equal(compiled.state.chart, numpy.state.chart)
+
+
+def test_a_failing_compiled_step_stops_with_the_numpy_diagnosis():
+    """At alpha = 1e6 the multiplier updates of a 10-link chain converge too slowly: the second step fails
+    with both tangents and at every halving; both paths stop there with the same diagnosis (time, step,
+    the last update and constraint residual) after the same evaluations."""
+    system, state, form, dt = _setup("chain", {"sim.ali3p_alpha": 1e6})
+    failures = []
+    for compiled in (True, False):
+        sim = Simulation(system, state, make_integrator("trapezoidal"), form, dt, compiled=compiled)
+        assert (sim.kernel_note == "compiled kernel") == compiled
+        with pytest.raises(SimulationFailure) as failure:
+            sim.steps(5)
+        failures.append((str(failure.value), sim.n_steps, sim.n_rhs))
+    (compiled_message, compiled_steps, compiled_rhs), (numpy_message, numpy_steps, numpy_rhs) = failures
+    where = f"t = {dt:.6g} s: ALI3-P iteration did not converge in 40 iterations with h = {dt / 8:.3g} s (last update "
+    assert compiled_message.startswith(where) and numpy_message.startswith(where), (compiled_message, numpy_message)
+    # the last update and max |C| sit at round-off (1e-13, 1e-12 m): both named, not compared
+    assert re.search(r"max \|C\| = \S+ m\); try a smaller sim.dt", compiled_message), compiled_message
+    assert compiled_steps == numpy_steps == 1
+    assert abs(compiled_rhs - numpy_rhs) <= max(2, 0.02 * numpy_rhs), (compiled_rhs, numpy_rhs)
 
 
 @pytest.mark.parametrize("name, why", [("flexible_pendulum", "ALI3-P with flexible bodies"),

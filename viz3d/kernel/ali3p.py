@@ -518,6 +518,7 @@ class KernelALI3P:
         self.stepper, d = stepper, stepper.data
         m = d.model
         self.m, n = m, m.n_v
+        self.smooth = smooth_forces(system)
         A = body_adjacency(system)
         frame_of = m.body_frame[: m.nb]
         i, j = np.nonzero(A)
@@ -558,22 +559,21 @@ class KernelALI3P:
         outcome, evals, last, built, step, C_max = st._call(
             ali3p_step, state.t, h, _c(state.q), _c(state.v), _c(memory.v_dot), _c(memory.lam), w0,
             _c(memory.w_dot) if m.n_aux else np.zeros(0), _c(state.chart), float(formulation.alpha),
-            float(formulation.tol), self.bw, have_K, smooth_forces(system), memory.K if have_K else K_new,
+            float(formulation.tol), self.bw, have_K, self.smooth, memory.K if have_K else K_new,
             memory.D if have_K else D_new, K_new, D_new, d.model, v, w, d.forces, d.rows, self.s, y1, a, lam, w_dot)
-        if built:
-            memory = replace(memory, K=K_new, D=D_new)
-        memory = replace(memory, n_evals=memory.n_evals + evals)
+        K, D = (K_new, D_new) if built else (memory.K, memory.D)
         if outcome == WORK_RATES:
             raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
         if outcome != CONVERGED:
             reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX}.get(outcome)
-            return state, memory, failure(state, h, reason or no_convergence(step, C_max))
+            return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + evals), failure(
+                state, h, reason or no_convergence(step, C_max))
         new = State(state.t + h, y1[:n_q], y1[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
         if m.n_aux:
             new = new.replace(memory=state.memory, w=y1[n_q + n_v:])
         keep = not refresh_tangent(last)
-        return new, replace(memory, v_dot=a, lam=lam, K=memory.K if keep else None, D=memory.D if keep else None,
-                            n_evals=memory.n_evals + 1 + (1 if m.n_aux else 0), w_dot=w_dot), Status.OK
+        return new, replace(memory, v_dot=a, lam=lam, K=K if keep else None, D=D if keep else None,
+                            n_evals=memory.n_evals + evals + 1 + (1 if m.n_aux else 0), w_dot=w_dot), Status.OK
 
     def work_rates(self, system, formulation, state) -> np.ndarray:
         """The ledger's work rates at ``state`` (n_aux,) [W]: the kernel's index-1 field's."""
