@@ -20,8 +20,8 @@ halvings of a failed step stay in ``viz3d.ali3p`` (they call it again). In the c
   finite-difference tangents (columns grouped as ``viz3d.sparsity.sparse_fd_plan`` groups them)
   are written into the band, and ``T`` (not symmetric once ``K``, ``D`` are in it) is factored by
   LAPACK's banded LU with partial pivoting (``dgbtrf``/``dgbtrs`` of ``scipy.linalg.cython_lapack``,
-  called from compiled code): O(N) per step on a chain. (A banded LU written here took 1.0-1.4x
-  LAPACK's time at 2-200 links on random band matrices that need pivoting.)
+  called from compiled code): O(N) per step on a chain. (A banded LU with partial pivoting written
+  in numba took 1.1-1.4x LAPACK's time at 2-200 links on random band matrices that need pivoting.)
 
 Covered: rigid bodies, every joint and force element with a compiled piece. Not covered (the run
 keeps the NumPy path and says why, ``viz3d.kernel.model._check_stepping``): flexible bodies, contacts, force elements that
@@ -36,14 +36,23 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.ali3p import (MAX_ITER, NONFINITE_STATE, SINGULAR_MATRIX, SLOW_RATE, failure, no_convergence,
-                         refresh_tangent, small_update, smooth_forces, too_slow)
+from viz3d.ali3p import (
+    MAX_ITER,
+    NONFINITE_STATE,
+    SINGULAR_MATRIX,
+    SLOW_RATE,
+    failure,
+    no_convergence,
+    refresh_tangent,
+    small_update,
+    smooth_forces,
+    too_slow,
+)
 from viz3d.compiled import entry, jit, numba
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
 from viz3d.kernel import _c
-from viz3d.kernel.field import (NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces,
-                                turn_quaternion)
+from viz3d.kernel.field import NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces, turn_quaternion
 from viz3d.points import kinematics
 from viz3d.rotations import GIMBAL_EPS
 from viz3d.system import State
