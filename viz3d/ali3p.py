@@ -188,8 +188,10 @@ def no_convergence(step: float, C_max: float) -> str:
     return f"last update {step:.2e}, max |C| = {C_max:.2e} m"
 
 
+@entry
 def refresh_tangent(evals: int) -> bool:
-    """Does a step that took ``evals`` evaluations rebuild the force tangent for the next?"""
+    """Does a step that took ``evals`` evaluations rebuild the force tangent for the next? (Compiled,
+    like ``small_update``.)"""
     return evals > REFRESH_ITER
 
 

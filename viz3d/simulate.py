@@ -74,7 +74,8 @@ class Simulation:
     * adaptive steps (``controller`` given; the integrator needs an embedded error estimate): as
       many accepted steps as ``adaptive.Controller`` chooses, the state at ``t0 + n dt`` sampled
       from the last step's dense output (the tableau's continuous extension, else cubic Hermite);
-    * a formulation that steps itself (``ALI3P``): its own ``step`` with its memory.
+    * a formulation that steps itself (``ALI3P``): its own ``step`` with its memory (in the compiled
+      kernel when it covers the system, several steps a call: ``steps``, ``output_states``).
 
     Between accepted steps, always in this order: ``formulation.post_step`` (projections), the
     health check, ``rotation.normalize`` (unit quaternions), ``rotation.rechart`` (per-body
@@ -248,10 +249,13 @@ class Simulation:
 
     def steps(self, n: int) -> State:
         """``n`` calls of ``step`` (the same states, diagnoses and counters); fixed explicit RK
-        steps through the compiled kernel go in one call, free of per-step Python overhead."""
+        steps and the steps of a formulation that steps itself through the compiled kernel go in
+        one call, free of per-step Python overhead."""
         goal = self.n_samples + n
         if n > 1 and self._kernel_ready():
             self._kernel_steps(n)
+        elif n > 1 and self._own_kernel_ready():
+            self._own_frames(1, n)
         elif n > 1 and self._adaptive_kernel_covers():
             self._kernel_samples(1, n)
         while self.n_samples < goal:
@@ -306,8 +310,8 @@ class Simulation:
     def batches_frames(self) -> bool:
         """True when ``output_states`` can take several output frames in one kernel call: fixed
         explicit RK steps the kernel covers, no contacts; adaptive ones the kernel covers
-        (``_adaptive_kernel_covers``)."""
-        return self._kernel_ready() or self._adaptive_kernel_covers()
+        (``_adaptive_kernel_covers``); those of a formulation that steps itself (``_own_kernel_ready``)."""
+        return self._kernel_ready() or self._adaptive_kernel_covers() or self._own_kernel_ready()
 
     def output_states(self, n_frames: int, every: int) -> list[State]:
         """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
@@ -319,6 +323,8 @@ class Simulation:
 
         if self.controller is not None:
             return self._kernel_samples(n_frames, every) or []
+        if self._own_kernel_ready():
+            return self._own_frames(n_frames, every)
         states, done, status = self._frames_run(n_frames, every)
         if status != OK and done:  # keep the good frames (redone: the kernel is deterministic)
             states, done, status = self._frames_run(done, every)
@@ -348,6 +354,41 @@ class Simulation:
         self.chart_switches += switches
         self._f = None
         return states, done, OK
+
+    def _own_kernel_ready(self) -> bool:
+        """Steps of a formulation that steps itself (ALI3-P) that the kernel takes, several in one
+        call (never with contacts or force elements that remember: the kernel does not cover them)."""
+        return self.formulation.integrator is not None and self._kernel is not None and self._contacts is None
+
+    def _own_memory(self):
+        """The memory of a formulation that steps itself, made at the first step (its evaluations counted)."""
+        if self._memory is None:
+            self._memory = self.formulation.init_memory(self.system, self.state, self._kernel)
+            self.n_rhs += self._memory.n_evals
+        return self._memory
+
+    def _own_frames(self, n_frames: int, every: int) -> list[State]:
+        """Up to ``n_frames`` states ``every`` steps apart of a formulation that steps itself, in one
+        kernel call (``viz3d.kernel.ali3p.KernelALI3P.frames``): the same states, memory and counters
+        as ``steps(every)`` ``n_frames`` times. On a failure the frames before the failing one are
+        kept (redone: the kernel is deterministic); ``step`` then takes that one for the diagnosis."""
+        kernel = self._own_memory().kernel
+        call = (self.system, self.formulation, self.state, self._memory)
+        states, memory, switches, done, ok = kernel.frames(*call, n_frames, every, self.n_samples, self.t0, self.dt,
+                                                           self.blowup_speed)
+        if not ok and done:
+            states, memory, switches, done, ok = kernel.frames(*call, done, every, self.n_samples, self.t0, self.dt,
+                                                               self.blowup_speed)
+        if not ok:
+            return []
+        self.n_rhs += memory.n_evals - self._memory.n_evals
+        self._memory = memory
+        self.state = states[-1]
+        self.n_samples += done * every
+        self.n_steps += done * every
+        self.chart_switches += switches
+        self._f = None
+        return states
 
     def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Up to ``n`` kernel steps from the current state: ``(y, chart, good steps, ok)``. The
@@ -441,9 +482,7 @@ class Simulation:
 
     def _own_step(self, target: float) -> State:
         s = self.state
-        if self._memory is None:
-            self._memory = self.formulation.init_memory(self.system, s, self._kernel)
-            self.n_rhs += self._memory.n_evals
+        self._own_memory()
         new, memory, status = self.formulation.step(self.system, s, self.dt, self._memory)
         self.n_rhs += memory.n_evals - self._memory.n_evals
         if not status.ok:

@@ -4,7 +4,10 @@
 the exact tangent, projections, halvings) on NumPy: the reference. Here one compiled call
 (``ali3p_step``) takes the same attempt(s) of a step for a system the kernel covers, with the same
 stopping tests, tangents and counts of evaluations, so it takes the reference's iterates; the
-halvings of a failed step stay in ``viz3d.ali3p`` (they call it again). In the call:
+halvings of a failed step stay in ``viz3d.ali3p`` (they call it again). ``ali3p_frames`` takes a
+run's steps from one output frame to the next in one call, with what ``viz3d.simulate`` does
+between steps (health checks, normalisation, chart switches), and stops before a step that fails:
+Python takes that one for its diagnosis. In the call:
 
 * a trial increment ``dx`` is retracted (``W_r + dW_r``; Euler parameters turned by
   ``turn_quaternion``; ZXZ Euler angles through ``R exp(skew(B_dphi))`` on the branch and turn
@@ -53,6 +56,7 @@ from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
 from viz3d.kernel import _c
 from viz3d.kernel.field import NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces, turn_quaternion
+from viz3d.kernel.stepping import _check_frames, state_ok
 from viz3d.points import kinematics
 from viz3d.rotations import GIMBAL_EPS
 from viz3d.system import State
@@ -487,6 +491,14 @@ def _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, exact_o
 @entry
 def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
                w, forces, rows, s, y1, a_out, lam, w_dot1):
+    """``_attempts`` callable from Python (a step that ``viz3d.ali3p`` takes, halvings included)."""
+    return _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
+                     w, forces, rows, s, y1, a_out, lam, w_dot1)
+
+
+@jit
+def _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
+              w, forces, rows, s, y1, a_out, lam, w_dot1):
     """One step of ``viz3d.ali3p._one_step``: with the kept force tangents ``K``, ``D`` when ``have_K``,
     then (or else only) with fresh ones written into ``K_new``, ``D_new``. On convergence ``y1``
     (n_q + n_v + n_aux,) holds the new state, ``a_out`` its accelerations, ``lam`` the multipliers,
@@ -509,6 +521,59 @@ def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_
         if outcome == CONVERGED or outcome == WORK_RATES:
             break
     return outcome, total, evals, built, step, C_max
+
+
+#: ``ali3p_frames``' status when a step's end state fails the health checks (``viz3d.kernel.stepping.state_ok``).
+UNHEALTHY = 5
+
+
+@entry
+def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed, a0, lam, w_dot0, Ks, Ds, carry, alpha,
+                 tol, bw, smooth, m, v, w, forces, rows, s, y1, a1, lam1, w_dot1, Y, charts):
+    """Up to ``n_frames`` times ``every`` steps (``_attempts``) of the state ``y = [q, v, w]`` (n_y,) and
+    ``chart`` in place, from step ``n0`` of a run started at ``t_start`` [s], each followed by what
+    ``viz3d.simulate.Simulation`` does between steps (health checks, normalised Euler parameters,
+    chart switches counted per body in ``switches``: ``viz3d.kernel.stepping``); the state after frame
+    ``f`` into ``Y[f]``, ``charts[f]``. The memory is carried in place: accelerations ``a0``,
+    multipliers ``lam``, work rates ``w_dot0``, force tangents ``Ks[carry[0]]``, ``Ds[carry[0]]``
+    (the other buffer takes fresh ones), ``carry[1]`` 1 while they are kept, ``carry[2]`` the
+    evaluations. Stops before a step that fails (``_attempts``' outcome) or whose end state is not
+    healthy (``UNHEALTHY``), state and memory as before it. Returns (frames done, steps done in the
+    next frame, status: ``CONVERGED`` when all were done)."""
+    n_q, n_v, n_y = m.n_q, m.n_v, y.shape[0]
+    for f in range(n_frames):
+        for k in range(every):
+            cur = carry[0]
+            outcome, evals, last, built, _, _ = _attempts(
+                t_start + (n0 + f * every + k) * h, h, y[:n_q], y[n_q:n_q + n_v], a0, lam, y[n_q + n_v:], w_dot0, chart,
+                alpha, tol, bw, carry[1] == 1, smooth, Ks[cur], Ds[cur], Ks[1 - cur], Ds[1 - cur], m, v, w, forces, rows,
+                s, y1, a1, lam1, w_dot1)
+            if outcome != CONVERGED:
+                return f, k, outcome
+            if not state_ok(n_q, n_v, m.n_rot, m.switching, m.frame_body.shape[0], y1, h, max_speed):
+                return f, k, UNHEALTHY
+            _check_frames(n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y1, chart, switches,
+                          h, max_speed)
+            for i in range(n_y):
+                y[i] = y1[i]
+            for i in range(n_v):
+                a0[i] = a1[i]
+            for r in range(lam.shape[0]):
+                lam[r] = lam1[r]
+            for i in range(w_dot0.shape[0]):
+                w_dot0[i] = w_dot1[i]
+            if built:
+                carry[0] = 1 - cur
+            carry[1] = 0 if refresh_tangent(last) else 1
+            carry[2] += evals + 1 + (1 if w_dot0.shape[0] else 0)
+        for i in range(n_y):
+            Y[f, i] = y[i]
+        for b in range(chart.shape[0]):
+            for i in range(3):
+                for j in range(3):
+                    charts[f, b, i, j] = chart[b, i, j]
+    return n_frames, every, CONVERGED
+
 
 # ---------------------------------------------------------------------------- from Python
 
@@ -583,6 +648,40 @@ class KernelALI3P:
         keep = not refresh_tangent(last)
         return new, replace(memory, v_dot=a, lam=lam, K=K if keep else None, D=D if keep else None,
                             n_evals=memory.n_evals + evals + 1 + (1 if m.n_aux else 0), w_dot=w_dot), Status.OK
+
+    def frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
+               h: float, max_speed: float):
+        """``n_frames`` times ``every`` steps from ``state`` with ``memory`` in one compiled call
+        (``ali3p_frames``), from step ``n0`` of a run started at ``t_start`` [s]: ``(states, memory,
+        switches, done, ok)``, the states after each frame done, the memory and chart switches per
+        body (n_bodies,) after the last; ``ok`` False when a step failed or its end state was not
+        healthy (that frame not done: ``viz3d.ali3p`` then takes it for the diagnosis). Inputs are copied."""
+        st, d, m = self.stepper, self.stepper.data, self.m
+        n, L, n_q, n_v = m.n_v, 3 * self.bw + 1, m.n_q, m.n_v
+        y, chart = np.array(state.y, dtype=float), np.array(state.chart, dtype=float)
+        switches = np.zeros(system.n_bodies, np.int64)
+        Ks, Ds = np.empty((2, n, L)), np.empty((2, n, L))
+        have_K = memory.K is not None
+        if have_K:
+            Ks[0], Ds[0] = memory.K, memory.D
+        a0, lam, w_dot0 = np.array(memory.v_dot, dtype=float), np.array(memory.lam, dtype=float), np.zeros(m.n_aux)
+        if m.n_aux:
+            w_dot0[:] = memory.w_dot
+        carry = np.array([0, int(have_K), 0], np.int64)
+        Y, charts = np.empty((n_frames, y.size)), np.empty((n_frames, *chart.shape))
+        v, w = st.ws
+        done, _, status = st._call(
+            ali3p_frames, n_frames, every, n0, t_start, h, y, chart, switches, float(max_speed), a0, lam, w_dot0, Ks,
+            Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.smooth, d.model, v, w,
+            d.forces, d.rows, self.s, np.empty(y.size), np.empty(n_v), np.empty(lam.size), np.empty(m.n_aux), Y, charts)
+        states = [State(t_start + (n0 + (f + 1) * every) * h, Y[f, :n_q], Y[f, n_q:n_q + n_v], charts[f],
+                        Y[f, n_q + n_v:], state.memory, state.element_memory) for f in range(done)]
+        kept = carry[1] == 1
+        cur = int(carry[0])
+        memory = replace(memory, v_dot=a0, lam=lam, w_dot=w_dot0 if m.n_aux else memory.w_dot,
+                         K=Ks[cur].copy() if kept else None, D=Ds[cur].copy() if kept else None,
+                         n_evals=memory.n_evals + int(carry[2]))
+        return states, memory, switches, done, status == CONVERGED
 
     def work_rates(self, system, formulation, state) -> np.ndarray:
         """The ledger's work rates at ``state`` (n_aux,) [W]: the kernel's index-1 field's."""
