@@ -31,10 +31,12 @@ less. The finite-difference tangents difference the columns of bodies that share
 together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any length.
 
 The method is written here, on NumPy: the reference. When the compiled kernel covers the system,
-``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``, and each
-attempt of a step (``_one_step``) is one compiled call of the same iteration (the same stopping
-tests, ``small_update`` and ``too_slow`` compiled from this module, the same tangents and counts
-of evaluations) on band matrices in body order and LAPACK's banded LU; the halvings stay here.
+``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``: the attempts of
+a step (``_one_step``) are one compiled call of the same iteration (the same stopping tests,
+``small_update``, ``too_slow`` and ``refresh_tangent`` compiled from this module, the same tangents
+and counts of evaluations) on band matrices in body order and LAPACK's banded LU, and a run's steps
+from one output frame to the next are one call too (``KernelALI3P.frames``); a step that fails
+comes back here for its halvings and diagnosis.
 """
 
 from __future__ import annotations

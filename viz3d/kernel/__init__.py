@@ -15,7 +15,7 @@ element type.
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
 (adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection``
 (the ``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
-steps, each one compiled call: ``viz3d.ali3p``'s compiled path).
+steps and runs of them, compiled: ``viz3d.ali3p``'s compiled path).
 """
 
 from __future__ import annotations
