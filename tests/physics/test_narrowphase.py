@@ -1,5 +1,6 @@
-"""Our narrow phase against triangle meshes (``viz3d.contact.narrowphase``) against Coal, which nobody
-here wrote, against closed forms, and its box tree against visiting every facet.
+"""Our narrow phase (``viz3d.contact.narrowphase``: shapes on triangle meshes, spheres on spheres and
+capsules) against Coal, which nobody here wrote, against closed forms, and its box tree against
+visiting every facet.
 
 Tolerances. Coal's GJK and EPA stop at their default tolerance ``TAU = 1e-6`` (Coal 3.0,
 ``GJK_DEFAULT_TOLERANCE``, ``EPA_DEFAULT_TOLERANCE``; ``GJKSolver::shapeDistance`` documents the
@@ -277,6 +278,39 @@ def test_collisions_find_the_same_touches_with_our_narrow_phase_as_with_coals(ho
                 assert np.linalg.norm(theirs.point[k] - mine.point[k]) <= point_tol(L, s), f"t = {cfg.t}: point {k}"
     finally:
         w["ours"][:] = ours_mask
+
+
+@pytest.mark.parametrize("kinds", [("sphere", "sphere"), ("sphere", "capsule"), ("capsule", "sphere")])
+def test_a_sphere_on_a_sphere_or_capsule_is_coals(kinds):
+    """Both closed forms (Coal's and ours: closest points of the cores): equal to round-off."""
+    rng = np.random.default_rng(29)
+    make = {"sphere": lambda: sphere(rng.uniform(0.05, 0.3)), "capsule": lambda: capsule(rng.uniform(0.05, 0.2),
+                                                                                          rng.uniform(0.0, 0.6))}
+    hits = 0
+    for _ in range(300):
+        shapes = (make[kinds[0]](), make[kinds[1]]())
+        shapes = (shapes[0], Shape(shapes[1].name, 1, shapes[1].kind, shapes[1].size, support=shapes[1].support))
+        table = pack_shapes(shapes, 2)
+        r = rng.normal(0.0, 0.25, (2, 3))
+        R = Rotation.random(2, random_state=rng.integers(2**31)).as_matrix()
+        L = max(s.bounding_radius for s in shapes)
+        mine = ours(table, 0, 1, r, R)
+        res = coal.CollisionResult()
+        req = coal.CollisionRequest()
+        req.enable_contact = True
+        coal.collide(*(x for k in (0, 1) for x in (GEOMETRIES[shapes[k].kind](shapes[k]), coal.Transform3s(R[k], r[k]))),
+                     req, res)
+        theirs = [(0.5 * (np.asarray(c.getNearestPoint1()) + np.asarray(c.getNearestPoint2())), np.asarray(c.normal),
+                   float((np.asarray(c.getNearestPoint1()) - np.asarray(c.getNearestPoint2())) @ np.asarray(c.normal)))
+                  for c in res.getContacts()]
+        theirs = [t for t in theirs if t[2] > 0.0]
+        assert len(theirs) == len(mine)
+        for (p, n, d), (q, m, e) in zip(theirs, mine.values()):
+            assert abs(d - e) <= 64 * EPS * L and np.linalg.norm(p - q) <= 64 * EPS * L
+            core = sum(x.size[0] for x in shapes) - e  # the cores' distance: n = gap / core
+            assert np.linalg.norm(n - m) <= 64 * EPS * L / core
+            hits += 1
+    assert hits > 50
 
 
 # --- closed forms -----------------------------------------------------------------------------------------

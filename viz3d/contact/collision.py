@@ -7,12 +7,14 @@ bounding spheres (moving shapes) or boxes (ground shapes) overlap, from a k-d tr
 group (``scipy.spatial.cKDTree``: O(N log N) per group, never the O(N^2) pair list), and only for
 the pairs of groups the scene declares. The narrow phase then gives each touching pair its normal,
 penetration depth and contact points: ours (``viz3d.contact.narrowphase``, compiled) for a sphere,
-capsule or convex hull against a triangle mesh, Coal's for every other pair, with its contact patch
+capsule or convex hull against a triangle mesh and a sphere against a sphere or capsule, Coal's for
+every other pair, with its contact patch
 (the polygon where the shapes touch, each point with its witness on both surfaces: a box on a box
 gets the corners of their overlap). Infinite planes are not in the broad phase: a shape's *support
 points* (a sphere's centre with its radius, a capsule's two end spheres, a box's corners, a
-cylinder's rim points, a convex or triangle mesh's vertices) are tested against each plane directly, one contact per point below it, exact for
-everything but the cylinder's rim (``rim_points`` chords).
+cylinder's rim points, a convex or triangle mesh's vertices) are tested against each plane
+directly, one contact per point below it, exact for everything but the cylinder's rim
+(``rim_points`` chords).
 
 Each contact acts as a penalty contact stepped through (no events located): its pair's normal law
 (one without contact memory: linear, Hertz, the rate laws with a fixed ``damping_factor``) plus an
@@ -43,11 +45,12 @@ Of a pair's contacts we keep the deepest, drop those whose normals differ from i
 until ``max_contacts`` (a well-spread support), merging any closer than ``merge_distance``.
 
 What is ours and what is Coal's (3.0). Ours: the broad phase, the planes, the reduction, and the
-narrow phase of sphere, capsule and convex hull against a triangle mesh (``narrowphase.covered``):
-the same raw contacts as Coal's triangle-soup test (one per facet, the same facets, depths and
-normals to round-off; its module docstring says how, and which witness point it takes where Coal's
-is not unique), compiled, so that the kernel can call it as well. Coal's: every other pair (convex
-against convex, boxes, cylinders, mesh against mesh) and the contact patches. Coal brings sphere,
+narrow phase of sphere, capsule and convex hull against a triangle mesh and of a sphere against a
+sphere or capsule (``narrowphase.covered``): the same raw contacts as Coal's triangle-soup test (one
+per facet, the same facets, depths and normals to round-off; its module docstring says how, and
+which witness point it takes where Coal's is not unique) and closed forms, compiled, so that the
+kernel can call it as well. Coal's: every other pair (convex against convex, capsule against
+capsule, boxes, cylinders, mesh against mesh) and the contact patches. Coal brings sphere,
 capsule, box, cylinder, convex and triangle-mesh geometries, contact patches, and exact depths for
 curved shapes (GJK/EPA on the shapes' cores plus the radii): on a sphere against a convex cube its
 depth is exact to 1e-16 m where python-fcl 0.7 (libccd's EPA) was off by up to 2 cm on a 0.3 m

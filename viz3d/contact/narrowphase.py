@@ -1,5 +1,6 @@
 """Our narrow phase: compiled contact tests of a sphere, capsule or convex polytope against a triangle
-mesh, giving the raw contacts Coal gives (``viz3d.contact.collision``).
+mesh, and of a sphere against a sphere or capsule, giving the raw contacts Coal gives
+(``viz3d.contact.collision``).
 
 A triangle mesh is a triangle soup, as in Coal: a shape gets one contact per facet it touches, each
 the minimum translation of the shape out of that facet alone (a flat convex set), with
@@ -38,8 +39,13 @@ depth first with skip indices, is walked without a stack, so a shape visits only
 box. Contacts come out in that walk's order; at most ``out_depth.shape[0]`` per pair (Coal stops at
 its request's ``num_max_contacts`` likewise).
 
+A sphere against a sphere or capsule: the closest points of the cores (point, segment), ``depth =
+r_i + r_j - distance``, one contact, as Coal's closed forms (where the cores meet, its normal ``x``
+from the sphere).
+
 Everything compiled here allocates nothing (``viz3d.compiled``: no NRT); vectors are tuples.
-Pairs not ``covered`` (convex-convex, boxes, cylinders, meshes against meshes) stay Coal's.
+Pairs not ``covered`` (convex-convex, capsule-capsule, boxes, cylinders, meshes against meshes) stay
+Coal's.
 """
 
 from __future__ import annotations
@@ -59,10 +65,15 @@ MESH_CONTACTS = 32
 FEATURE = 1e-9
 #: Edge pairs with sin(angle) below this give no separating axis.
 PARALLEL = 1e-8
+#: Coal's threshold below which the centres of a sphere pair coincide [m].
+EPS = np.finfo(float).eps
 #: Faces of a polytope within this of the contact normal (1 - cos) are its contact face.
 FACING = 1e-6
 #: Kinds against a mesh that ``pair_contacts`` handles.
 _ON_MESH = ("sphere", "capsule", "convex")
+#: Pairs of swept shapes it handles (capsule against capsule stays Coal's: ``Collisions`` asks Coal
+#: for its contact patch, the stretch two parallel capsules share).
+_SWEPT = {("sphere", "sphere"), ("sphere", "capsule"), ("capsule", "sphere")}
 
 
 class ShapeTable(NamedTuple):
@@ -103,7 +114,8 @@ class ShapeTable(NamedTuple):
 
 def covered(kind_i: str, kind_j: str) -> bool:
     """Whether ``pair_contacts`` handles shapes of these kinds (either order)."""
-    return (kind_i == "mesh" and kind_j in _ON_MESH) or (kind_j == "mesh" and kind_i in _ON_MESH)
+    return ((kind_i == "mesh" and kind_j in _ON_MESH) or (kind_j == "mesh" and kind_i in _ON_MESH)
+            or (kind_i, kind_j) in _SWEPT)
 
 
 # --- packing (Python, once) ---------------------------------------------------------------------------
@@ -653,7 +665,38 @@ def _pair(table, i, j, r_i, R_i, r_j, R_j, out_point, out_n, out_depth, out_face
         return _on_mesh(table, i, j, r_i, R_i, r_j, R_j, 1.0, out_point, out_n, out_depth, out_facet, facets)
     if ki == MESH and (kj == SPHERE or kj == CAPSULE or kj == CONVEX):
         return _on_mesh(table, j, i, r_j, R_j, r_i, R_i, -1.0, out_point, out_n, out_depth, out_facet, facets)
+    if (ki == SPHERE and (kj == SPHERE or kj == CAPSULE)) or (ki == CAPSULE and kj == SPHERE):
+        return _swept(table, i, j, r_i, R_i, r_j, R_j, out_point, out_n, out_depth, out_facet, facets)
     return 0
+
+
+@jit
+def _swept(tb, i, j, r_i, R_i, r_j, R_j, out_point, out_n, out_depth, out_facet, facets):
+    """The contact of a sphere with a sphere or capsule (closed form: the cores' closest points; where
+    they coincide, Coal's normal: x from the sphere)."""
+    if out_depth.shape[0] == 0:
+        return 0
+    c_i, c_j = (r_i[0], r_i[1], r_i[2]), (r_j[0], r_j[1], r_j[2])
+    a_i, a_j = (R_i[0, 2], R_i[1, 2], R_i[2, 2]), (R_j[0, 2], R_j[1, 2], R_j[2, 2])  # the axes (shape z)
+    x, y = segment_segment(_axpy(c_i, -tb.half[i], a_i), _axpy(c_i, tb.half[i], a_i), _axpy(c_j, -tb.half[j], a_j),
+                           _axpy(c_j, tb.half[j], a_j))
+    gap = _sub(y, x)
+    d = np.sqrt(_dot(gap, gap))
+    depth = tb.radius[i] + tb.radius[j] - d
+    if depth <= 0.0:
+        return 0
+    if d > EPS:
+        n = _scale(1.0 / d, gap)
+    else:
+        n = (1.0, 0.0, 0.0) if tb.kind[i] == SPHERE else (-1.0, 0.0, 0.0)
+    p = _scale(0.5, _add(_axpy(x, tb.radius[i], n), _axpy(y, -tb.radius[j], n)))
+    for c in range(3):
+        out_point[0, c] = p[c]
+        out_n[0, c] = n[c]
+    out_depth[0] = depth
+    if facets:
+        out_facet[0] = -1
+    return 1
 
 
 @entry
