@@ -16,6 +16,7 @@ machine: compare the rows of one run with each other.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import subprocess
 import sys
@@ -60,10 +61,12 @@ def detect_times(col, cfgs, repeats: int) -> dict:
             r, R = col.shape_poses(cfg)
             pairs = [p for p in col.candidates(r, R) if ours[p]]
             rows["pairs"].append(len(pairs))
+            detect = functools.partial(col._detect, cfg)
+            narrow = functools.partial(col._narrow, w, pairs, r, R, {})
             for label, mask in (("ours", ours), ("coal", np.zeros_like(ours))):
                 w["ours"][:] = mask
-                rows[label].append(1e3 * best_of(lambda: col._detect(cfg), repeats))
-                rows["narrow_" + label].append(1e3 * best_of(lambda: col._narrow(w, pairs, r, R, {}), repeats))
+                rows[label].append(1e3 * best_of(detect, repeats))
+                rows["narrow_" + label].append(1e3 * best_of(narrow, repeats))
             rows["contacts"].append(col._detect(cfg).m)
     finally:
         w["ours"][:] = ours

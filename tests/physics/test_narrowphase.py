@@ -205,7 +205,7 @@ def test_contacts_on_a_random_triangle_soup_are_coals(kind):
              "box": hull([[x, y, z] for x in (-0.3, 0.3) for y in (-0.2, 0.2) for z in (-0.1, 0.1)]),
              "hull": hull(rng.normal(0.0, 0.3, (12, 3)))}[kind]
     compared = 0
-    for trial in range(60):
+    for _ in range(60):
         shapes = (first, soup(rng, 60))
         table = pack_shapes(shapes, 1)
         L = first.bounding_radius
@@ -318,10 +318,11 @@ def test_a_sphere_on_a_sphere_or_capsule_is_coals(kinds):
 TRIANGLE = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
-def _at(shape: Shape, centre, rotation=np.eye(3), tri=TRIANGLE, faces=((0, 1, 2),)):
+def _at(shape: Shape, centre, rotation=None, tri=TRIANGLE, faces=((0, 1, 2),)):
+    """Our contacts of ``shape`` at ``centre`` (turned by ``rotation``) with the mesh ``tri``, ``faces``."""
     shapes = (shape, mesh(tri, np.array(faces)))
     r = np.array([centre, [0.0, 0.0, 0.0]], float)
-    R = np.array([rotation, np.eye(3)], float)
+    R = np.array([np.eye(3) if rotation is None else rotation, np.eye(3)], float)
     return ours(pack_shapes(shapes, 1), 0, 1, r, R)
 
 
@@ -393,7 +394,10 @@ def _every_facet(table, m: int):
     F = table.f_off[m + 1] - table.f_off[m]
     n0, n1 = table.n_off[m], table.n_off[m + 1]
     lo, hi = np.full((F, 3), -np.inf), np.full((F, 3), np.inf)
-    cut = lambda a, b: np.ascontiguousarray(np.concatenate([a[:n0], b, a[n1:]]))
+
+    def cut(a, b):
+        return np.ascontiguousarray(np.concatenate([a[:n0], b, a[n1:]]))
+
     n_off = table.n_off.copy()
     n_off[m + 1:] += F - (n1 - n0)
     return table._replace(node_lo=cut(table.node_lo, lo), node_hi=cut(table.node_hi, hi),
@@ -406,7 +410,7 @@ def test_the_box_tree_finds_the_facets_every_facet_finds(kind):
     rng = np.random.default_rng(23)
     first = {"sphere": sphere(0.25), "capsule": capsule(0.1, 0.5), "hull": hull(rng.normal(0.0, 0.25, (10, 3)))}[kind]
     touched = 0
-    for trial in range(20):
+    for _ in range(20):
         shapes = (first, soup(rng, 300, size=0.3, spread=1.0))
         table = pack_shapes(shapes, 1)
         assert len(table.node_skip) == 2 * 300 - 1

@@ -65,9 +65,9 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
+from viz3d.contact.narrowphase import MESH_CONTACTS, contacts_of_pairs, covered, pack_shapes
 from viz3d.forces import ForceElement
 from viz3d.geometry import contact_spheres
-from viz3d.contact.narrowphase import MESH_CONTACTS, contacts_of_pairs, covered, pack_shapes
 from viz3d.kinematics import Configuration
 from viz3d.rotations import cross
 
