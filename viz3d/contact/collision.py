@@ -65,7 +65,7 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.contact.narrowphase import MESH_CONTACTS, contacts_of_pairs, covered, pack_shapes
+from viz3d.contact.narrowphase import MESH_CONTACTS, contacts_of_pairs, covered, pack_shapes, segment_distance
 from viz3d.forces import ForceElement
 from viz3d.geometry import contact_spheres
 from viz3d.kinematics import Configuration
@@ -307,25 +307,6 @@ def _all_pairs(a: IntArray, b: IntArray, same: bool) -> IntArray:
         x, y = np.triu_indices(len(a), 1)
         return np.column_stack([a[x], a[y]])
     return np.column_stack([np.repeat(a, len(b)), np.tile(b, len(a))])
-
-
-def segment_distance(p0: FloatArray, p1: FloatArray, q0: FloatArray, q1: FloatArray) -> FloatArray:
-    """Distance between segments p0-p1 and q0-q1 (k, 3 each) [m], shape (k,): the closest points by
-    clamping the parameters of the infinite lines' closest points (Ericson, Real-Time Collision
-    Detection, sec. 5.1.9), zero-length segments included."""
-    d1, d2, w = p1 - p0, q1 - q0, p0 - q0
-    a, e = np.einsum("ki,ki->k", d1, d1), np.einsum("ki,ki->k", d2, d2)
-    b, c, f = np.einsum("ki,ki->k", d1, d2), np.einsum("ki,ki->k", d1, w), np.einsum("ki,ki->k", d2, w)
-    tiny = 1e-300
-    den = a * e - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(den > tiny * np.maximum(a * e, tiny), np.clip((b * f - c * e) / den, 0.0, 1.0), 0.0)
-        s = np.where(e > tiny, s, np.clip(-c / a, 0.0, 1.0))  # q a point: p's parameter nearest it
-        s = np.where(a > tiny, s, 0.0)
-        t = np.where(e > tiny, (b * s + f) / e, 0.0)
-        t_c = np.clip(t, 0.0, 1.0)
-        s = np.where((t != t_c) & (a > tiny), np.clip((b * t_c - c) / a, 0.0, 1.0), s)
-    return np.linalg.norm(p0 + s[:, None] * d1 - q0 - t_c[:, None] * d2, axis=1)
 
 
 def _no_touches() -> Touches:

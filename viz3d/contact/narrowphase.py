@@ -319,6 +319,22 @@ def segment_segment(p0, p1, q0, q1):
     return _axpy(p0, s, d1), _axpy(q0, t, d2)
 
 
+def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """Distance between segments p0-p1 and q0-q1 (k, 3 each) [m], shape (k,): ``segment_segment``'s
+    closest points (the broad phase's test of swept cores, ``Collisions.candidates``)."""
+    out = np.empty(len(p0))
+    _segment_distances(*(np.ascontiguousarray(x, dtype=float).reshape(-1, 3) for x in (p0, p1, q0, q1)), out)
+    return out
+
+
+@entry
+def _segment_distances(p0, p1, q0, q1, out):
+    for k in range(p0.shape[0]):
+        x, y = segment_segment(_row(p0, k), _row(p1, k), _row(q0, k), _row(q1, k))
+        g = _sub(x, y)
+        out[k] = np.sqrt(_dot(g, g))
+
+
 @jit
 def segment_triangle(p0, p1, w0, w1, w2, nt):
     """``(distance, x on p0-p1, y on triangle w0 w1 w2)``: closest points; distance 0 where the segment
