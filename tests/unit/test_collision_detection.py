@@ -209,7 +209,7 @@ def test_the_broad_phase_proposes_exactly_the_overlapping_bounds_of_colliding_gr
 
 
 def test_segment_distance_matches_the_minimised_distance_including_degenerate_segments():
-    from viz3d.contact.collision import segment_distance
+    from viz3d.contact.narrowphase import segment_distance
 
     rng = np.random.default_rng(9)
     p0, p1, q0, q1 = (rng.normal(size=(40, 3)) for _ in range(4))
