@@ -270,10 +270,12 @@ def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, 
 
 
 def _groups(states: list[State]) -> list[tuple[int, int]]:
-    """Runs ``[a, b)`` of consecutive states sharing one contact memory object."""
+    """Runs ``[a, b)`` of consecutive states sharing one contact memory object and one force elements'
+    memory object."""
     out, a = [], 0
     for i in range(1, len(states) + 1):
-        if i == len(states) or states[i].memory is not states[a].memory:
+        if (i == len(states) or states[i].memory is not states[a].memory
+                or states[i].element_memory is not states[a].element_memory):
             out.append((a, i))
             a = i
     return out
@@ -286,7 +288,8 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     ts = np.array([s.t for s in states])
     Y = np.array([s.y for s in states])
     charts = np.stack([s.chart for s in states])  # (N, nf, 3, 3), nf may be 0
-    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory) for a, b in _groups(states)]
+    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory, states[a].element_memory)
+               for a, b in _groups(states)]
     s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
