@@ -1,15 +1,17 @@
-"""Contacts between body shapes that a collision library finds: the glue to Coal (hpp-fcl's successor).
+"""Contacts between body shapes: broad phase, narrow phase (ours against triangle meshes, Coal's, hpp-fcl's
+successor, for the rest), reduction and forces.
 
 Every rigid body with a shape, and every ground shape, is a collision shape. At each evaluation of
 the forces the shapes are placed at the bodies' poses; the broad phase proposes the pairs whose
 bounding spheres (moving shapes) or boxes (ground shapes) overlap, from a k-d tree per collision
 group (``scipy.spatial.cKDTree``: O(N log N) per group, never the O(N^2) pair list), and only for
-the pairs of groups the scene declares. Coal's narrow phase then gives each touching pair its
-normal, penetration depth and contact patch (the polygon where the shapes touch, each point with
-its witness on both surfaces: a box on a box gets the corners of their overlap). Infinite planes
-are not in the broad phase: a shape's *support points* (a sphere's centre with its radius, a
-capsule's two end spheres, a box's corners, a cylinder's rim points, a convex or triangle mesh's
-vertices) are tested against each plane directly, one contact per point below it, exact for
+the pairs of groups the scene declares. The narrow phase then gives each touching pair its normal,
+penetration depth and contact points: ours (``viz3d.contact.narrowphase``, compiled) for a sphere,
+capsule or convex hull against a triangle mesh, Coal's for every other pair, with its contact patch
+(the polygon where the shapes touch, each point with its witness on both surfaces: a box on a box
+gets the corners of their overlap). Infinite planes are not in the broad phase: a shape's *support
+points* (a sphere's centre with its radius, a capsule's two end spheres, a box's corners, a
+cylinder's rim points, a convex or triangle mesh's vertices) are tested against each plane directly, one contact per point below it, exact for
 everything but the cylinder's rim (``rim_points`` chords).
 
 Each contact acts as a penalty contact stepped through (no events located): its pair's normal law
@@ -40,10 +42,16 @@ Of a pair's contacts we keep the deepest, drop those whose normals differ from i
 ``COPLANAR`` (a neighbouring facet's view of the same touch), then add the farthest from those kept
 until ``max_contacts`` (a well-spread support), merging any closer than ``merge_distance``.
 
-Why Coal (3.0): sphere, capsule, box, cylinder, convex and triangle-mesh geometries; contact patches;
-and exact depths for curved shapes (it runs GJK/EPA on the shapes' cores and adds the radii): on a
-sphere against a convex cube its depth is exact to 1e-16 m where python-fcl 0.7 (libccd's EPA) was
-off by up to 2 cm on a 0.3 m sphere. The price is its size: 320 MB with Boost and Assimp.
+What is ours and what is Coal's (3.0). Ours: the broad phase, the planes, the reduction, and the
+narrow phase of sphere, capsule and convex hull against a triangle mesh (``narrowphase.covered``):
+the same raw contacts as Coal's triangle-soup test (one per facet, the same facets, depths and
+normals to round-off; its module docstring says how, and which witness point it takes where Coal's
+is not unique), compiled, so that the kernel can call it as well. Coal's: every other pair (convex
+against convex, boxes, cylinders, mesh against mesh) and the contact patches. Coal brings sphere,
+capsule, box, cylinder, convex and triangle-mesh geometries, contact patches, and exact depths for
+curved shapes (GJK/EPA on the shapes' cores plus the radii): on a sphere against a convex cube its
+depth is exact to 1e-16 m where python-fcl 0.7 (libccd's EPA) was off by up to 2 cm on a 0.3 m
+sphere. The price is its size: 320 MB with Boost and Assimp.
 """
 
 from __future__ import annotations
@@ -56,6 +64,7 @@ import numpy as np
 from viz3d._typing import FloatArray, IntArray
 from viz3d.forces import ForceElement
 from viz3d.geometry import contact_spheres
+from viz3d.contact.narrowphase import MESH_CONTACTS, contacts_of_pairs, covered, pack_shapes
 from viz3d.kinematics import Configuration
 from viz3d.rotations import cross
 
@@ -63,8 +72,6 @@ from viz3d.rotations import cross
 COPLANAR = 0.05
 #: Below this many pairs of two groups' shapes all pairs are tested (vectorised) instead of a k-d tree.
 SMALL_GROUPS = 4096
-#: Contacts asked of Coal per pair that involves a triangle mesh (one per facet touched).
-MESH_CONTACTS = 32
 #: Shapes whose contact with anything is a single point, and curved ones (Coal's patches from the
 #: curved side first can collapse to one point; the other order is tried then).
 POINT_SHAPES, CURVED = ("sphere",), ("sphere", "capsule", "cylinder")
@@ -411,6 +418,9 @@ class Collisions(ForceElement):
             req.enable_contact, req.num_max_contacts = True, n
             w[key] = req
         w["patch"] = coal.ContactPatchRequest()
+        w["table"] = pack_shapes(self.shapes, self.n_bodies)
+        kinds = [s.kind for s in self.shapes]
+        w["ours"] = np.array([[covered(a, b) for b in kinds] for a in kinds], bool).reshape(len(kinds), len(kinds))
         return w
 
     def coupled_bodies(self) -> IntArray:
@@ -445,13 +455,7 @@ class Collisions(ForceElement):
         w = self._world()
         r, R = self.shape_poses(cfg)
         found: dict[tuple[int, int], list] = {}
-        coal = _coal()
-        tf = {}
-        for i, j in self.candidates(r, R):
-            for k in (i, j):
-                if k not in tf:
-                    tf[k] = coal.Transform3s(R[k], r[k])
-            self._narrow(w, i, j, tf, found)
+        self._narrow(w, self.candidates(r, R), r, R, found)
         self._planes(found, r, R)
         return self._reduce(found)
 
@@ -522,7 +526,31 @@ class Collisions(ForceElement):
             ok &= ~np.any((lo[:, None] == ex[:, 0]) & (hi[:, None] == ex[:, 1]), axis=1)
         return ok
 
-    def _narrow(self, w: dict, i: int, j: int, tf: dict, found: dict) -> None:
+    def _narrow(self, w: dict, pairs: list[tuple[int, int]], r: FloatArray, R: FloatArray, found: dict) -> None:
+        """The raw contacts of the candidate ``pairs`` at shape origins ``r`` (S, 3) and rotations ``R``
+        (S, 3, 3), filed by ``_book``: ours (``viz3d.contact.narrowphase``) for the pairs it covers,
+        Coal's for the others."""
+        ij = np.array(pairs, np.int64).reshape(-1, 2)
+        mine = w["ours"][ij[:, 0], ij[:, 1]]
+        if mine.any():
+            self._ours(w, ij[mine], r, R, found)
+        tf = {}
+        for i, j in ij[~mine]:
+            for k in (i, j):
+                if k not in tf:
+                    tf[k] = _coal().Transform3s(R[k], r[k])
+            self._coal_pair(w, int(i), int(j), tf, found)
+
+    def _ours(self, w: dict, ij: IntArray, r: FloatArray, R: FloatArray, found: dict) -> None:
+        """Contacts of the pairs ``ij`` (k, 2) that ``narrowphase.covered`` says are ours."""
+        rows = len(ij) * MESH_CONTACTS
+        pair, point, n, depth = np.zeros(rows, np.int64), np.zeros((rows, 3)), np.zeros((rows, 3)), np.zeros(rows)
+        m = contacts_of_pairs(w["table"], ij, np.ascontiguousarray(r), np.ascontiguousarray(R), pair, point, n, depth)
+        for k in range(m):
+            i, j = ij[pair[k]]
+            self._book(found, int(i), int(j), point[k], n[k], float(depth[k]))
+
+    def _coal_pair(self, w: dict, i: int, j: int, tf: dict, found: dict) -> None:
         """Coal's contacts of shapes i and j, filed by ``_book`` (triangle meshes: one per facet;
         otherwise the contact patch's points with their depths from the witness points)."""
         coal = _coal()
