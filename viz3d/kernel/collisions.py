@@ -36,9 +36,11 @@ import numpy as np
 
 from viz3d.compiled import (Items, after_step_piece, compiled_piece, cross3, dot3, energy_piece, force_piece, jit,
                             normal_force, registered)
-from viz3d.contact.collision import COPLANAR, MESH_CONTACTS, StickAnchors, _all_pairs
+from viz3d.contact import narrowphase
+from viz3d.contact.collision import COPLANAR, StickAnchors, _all_pairs
 from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
 from viz3d.contact.laws import Linear, PowerLawElastic
+from viz3d.contact.narrowphase import MESH_CONTACTS, pair_contacts
 from viz3d.points import rigid_points
 
 try:
@@ -46,16 +48,6 @@ try:
 except ImportError:  # pragma: no cover
     def literal_unroll(x):
         return x
-
-try:  # the compiled narrow phase (shared with the NumPy element's pair kinds)
-    from viz3d.contact import narrowphase
-    from viz3d.contact.narrowphase import pair_contacts
-except ImportError:  # pragma: no cover - until it exists: planes only
-    narrowphase = None
-
-    @jit
-    def pair_contacts(table, i, j, r_i, R_i, r_j, R_j, out_point, out_n, out_depth):
-        return 0
 
 #: Columns of ``CollisionItems.i`` (per shape): body, group, the body's frame-origin point, plane (1/0).
 BODY, GROUP, POINT, PLANE = 0, 1, 2, 3
@@ -67,26 +59,19 @@ B_R0, RADIUS, NORMAL, CURVATURE = 3, 12, 13, 16
 DAMPING, HERTZ, ENERGY_C, ENERGY_P, FRICTION = 0, 1, 2, 3, 4
 #: ``CollisionItems.opts``: max_contacts, some law's friction keeps anchors (1/0), nb (ground's body index).
 MAX_CONTACTS, STATEFUL, GROUND = 0, 1, 2
-#: ``CollisionItems.count``: raw contacts, contacts, match candidates.
-N_RAW, N_TOUCH, N_CAND = 0, 1, 2
+#: ``CollisionItems.count``: raw contacts, contacts, 1 when the contacts are those of the poses in
+#: ``last_sr``, ``last_sR`` (``_detect``).
+N_RAW, N_TOUCH, KNOWN = 0, 1, 2
 #: Friction code of ``Bristle`` (``viz3d.contact.friction``): the stateful law.
 BRISTLE = 3.0
-
-
-class _NoTable(NamedTuple):
-    """The narrow phase's table where ``viz3d.contact.narrowphase`` is missing (planes only)."""
-
-    kind: np.ndarray
 
 
 def _z(*shape, dtype=float) -> np.ndarray:
     return np.zeros(shape, dtype)
 
 
-def _empty_table():
+def _empty_table() -> narrowphase.ShapeTable:
     """The narrow phase's table of no shapes."""
-    if narrowphase is None:
-        return _NoTable(_z(0, dtype=np.int64))
     return narrowphase.pack_shapes((), 0)
 
 
@@ -116,7 +101,8 @@ class _CollisionFields(NamedTuple):
     laws : tuple
         One ``Items`` per registered normal-law class (``viz3d.compiled.normal_force``), parameters from
         column 0.
-    table : the narrow phase's ``ShapeTable``
+    table : ShapeTable
+        The shapes as the narrow phase reads them (``viz3d.contact.narrowphase``; the NumPy element's).
     The rest is scratch and memory: shape poses, raw contacts, contacts, match, anchors.
     """
 
@@ -132,9 +118,11 @@ class _CollisionFields(NamedTuple):
     law_slot: np.ndarray = _z(0, 2, dtype=np.int64)
     law_f: np.ndarray = _z(0, 4 + FRICTION_PARAMS)
     laws: tuple = _empty_laws()            # (an absent element packs as items(CollisionItems): the same
-    table: tuple = _empty_table()          # argument types as a present one, so one compiled kernel)
+    table: narrowphase.ShapeTable = _empty_table()  # argument types as a present one, so one compiled kernel)
     sr: np.ndarray = _z(0, 3)              # shape origins, world [m]
     sR: np.ndarray = _z(0, 3, 3)           # shape rotations
+    last_sr: np.ndarray = _z(0, 3)         # the poses of the last detection
+    last_sR: np.ndarray = _z(0, 3, 3)
     raw_key: np.ndarray = _z(0, 2, dtype=np.int64)
     raw_p: np.ndarray = _z(0, 3)
     raw_n: np.ndarray = _z(0, 3)
@@ -206,8 +194,8 @@ def pack_collisions(c, packer) -> CollisionItems:
     return CollisionItems(
         i, f, opts, np.array([float(c.merge_distance)]), np.ascontiguousarray(c.pair_law, np.int64), pairs, box, sup_i,
         np.ascontiguousarray(sup, float), law_slot, law_f, laws,
-        narrowphase.pack_shapes(c.shapes, nb) if narrowphase is not None else _empty_table(),
-        _z(S, 3), _z(S, 3, 3), _z(R, 2, dtype=np.int64), _z(R, 3), _z(R, 3), _z(R), _z(R, dtype=np.int64),
+        c._world()["table"],
+        _z(S, 3), _z(S, 3, 3), _z(S, 3), _z(S, 3, 3), _z(R, 2, dtype=np.int64), _z(R, 3), _z(R, 3), _z(R), _z(R, dtype=np.int64),
         _z(R, dtype=np.int64), _z(MESH_CONTACTS, 3), _z(MESH_CONTACTS, 3), _z(MESH_CONTACTS),
         _z(T, 2, dtype=np.int64), _z(T, dtype=np.int64), _z(T, 3), _z(T, 3), _z(T), _z(T), _z(T), _z(T), _z(T, 3),
         _z(T, dtype=np.int64), _z(T * c.max_contacts, 2, dtype=np.int64), _z(T * c.max_contacts),
@@ -238,9 +226,6 @@ def _check_narrow(c, pairs: np.ndarray, unsupported) -> None:
     """``unsupported`` naming the first pair of shape kinds the compiled narrow phase lacks."""
     kinds = sorted({tuple(c.shapes[int(k)].kind for k in p[:2]) for p in pairs})
     for ki, kj in kinds:
-        if narrowphase is None:
-            raise unsupported(f"shape contacts of {ki!r} and {kj!r}: no compiled narrow phase "
-                              "(viz3d.contact.narrowphase is missing; planes only)")
         if not narrowphase.covered(ki, kj):
             raise unsupported(f"shape contacts of {ki!r} and {kj!r} have no compiled narrow phase")
 
@@ -459,14 +444,37 @@ def _reduce(d):
 
 @jit
 def _detect(d, v):
-    """The contacts at the kinematics in ``v`` (``Collisions.detect``)."""
+    """The contacts at the kinematics in ``v`` (``Collisions.detect``). They depend on the shapes' poses
+    alone: where these equal the last detection's bit for bit, its contacts are kept (the first stage
+    of a step finds the shapes where the stick anchors' renewal after the last step found them, and
+    so do output samples at a step's end: a fifth of the detections of an RK4 step with bristles)."""
+    _poses(d, v)
+    if d.count[KNOWN] == 1 and _same_poses(d):
+        return
     d.count[N_RAW] = 0
     d.count[N_TOUCH] = 0
-    _poses(d, v)
     _narrow(d)
     _planes(d)
     _sort_raw(d)
     _reduce(d)
+    for s in range(d.sr.shape[0]):
+        for a in range(3):
+            d.last_sr[s, a] = d.sr[s, a]
+            for c in range(3):
+                d.last_sR[s, a, c] = d.sR[s, a, c]
+    d.count[KNOWN] = 1
+
+
+@jit
+def _same_poses(d):
+    for s in range(d.sr.shape[0]):
+        for a in range(3):
+            if d.sr[s, a] != d.last_sr[s, a]:
+                return False
+            for c in range(3):
+                if d.sR[s, a, c] != d.last_sR[s, a, c]:
+                    return False
+    return True
 
 
 # ---------------------------------------------------------------------------- compiled: forces
