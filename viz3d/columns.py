@@ -293,7 +293,8 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
-    cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs) else None
+    measured = [e for e in system.forces if hasattr(e, "scalars")]  # (shape contacts: counts, depth, force)
+    cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs or measured) else None
     for k, fb in enumerate(system.bodies.flexible):
         sl = stepper.data.elastic_slices[k]
         T += flexible_kinetics(fb, s, sl)
@@ -303,6 +304,10 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     violation, reactions = _rows(system, s)
     for out in system.outputs:
         values = [out.values(cfg, r) for cfg, r in zip(cfgs, reactions)]
+        for key in values[0] if values else ():
+            scalars[key] = np.array([v[key] for v in values], float)
+    for e in measured:  # the force elements' own scalars, evaluated on NumPy per state (as frame_from_state)
+        values = [e.scalars(cfg) for cfg in cfgs]
         for key in values[0] if values else ():
             scalars[key] = np.array([v[key] for v in values], float)
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))

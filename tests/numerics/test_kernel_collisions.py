@@ -309,9 +309,10 @@ def test_shape_pairs_without_a_compiled_narrow_phase_take_the_numpy_path_and_say
     if not uncovered:
         pytest.skip("the narrow phase covers every pair kind tried")
     a, b = uncovered[0]
+    ramp = (Path(__file__).resolve().parents[2] / "scenes" / "meshes" / "ramp.stl").as_posix()
     ground = ({"box": 'type = "box"\nextents = [1.0, 1.0, 0.1]\nposition = [0.0, 0.0, -0.05]',
                "cylinder": 'type = "cylinder"\nradius = 0.5\nheight = 0.1\nposition = [0.0, 0.0, -0.05]',
-               "mesh": f'type = "mesh"\nfile = "{(Path(__file__).resolve().parents[2] / "scenes/meshes/ramp.stl").as_posix()}"'})[b]
+               "mesh": f'type = "mesh"\nfile = "{ramp}"'})[b]
     shape = {"box": 'type = "box", extents = [0.1, 0.1, 0.1]', "cylinder": 'type = "cylinder", radius = 0.05, height = 0.1'}[a]
     text = f"""[sim]\nt_end = 0.01\ndt = 1e-3\nintegrator = "rk4"\n
 [[bodies]]\nname = "b"\nshape = {{ {shape} }}\nmass = 1.0\ninertia = [0.01, 0.01, 0.01]\nposition = [0.0, 0.0, 0.3]\n

@@ -34,8 +34,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.compiled import (Items, after_step_piece, compiled_piece, cross3, dot3, energy_piece, force_piece, jit,
-                            normal_force, registered)
+from viz3d.compiled import (
+    Items,
+    after_step_piece,
+    compiled_piece,
+    cross3,
+    dot3,
+    energy_piece,
+    force_piece,
+    jit,
+    normal_force,
+    registered,
+)
 from viz3d.contact import narrowphase
 from viz3d.contact.collision import COPLANAR, StickAnchors, _all_pairs
 from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
@@ -235,7 +245,7 @@ def _laws(pair_laws, unsupported) -> tuple[np.ndarray, np.ndarray, tuple]:
     classes = registered(normal_force)
     rows: dict[type, list] = {cls: [] for cls in classes}
     slot, table = [], []
-    for k, pl in enumerate(pair_laws):
+    for pl in pair_laws:
         law = pl.law
         cls = type(law).compiled_items
         if cls is None or cls not in rows:

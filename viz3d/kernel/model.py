@@ -20,8 +20,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.compiled import (Items, after_step_piece, concat, energy_piece, force_piece, gap_piece, items, registered,
-                            row_piece, target_of)
+from viz3d.compiled import (
+    Items,
+    after_step_piece,
+    concat,
+    energy_piece,
+    force_piece,
+    gap_piece,
+    items,
+    registered,
+    row_piece,
+    target_of,
+)
 from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ, Quaternion
 from viz3d.flexible.floating_kernel import pack_flexible
 from viz3d.rotations import matrix_from_euler
