@@ -3,7 +3,7 @@
 The compiled kernel (``viz3d.kernel``) keeps what is generic: the bodies' kinematics and mass
 blocks, the assembly and banded solve of the constraint rows, the Runge-Kutta loop. What an element
 does (a spring's force, a ball joint's rows, a normal law's magnitude) is its **compiled piece**,
-written next to its NumPy code and registered here for one of four **targets**:
+written next to its NumPy code and registered here for one of its **targets** (``TARGETS``):
 
 * ``force_piece(d, t, v, power)``: force elements and law contacts add their generalized forces to
   ``v`` and the power that is not in a potential energy to ``power`` (the ledger's work rates);
