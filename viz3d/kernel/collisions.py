@@ -15,7 +15,8 @@ Broad phase: every pair of shapes that may ever touch (colliding groups, two bod
 ground shape other than a plane) is listed once when packing, in the orientation the NumPy
 element's ``candidates`` gives it, and tested at each evaluation: O(S^2) pairs in the worst case
 (every shape in one group), cheap next to the narrow phase while S is at most a few hundred; the
-NumPy element's k-d tree per group is what larger scenes need.
+NumPy element's k-d tree per group is what larger scenes need (beyond ``MAX_PAIRS`` they keep the
+NumPy path).
 
 Stick anchors (bristle friction; ``StickAnchors``): fixed during a step, in arrays of the packed data
 (``a_*``, capacity: every contact the scene can have); ``after_step_piece`` renews them after each
@@ -72,6 +73,10 @@ MAX_CONTACTS, STATEFUL, GROUND = 0, 1, 2
 #: ``CollisionItems.count``: raw contacts, contacts, 1 when the contacts are those of the poses in
 #: ``last_sr``, ``last_sR`` (``_detect``).
 N_RAW, N_TOUCH, KNOWN = 0, 1, 2
+#: Most listed pairs the kernel's all-pairs broad phase takes (beyond it the run keeps the NumPy
+#: element's k-d trees): 5e4 pairs cost ~0.1 ms of bound tests per evaluation and their raw-contact
+#: scratch ~150 MB.
+MAX_PAIRS = 50_000
 #: Friction code of ``Bristle`` (``viz3d.contact.friction``): the stateful law.
 BRISTLE = 3.0
 
@@ -183,6 +188,9 @@ def pack_collisions(c, packer) -> CollisionItems:
         raise packer.Unsupported("shape contacts on flexible bodies")
     w = c._world()
     pairs = _pairs(c, w)
+    if len(pairs) > MAX_PAIRS:
+        raise packer.Unsupported(f"{len(pairs)} pairs of shapes that may touch, more than the kernel's all-pairs "
+                                 f"broad phase takes ({MAX_PAIRS})")
     _check_narrow(c, pairs, packer.Unsupported)
     frame = packer.points(rigid_points(np.arange(nb + 1), np.zeros((nb + 1, 3))))
     S = len(c.shapes)
