@@ -270,10 +270,12 @@ def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, 
 
 
 def _groups(states: list[State]) -> list[tuple[int, int]]:
-    """Runs ``[a, b)`` of consecutive states sharing one contact memory object."""
+    """Runs ``[a, b)`` of consecutive states sharing one contact memory object and one force elements'
+    memory object."""
     out, a = [], 0
     for i in range(1, len(states) + 1):
-        if i == len(states) or states[i].memory is not states[a].memory:
+        if (i == len(states) or states[i].memory is not states[a].memory
+                or states[i].element_memory is not states[a].element_memory):
             out.append((a, i))
             a = i
     return out
@@ -286,11 +288,13 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     ts = np.array([s.t for s in states])
     Y = np.array([s.y for s in states])
     charts = np.stack([s.chart for s in states])  # (N, nf, 3, 3), nf may be 0
-    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory) for a, b in _groups(states)]
+    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory, states[a].element_memory)
+               for a, b in _groups(states)]
     s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
-    cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs) else None
+    measured = [e for e in system.forces if hasattr(e, "scalars")]  # (shape contacts: counts, depth, force)
+    cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs or measured) else None
     for k, fb in enumerate(system.bodies.flexible):
         sl = stepper.data.elastic_slices[k]
         T += flexible_kinetics(fb, s, sl)
@@ -300,6 +304,10 @@ def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
     violation, reactions = _rows(system, s)
     for out in system.outputs:
         values = [out.values(cfg, r) for cfg, r in zip(cfgs, reactions)]
+        for key in values[0] if values else ():
+            scalars[key] = np.array([v[key] for v in values], float)
+    for e in measured:  # the force elements' own scalars, evaluated on NumPy per state (as frame_from_state)
+        values = [e.scalars(cfg) for cfg in cfgs]
         for key in values[0] if values else ():
             scalars[key] = np.array([v[key] for v in values], float)
     scalars.update(relative_coordinates(system.joints.joints, s.R, s.r, s.vW, s.wW))

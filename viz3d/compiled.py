@@ -3,7 +3,7 @@
 The compiled kernel (``viz3d.kernel``) keeps what is generic: the bodies' kinematics and mass
 blocks, the assembly and banded solve of the constraint rows, the Runge-Kutta loop. What an element
 does (a spring's force, a ball joint's rows, a normal law's magnitude) is its **compiled piece**,
-written next to its NumPy code and registered here for one of four **targets**:
+written next to its NumPy code and registered here for one of its **targets** (``TARGETS``):
 
 * ``force_piece(d, t, v, power)``: force elements and law contacts add their generalized forces to
   ``v`` and the power that is not in a potential energy to ``power`` (the ledger's work rates);
@@ -13,7 +13,10 @@ written next to its NumPy code and registered here for one of four **targets**:
 * ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max)``: a normal law's magnitude
   (its parameters in ``d.f[k, p0:]``);
 * ``energy_piece(d, v, V)``: force elements with a potential energy add it to ``V`` (output frames;
-  a force element whose ``potential_energy`` is its own must have one, or frames take the NumPy path).
+  a force element whose ``potential_energy`` is its own must have one, or frames take the NumPy path);
+* ``after_step_piece(d, t, v)``: force elements with a memory (``ForceElement.has_memory``) renew it
+  after each accepted step of the kernel's fixed-step loop, from the state in ``v`` at its end
+  (``memory_after_step``); the memory lives in arrays of ``d``, fixed during a step.
 
 ``d`` is the element's packed data: an instance of its own ``Items`` subclass (a named tuple of an
 int64 table ``i`` and a float64 table ``f``, one row per item; the columns are the piece's
@@ -160,8 +163,14 @@ def energy_piece(d, v, V):
     raise NotImplementedError
 
 
+def after_step_piece(d, t, v):
+    """Renew the memory of the elements ``d`` after an accepted step ending at time ``t`` (the state's
+    kinematics in ``v``)."""
+    raise NotImplementedError
+
+
 #: Targets in order: a data class registered for several belongs to the first (its packing group).
-TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece)
+TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece, after_step_piece)
 
 #: Registered data classes per target, in registration order.
 REGISTRY: dict[str, list[type[Items]]] = {t.__name__: [] for t in TARGETS}

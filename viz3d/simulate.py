@@ -170,7 +170,7 @@ class Simulation:
         if self._kernel is None or not self.system.n_c:
             return None
         try:
-            return self._kernel.solved_rows(state.t, state.y, state.chart, state.memory)
+            return self._kernel.solved_rows(state.t, state.y, state.chart, state.memory, state.element_memory)
         except np.linalg.LinAlgError:
             return None
 
@@ -294,7 +294,11 @@ class Simulation:
         y, chart, _, ok = self._kernel_run(1)
         if not ok:
             return None
-        return _state_at(self.system, target, y, self.state.replace(chart=chart))
+        return _state_at(self.system, target, y, self.state.replace(chart=chart, element_memory=self._kernel_elements()))
+
+    def _kernel_elements(self) -> tuple:
+        """The force elements' memory after the kernel's last steps from the current state."""
+        return self._kernel.stored(self.state.element_memory)
 
     def _kernel_steps(self, n: int) -> None:
         """Up to ``n`` kernel steps in one call; on a failure at step k, the k - 1 good steps are
@@ -304,7 +308,8 @@ class Simulation:
         if not ok:
             y, chart, done, _ = self._kernel_run(done)
         self.n_samples += done
-        self.state = _state_at(self.system, self.t0 + self.n_samples * self.dt, y, self.state.replace(chart=chart))
+        self.state = _state_at(self.system, self.t0 + self.n_samples * self.dt, y,
+                               self.state.replace(chart=chart, element_memory=self._kernel_elements()))
 
     @property
     def batches_frames(self) -> bool:
@@ -333,21 +338,37 @@ class Simulation:
     def _frames_run(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
         """``output_states``'s kernel call from the current state: (the frames' states, frames done,
         status); the states (none on a failure), counters and chart switches move only when every
-        frame succeeded."""
+        frame succeeded. Force elements with memory: one call per frame (each state carries its own
+        memory), the good frames kept and 0 frames done reported on a failure."""
+        from viz3d.kernel import OK
+
+        if not self._kernel.data.anchors:
+            return self._frames_call(n_frames, every)
+        states: list[State] = []
+        for _ in range(n_frames):
+            got, _, status = self._frames_call(1, every)
+            states += got
+            if status != OK:
+                return states, 0, status
+        return states, n_frames, OK
+
+    def _frames_call(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
+        """``_frames_run`` in one kernel call."""
         from viz3d.kernel import OK, SINGULAR
 
         s, system = self.state, self.system
         y, chart = s.y, s.chart.copy()  # (State.y is a new array)
         switches = np.zeros(system.n_bodies, np.int64)
         Y, charts, done, partial, status = self._kernel.frames(n_frames, every, self.n_samples, self.t0, self.dt, y,
-                                                               chart, switches, self.blowup_speed)
+                                                               chart, switches, self.blowup_speed, s.element_memory)
         if status != OK:  # the failed frame's evaluations count (a singular step stops inside its stages)
             self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
             return [], done, status
         self.n_rhs += done * every * self._kernel.tableau.stages
         nq, nv, n0 = system.n_q, system.n_v, self.n_samples
+        elements = self._kernel_elements()  # (one frame when it changes: _frames_run)
         states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
-                                    Y[f, nq + nv:], s.memory, s.element_memory) for f in range(done)]
+                        Y[f, nq + nv:], s.memory, elements) for f in range(done)]
         self.state = states[-1]
         self.n_samples += done * every
         self.n_steps += done * every
@@ -399,7 +420,7 @@ class Simulation:
         s = self.state
         y, chart = s.y.copy(), s.chart.copy()
         switches = np.zeros(self.system.n_bodies, np.int64)
-        done, status = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed, n)
+        done, status = self._kernel.step(s.t, self.dt, y, chart, switches, self.blowup_speed, n, s.element_memory)
         failed_inside = status == SINGULAR  # a singular step stops inside its stages: not counted in done
         self.n_rhs += (done + failed_inside) * self._kernel.tableau.stages
         if status != OK:

@@ -21,9 +21,10 @@ from contact.law_examples import EXAMPLES
 from viz3d import compiled
 from viz3d import kernel as K
 from viz3d.constraints import build_layout
+from viz3d.contact.collision import Collisions, PairLaw, Shape, support_points
 from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
 from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
-from viz3d.contact.laws import NORMAL_LAWS
+from viz3d.contact.laws import NORMAL_LAWS, Hertz, HuntCrossley, Linear
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
 from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
@@ -116,7 +117,49 @@ def _joint_motors(rng, base, state):
 
 #: Force elements beyond the gravity and springs of ``random_system``: one builder per element type,
 #: from a random generator, the base system and the state the tests evaluate.
+def _random_rotation(rng) -> np.ndarray:
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+#: Shape contacts of ``_shape_contacts``: per rigid body a shape against its own ground plane (groups
+#: k and 3 + k), with a pair law of each kind: linear + bristle, Hertz from the materials + Stribeck,
+#: Hunt-Crossley (fixed constant) + regularised Coulomb.
+SHAPE_KINDS = (("box", (0.2, 0.1, 0.3)), ("sphere", (0.05,)), ("capsule", (0.04, 0.1)))
+
+
+def _shape_contacts(rng, base, state):
+    """Shape contacts (``Collisions``) against ground planes: a box on its bottom face tilted by 1e-4
+    rad (four corners in, the reduction's merge and spread), a sphere (Hertz's factor from the
+    materials), a capsule on its side (both end spheres), each a few ``ALPHA`` into its plane."""
+    cfg = body_state(base, state.q, state.v, state.chart)
+    nb = base.bodies.n_bodies
+    rigid = [b for b in range(nb) if base.bodies.is_rigid[b]][: len(SHAPE_KINDS)]
+    shapes, planes = [], []
+    for g, (b, (kind, size)) in enumerate(zip(rigid, SHAPE_KINDS)):
+        B_r, B_R = rng.normal(size=3) * 0.02, _random_rotation(rng)
+        support = support_points(kind, size, np.zeros((0, 3)))
+        shapes.append(Shape(f"s{g}", b, kind, size, B_r, B_R, support=support, group=g))
+        R = cfg.pose.R_WB[b] @ B_R
+        down = {"box": R[:, 2], "sphere": rng.normal(size=3), "capsule": R[:, 0]}[kind]  # capsule: axis z
+        n = -(down + 1e-4 * rng.normal(size=3)) / np.linalg.norm(down)
+        n /= np.linalg.norm(n)
+        centres = cfg.pose.W_r[b] + (B_r + support[:, :3] @ B_R.T) @ cfg.pose.R_WB[b].T
+        lowest = np.min(centres @ n - support[:, 3])
+        planes.append(Shape(f"p{g}", nb, "plane", B_r=(lowest + 3 * ALPHA) * n, group=len(SHAPE_KINDS) + g, normal=n))
+    G = 2 * len(SHAPE_KINDS)
+    pair_law = -np.ones((G, G), int)
+    for g in range(len(SHAPE_KINDS)):
+        pair_law[g, len(SHAPE_KINDS) + g] = pair_law[len(SHAPE_KINDS) + g, g] = g
+    laws = (PairLaw(Linear(2e5, 30.0), 20.0, Bristle(0.3, 0.5, 3.0, 2e4, 30.0, 0.4)),
+            PairLaw(Hertz(1.0), 5.0, Stribeck(0.3, 0.5, 0.05, 0.7, 1e-3), hertz_modulus=2e9),
+            PairLaw(HuntCrossley(1e8, 1.5, damping_factor=0.3), 0.0, RegularizedCoulomb(0.4, 1e-3)))
+    return Collisions(tuple(shapes + planes), tuple(f"g{g}" for g in range(G)), pair_law, laws, nb)
+
+
 ELEMENT_BUILDERS = {
+    "shape contacts against planes (every friction law, Hertz from the materials)": _shape_contacts,
     "damped springs": lambda rng, base, state: _damped_springs(rng, base.bodies),
     "forces (every time function, world and body axes)": lambda rng, base, state: _loads(AppliedForce, rng, base.bodies),
     "torques (every time function, world and body axes)": lambda rng, base, state: _loads(AppliedTorque, rng, base.bodies),

@@ -787,6 +787,11 @@ class Collisions(ForceElement):
         mark = np.stack([np.einsum("kji,kj->ki", R[c], tc.point - W_r[c]) for c in (a, b)], axis=1)
         return StickAnchors(tc.shape[keep], anchor[keep], mark[keep])
 
+    def compiled(self, pack):
+        """The element packed for the compiled kernel (``viz3d.kernel.collisions``, through the packer:
+        the kernel is a layer above)."""
+        return pack.collision_items(self)
+
     def scalars(self, cfg: Configuration) -> dict[str, float]:
         """Frame scalars: number of contacts, deepest penetration [m], total normal force [N]."""
         tc, _, F, _, _, _ = self.evaluate(cfg)

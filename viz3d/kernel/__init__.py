@@ -15,7 +15,12 @@ element type.
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
 (adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection``
 (the ``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
+<<<<<<< HEAD
 steps and runs of them, compiled: ``viz3d.ali3p``'s compiled path).
+=======
+trial points and band matrices: ``viz3d.ali3p``'s compiled path), ``collisions`` (the shape contacts' piece and
+their stick anchors, packed through ``Packer.collision_items``: ``viz3d.contact`` is a layer below).
+>>>>>>> h-kcoll
 """
 
 from __future__ import annotations
@@ -67,8 +72,32 @@ def memory_table(data: KernelData, memory: tuple) -> np.ndarray:
             else np.zeros((0, MEMORY_COLUMNS)))
 
 
-def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple = ()) -> np.ndarray:
-    """The compiled right-hand side (for tests and diagnostics)."""
+def load_elements(data: KernelData, elements: tuple) -> None:
+    """Put the force elements' memory ``elements`` (a ``State.element_memory``; () at none) into their
+    packed data: the stick anchors of shape contacts (``viz3d.kernel.collisions.load_anchors``)."""
+    from viz3d.kernel.collisions import load_anchors
+
+    for k, d in data.anchors:
+        load_anchors(d, elements[k] if elements else None)
+
+
+def stored_elements(data: KernelData, like: tuple) -> tuple:
+    """``like`` (a ``State.element_memory``) with the memory now in the packed data (after compiled steps)."""
+    from viz3d.kernel.collisions import stored_anchors
+
+    if not data.anchors:
+        return like
+    out = list(like)
+    for k, d in data.anchors:
+        out[k] = stored_anchors(d)
+    return tuple(out)
+
+
+def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple = (),
+               elements: tuple = ()) -> np.ndarray:
+    """The compiled right-hand side (for tests and diagnostics), with the contacts' memory ``memory``
+    and the force elements' ``elements``."""
+    load_elements(data, elements)
     v, w = workspace(data)
     v = v._replace(mem=memory_table(data, memory))
     out = np.empty_like(y)
@@ -88,6 +117,7 @@ class CompiledField:
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         self.field.n_evals += 1
+        self.stepper.load(self.field.elements)
         y = _c(y)
         out = np.empty_like(y)
         if self.stepper.evaluate(t, y, self.chart, self.v, out) != OK:
@@ -102,6 +132,7 @@ class CompiledField:
         (error None without an embedded solution), or None when an evaluation fails (the caller
         then takes the NumPy path, which raises the detailed error)."""
         st = self.stepper
+        st.load(self.field.elements)
         y, f0 = _c(y), (None if f0 is None else _c(f0))
         n, s = y.shape[0], len(tableau.b)
         k, y1, err = np.empty((s, n)), np.empty(n), np.empty(n)
@@ -270,6 +301,7 @@ class KernelStepper:
         self.ws = workspace(data)
         self._entries: dict = {}
         self._memory_id, self._view = None, self.ws[0]
+        self._elements_id = None  # the force elements' memory in the packed data (None: unknown)
         self._method = None  # the tableau and controller as the adaptive driver takes them
         n = data.model.n_q + data.model.n_v + data.model.n_aux
         stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
@@ -280,6 +312,17 @@ class KernelStepper:
         if memory is not self._memory_id:
             self._memory_id, self._view = memory, self.ws[0]._replace(mem=memory_table(self.data, memory))
         return self._view
+
+    def load(self, elements: tuple) -> None:
+        """Put the force elements' memory ``elements`` (a ``State.element_memory``) into the packed data,
+        unless it is there (by identity)."""
+        if self.data.anchors and elements is not self._elements_id:
+            load_elements(self.data, elements)
+            self._elements_id = elements
+
+    def stored(self, like: tuple) -> tuple:
+        """The force elements' memory after the last compiled steps (``stored_elements``)."""
+        return stored_elements(self.data, like)
 
     def _call(self, dispatcher, *args):
         fn = self._entries.get(dispatcher)
@@ -294,8 +337,10 @@ class KernelStepper:
         d = self.data
         return self._call(evaluate, t, _c(y), _c(chart), d.model, v, self.ws[1], d.forces, d.rows, out)
 
-    def multipliers(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> np.ndarray:
-        """The constraint multipliers at ``(t, y)`` (n_c,) (those of kinematic contacts included)."""
+    def multipliers(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple, elements: tuple = ()) -> np.ndarray:
+        """The constraint multipliers at ``(t, y)`` (n_c,) (those of kinematic contacts included), with the
+        force elements' memory ``elements``."""
+        self.load(elements)
         out = np.empty_like(y)
         if self.evaluate(t, y, chart, self.view(memory), out) != OK:
             raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
@@ -316,10 +361,10 @@ class KernelStepper:
         return bool(self._call(state_ok, m.n_q, m.n_v, m.n_rot, m.switching, m.frame_body.shape[0], _c(y), h,
                                max_speed))
 
-    def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple) -> tuple:
+    def solved_rows(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple, elements: tuple = ()) -> tuple:
         """``(lam, C, J)`` at ``(t, y)``: the multipliers (n_c,), residuals (n_c,) and frame Jacobian
         blocks (n_c, 2, 6) of every constraint row (``viz3d.constraints.ConstraintRows``' C and J)."""
-        lam = self.multipliers(t, y, chart, memory)
+        lam = self.multipliers(t, y, chart, memory, elements)
         return lam, self.ws[0].C.copy(), self.ws[0].J.copy()
 
     def gaps(self, t: float, y: np.ndarray, chart: np.ndarray) -> np.ndarray:
@@ -344,10 +389,12 @@ class KernelStepper:
                             eta_dot)
         return cfg, tuple(Gap(g[sl, 0], g[sl, 1], g[sl, 2:5], g[sl, 5:8], g[sl, 8:11]) for sl in self.data.contact_slices)
 
-    def sample(self, ts: np.ndarray, Y: np.ndarray, charts: np.ndarray, memory: tuple) -> "Samples":
+    def sample(self, ts: np.ndarray, Y: np.ndarray, charts: np.ndarray, memory: tuple, elements: tuple = ()) -> "Samples":
         """What output frames need at the states ``(ts[i], Y[i], charts[i])`` (N,), (N, n_y),
-        (N, nf, 3, 3), all with the contacts' memory ``memory``, from one compiled call (see
-        ``Samples``); raises ``LinAlgError`` naming the first state whose evaluation fails."""
+        (N, nf, 3, 3), all with the contacts' memory ``memory`` and the force elements' ``elements``,
+        from one compiled call (see ``Samples``); raises ``LinAlgError`` naming the first state whose
+        evaluation fails."""
+        self.load(elements)
         d, m = self.data, self.data.model
         n, nb1, n_c = ts.shape[0], m.nb + 1, self.ws[0].C.shape[0]
         z = np.empty
@@ -362,30 +409,41 @@ class KernelStepper:
         return out
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
-             max_speed: float, n_steps: int = 1) -> tuple[int, int]:
-        """``n_steps`` steps of ``y``, ``chart`` in place; returns (steps done, status code, ``OK`` =
-        0). On a failure ``y`` holds the failed step's result."""
+             max_speed: float, n_steps: int = 1, elements: tuple = ()) -> tuple[int, int]:
+        """``n_steps`` steps of ``y``, ``chart`` in place from the force elements' memory ``elements``
+        (renewed after each step: ``stored`` gives it afterwards); returns (steps done, status code,
+        ``OK`` = 0). On a failure ``y`` holds the failed step's result."""
         tab, d = self.tableau, self.data
         v, w = self.ws
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
+        self._fresh(elements)
         return self._call(advance, n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w,
-                          d.forces, d.rows, self._k, self._yi)
+                          d.forces, d.rows, d.memories, self._k, self._yi)
+
+    def _fresh(self, elements: tuple) -> None:
+        """``elements`` loaded for steps that renew it in place (the packed data's memory is then
+        unknown to ``load``)."""
+        self._elements_id = None
+        self.load(elements)
+        self._elements_id = None
 
 
     def frames(self, n_frames: int, every: int, n0: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
-               switches: np.ndarray, max_speed: float) -> tuple[np.ndarray, np.ndarray, int, int, int]:
+               switches: np.ndarray, max_speed: float, elements: tuple = ()) -> tuple[np.ndarray, np.ndarray, int, int, int]:
         """``n_frames`` times ``every`` steps of ``y``, ``chart`` in place, from step ``n0`` of a run
-        started at ``t0`` [s]: ``(Y, charts, frames done, steps done in the next frame, status)``,
-        ``Y`` (frames done, n) and ``charts`` the states after each frame."""
+        started at ``t0`` [s] and the force elements' memory ``elements`` (``stored`` gives it after
+        the last frame): ``(Y, charts, frames done, steps done in the next frame, status)``, ``Y``
+        (frames done, n) and ``charts`` the states after each frame."""
         tab, d = self.tableau, self.data
         v, w = self.ws
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
+        self._fresh(elements)
         Y, charts = np.empty((n_frames, y.shape[0])), np.empty((n_frames, *chart.shape))
         done, partial, status = self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, tab.a, tab.b,
-                                           tab.c, max_speed, d.model, v, w, d.forces, d.rows, self._k, self._yi, Y,
-                                           charts)
+                                           tab.c, max_speed, d.model, v, w, d.forces, d.rows, d.memories, self._k,
+                                           self._yi, Y, charts)
         return Y[:done], charts[:done], done, partial, status
 
     def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,

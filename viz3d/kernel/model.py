@@ -20,7 +20,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viz3d.compiled import Items, concat, energy_piece, force_piece, gap_piece, items, registered, row_piece, target_of
+from viz3d.compiled import (
+    Items,
+    after_step_piece,
+    concat,
+    energy_piece,
+    force_piece,
+    gap_piece,
+    items,
+    registered,
+    row_piece,
+    target_of,
+)
 from viz3d.coordinates import CHART_CENTRE, EulerSwitching, EulerZXZ, Quaternion
 from viz3d.flexible.floating_kernel import pack_flexible
 from viz3d.rotations import matrix_from_euler
@@ -84,6 +95,7 @@ class Model(NamedTuple):
     projects: int             # 1: project positions and velocities after each step (PROJECTING)
     projection_tol: float     # its position tolerance, max |C| [m]
     projection_iter: int      # its Newton corrections allowed
+    remembers: int            # 1: force elements renew a memory after each step (``after_step_piece``)
 
 
 class View(NamedTuple):
@@ -158,6 +170,8 @@ class KernelData:
     contact_slices: tuple     # each contact set's slice of the contacts (global contact indices)
     energies: tuple           # the force elements' data per registered energy piece
     energy_gap: str | None    # why output frames cannot take their energies from the kernel (None: they can)
+    memories: tuple           # the force elements' data per registered after-step piece (their memory)
+    anchors: tuple            # (index in System.forces, CollisionItems) of shape contacts with stick anchors
 
 
 class Packer:
@@ -233,6 +247,12 @@ class Packer:
             raise Unsupported(f"normal law {law.name!r} has no compiled piece")
         return law_contacts(type(law).compiled_items)
 
+    def collision_items(self, collisions):
+        """The packed data of shape contacts (``viz3d.kernel.collisions``), or ``Unsupported``."""
+        from viz3d.kernel.collisions import pack_collisions
+
+        return pack_collisions(collisions, self)
+
     def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(pt_i, pt_s, pt_N, pt_P)`` of the registered points (``View``, ``Model``)."""
         pt_i = np.array(self._pt_i, np.int64).reshape(-1, 4)
@@ -250,6 +270,7 @@ def _register_pieces() -> None:
     import viz3d.contact.laws  # noqa: F401
     import viz3d.forces  # noqa: F401
     import viz3d.joints  # noqa: F401
+    import viz3d.kernel.collisions  # noqa: F401
 
 
 def pack(system, formulation) -> KernelData:
@@ -258,13 +279,29 @@ def pack(system, formulation) -> KernelData:
     _check(system, formulation)
     packer = Packer(system)
     parts, classes = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
-    forces, rows, geometry, energies = (_by_class(target, parts)
-                                        for target in (force_piece, row_piece, gap_piece, energy_piece))
+    if sum(getattr(e, "type_name", None) == "collisions" for e in system.forces) > 1:
+        raise Unsupported("more than one shape-contact element")
+    forces, rows, geometry, energies, memories = (_by_class(target, parts) for target in (
+        force_piece, row_piece, gap_piece, energy_piece, after_step_piece))
     pt_i, pt_s, pt_N, pt_P = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
     return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, pt_P, row_je,
                       _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]),
-                      energies, _energy_gap(system.forces, classes))
+                      energies, _energy_gap(system.forces, classes), memories, _anchors(system.forces, parts))
+
+
+def _anchors(forces, parts: dict[type, list]) -> tuple:
+    """``KernelData.anchors``: each shape-contact element with stick anchors and its packed data."""
+    from viz3d.kernel.collisions import CollisionItems
+
+    packed = iter(parts.get(CollisionItems, []))
+    out = []
+    for k, e in enumerate(forces):
+        if getattr(e, "type_name", None) == "collisions":
+            d = next(packed)
+            if e.has_memory:
+                out.append((k, d))
+    return tuple(out)
 
 
 def _energy_gap(forces, classes: dict[int, list[type]]) -> str | None:
@@ -305,8 +342,8 @@ def _check_stepping(system) -> None:
         raise Unsupported("ALI3-P with flexible bodies")
     if system.contacts:
         raise Unsupported("ALI3-P with contacts")
-    if any(e.has_memory for e in system.forces):
-        raise Unsupported("ALI3-P with force elements that remember (shape contacts)")
+    if not all(e.smooth for e in system.forces):
+        raise Unsupported("ALI3-P with shape contacts (forces not smooth in the positions)")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
@@ -358,7 +395,8 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     model = Model(nb, kind, frame, flex, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
                   row_body, perm, pair, kd, form, system.rotation.n_q, int(isinstance(system.rotation, EulerSwitching)),
-                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux, *_projection(formulation))
+                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux, *_projection(formulation),
+                  int(any(e.has_memory for e in system.forces)))
     n_contacts = sum(c.k for c in system.contacts)
     return model, (nb, len(b.flexible), pt_s.shape[0], system.n_elastic, fx_work, row_body.shape[0], n_je, kd,
                    max(system.n_aux, n_contacts + 2), n_contacts), row_je

@@ -1,21 +1,29 @@
 """Explicit Runge-Kutta steps in the kernel, with what ``viz3d.simulate`` does between steps, in its
 order: the ``projection`` formulation's projections (``viz3d.kernel.projection``), the health checks
 (as ``viz3d.diagnosis.check_state`` makes them), then per frame the normalisation of Euler parameters
-(``Quaternion.normalize``) or the chart switch of Euler angles (``EulerSwitching.rechart``)."""
+(``Quaternion.normalize``) or the chart switch of Euler angles (``EulerSwitching.rechart``), then the
+force elements' memory (``after_step_piece``: shape contacts' stick anchors)."""
 
 from __future__ import annotations
 
 import math
 
-from viz3d.compiled import entry, inline, jit
+from viz3d.compiled import after_step_piece, entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, rotation
+from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation
 from viz3d.kernel.projection import project
+from viz3d.points import kinematics
+
+try:
+    from numba import literal_unroll
+except ImportError:  # pragma: no cover
+    def literal_unroll(x):
+        return x
 
 
 @entry
-def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, k, yi):
+def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, Euler parameters
     are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
@@ -26,7 +34,8 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     ``projection`` formulation's ``post_step``, in the order of ``viz3d.simulate``); a projection
     that does not converge stops the run with ``PROJECTION``. On a failure ``y`` holds the failed
     step's result; steps done counts it, except when the status is ``SINGULAR`` (an evaluation
-    or the projection's solve failed)."""
+    or the projection's solve failed). With ``m.remembers``, the force elements ``memories`` renew
+    their memory at each step's end (``renew``) after all that."""
     n = y.shape[0]
     s = tb.shape[0]
     for step in range(n_steps):
@@ -53,12 +62,25 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
                                switches, h, max_speed)
         if status != OK:
             return step + 1, status
+        if m.remembers == 1:
+            renew(t0 + (step + 1) * h, m, v, w, y, chart, memories)
     return n_steps, OK
 
 
+@jit
+def renew(t, m, v, w, y, chart, memories):
+    """The force elements' memory after an accepted step ending at ``(t, y)`` (``after_step_piece``;
+    ``viz3d.dynamics.element_memory``)."""
+    frames(m, v, w, y, chart)
+    kinematics(m, v, w)
+    for d in literal_unroll(memories):
+        if d.i.shape[0] > 0:
+            after_step_piece(d, t, v)
+
+
 @entry
-def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, k, yi,
-                   Y, charts):
+def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, memories,
+                   k, yi, Y, charts):
     """Up to ``n_frames`` calls of ``advance`` of ``every`` steps each, the first from step ``n0`` of
     a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the time the run's
     own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and ``charts[f]``.
@@ -66,7 +88,7 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, m
     free of the per-frame Python overhead. On a failure ``y`` holds the failed step's result."""
     for f in range(n_frames):
         done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w,
-                               forces, rows, k, yi)
+                               forces, rows, memories, k, yi)
         if status != OK:
             return f, done, status
         for j in range(y.shape[0]):
