@@ -498,8 +498,9 @@ class Simulation:
 
     def _adaptive_kernel_now(self) -> bool:
         """The kernel may take the next samples: the last step was not cut at an event (its span is
-        an RK step's), and with contacts, no event was just handled (the next step's events start
-        at a root) and ``ContactStepping.python_steps`` leaves the steps to the kernel."""
+        an RK step's; the event is handled, ``_pending``), and with contacts, no event was just
+        handled (the next step's events start at a root) and ``ContactStepping.python_steps``
+        leaves the steps to the kernel."""
         if self._carry is not None:
             return True
         if self._pending is not None or (self._span is not None and self._span.stages is None):
@@ -553,7 +554,8 @@ class Simulation:
             self.state = states[-1]
         if status == FULL:
             self._capacity *= 2  # the next call records more steps (its frame needs them)
-        elif status != OK or failed is not None:  # the Python loop takes the step (and raises its diagnosis)
+        elif status != OK or failed is not None:  # the Python loop takes the step (and raises its diagnosis),
+            # or the event the driver cut its step at (its handler, the rest of the sample)
             row = int(carry.flags[CUT]) - 1
             self._to_python()
             if status == EVENT and failed is None:  # (the cut step's end is the inner state now)
