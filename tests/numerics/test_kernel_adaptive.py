@@ -255,11 +255,13 @@ def test_events_inside_output_frames(monkeypatch):
 #: Scenes whose contact events the compiled driver locates, one of each kind: restitution impacts (an
 #: impulse at each onset: ``alpha`` rising through 0), the kinematic contact of the free bar (its
 #: separation on the multiplier), an elastoplastic law (its maximum indentation on ``alpha_dot``),
-#: and the text of the event each must log.
+#: law contacts with DOP853 (no FSAL stage: the field at the event is one more evaluation), and the
+#: text of the event each must log.
 LOCATED = {"restitution": ("bouncing_sphere", 0.4, ("contact.law=restitution",), "impulse"),
            "kinematic": ("impact_free_bar", 1.6e-4, (), "contact end (separation"),
            "elastoplastic": ("bouncing_sphere", 0.08, ("contact.law=linear_plastic", "contact.yield_stress=0.64e9"),
-                             "maximum indentation")}
+                             "maximum indentation"),
+           "dop853": ("ball_on_flexible_beam", 0.024, ("sim.integrator=dop853",), "contact end (separation")}
 
 
 @pytest.mark.parametrize("kind", sorted(LOCATED))
