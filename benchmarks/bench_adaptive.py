@@ -6,9 +6,9 @@
 Every scene runs headless (``viz3d.simulate.run``: output frames and their checks included, the build
 of the system not) both ways, the two interleaved in each repeat so that both see the same load: with
 the compiled driver (``viz3d.kernel.adaptive``: the default), and with the Python adaptive loop it
-replaced (``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events,
-with stateful friction and for systems the kernel does not cover), its right-hand side compiled as
-before. With ``--before`` (a checkout of an earlier viz3d), the compiled driver of that checkout
+replaced (``Simulation._adaptive_samples`` / ``_event_steps``, still the path of the step after
+each contact event, with stateful friction and for systems the kernel does not cover), its
+right-hand side compiled as before. With ``--before`` (a checkout of an earlier viz3d), the compiled driver of that checkout
 too, and this checkout's, each in a fresh subprocess importing it (``PYTHONPATH``), interleaved likewise. Wall time is the least of the repeats (the load of a shared machine only adds); an untimed
 warm-up run of each first (numba's cache loads). Both runs must take the same steps (the table
 says so). Prints a Markdown table and writes it to ``--out``. Wall times of this machine under its
@@ -44,27 +44,44 @@ SCENES = {
     "impact_free_bar": ("impact_free_bar", [], 1.6e-4),
     "impact_bronze_ball": ("impact_bronze_ball", [], 1e-3),
     "bouncing_sphere": ("bouncing_sphere", [], 0.1),
+    "bouncing_sphere restitution": ("bouncing_sphere", ["contact.law=restitution", "sim.max_step=2e-3"], 0.4),
 }
 
 
 @contextlib.contextmanager
-def python_loop(on: bool, kernel_steps: list):
+def python_loop(on: bool, kernel_steps: list, event_steps: list, python_walls: list):
     """Adaptive steps in the Python loop (``on``) instead of the compiled driver; the steps the
-    compiled driver takes are appended to ``kernel_steps``."""
+    compiled driver takes are appended to ``kernel_steps``, a 1 for each step the Python loop takes
+    with contacts (``Simulation._event_step``) to ``event_steps``, the wall time [s] of each sample
+    the Python loop takes (``Simulation._python_step``: its steps, event location and handlers)
+    to ``python_walls``."""
     covers, adaptive = Simulation._adaptive_kernel_covers, KernelStepper.adaptive
+    event_step, python_step = Simulation._event_step, Simulation._python_step
+
+    def counted_step(self, *args):
+        event_steps.append(1)
+        return event_step(self, *args)
+
+    def timed(self, *args):
+        t0 = time.perf_counter()
+        try:
+            return python_step(self, *args)
+        finally:
+            python_walls.append(time.perf_counter() - t0)
 
     def counted(self, carry, *args, **kwargs):
         out = adaptive(self, carry, *args, **kwargs)
         kernel_steps.append(int(carry.counts[STEPS]))
         return out
 
-    KernelStepper.adaptive = counted
+    KernelStepper.adaptive, Simulation._event_step, Simulation._python_step = counted, counted_step, timed
     if on:
         Simulation._adaptive_kernel_covers = lambda self: False
     try:
         yield
     finally:
         Simulation._adaptive_kernel_covers, KernelStepper.adaptive = covers, adaptive
+        Simulation._event_step, Simulation._python_step = event_step, python_step
 
 
 def one_run(label: str, python: bool) -> dict:
@@ -76,12 +93,14 @@ def one_run(label: str, python: bool) -> dict:
     sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), cfg["dt"], cfg["blowup_speed"],
                      make_controller(cfg))
     kernel_steps: list[int] = []
-    with python_loop(python, kernel_steps):
+    event_steps: list[int] = []
+    python_walls: list[float] = []
+    with python_loop(python, kernel_steps, event_steps, python_walls):
         t0 = time.perf_counter()
         traj = run(sim, scene)
         wall = time.perf_counter() - t0
     return dict(wall=wall, steps=sim.n_steps, rejected=sim.n_rejected, rhs=sim.n_rhs, status=traj.status,
-                kernel_steps=sum(kernel_steps))
+                kernel_steps=sum(kernel_steps), python_steps=len(event_steps), python_wall=sum(python_walls))
 
 
 def checkout_run(label: str, checkout: Path) -> dict:
@@ -116,7 +135,8 @@ def measure(repeat: int, before: Path | None) -> dict:
 def table(best: dict) -> str:
     has_before = any("before" in ways for ways in best.values())
     extra = ((" subprocess: compiled driver [s] | subprocess: before [s] | steps in the driver before "
-              "| speed-up over before |", "---|---|---|---|") if has_before else ("", ""))
+              "| speed-up over before | steps in Python: now / before | Python's samples [ms]: now / before |",
+              "---|---|---|---|---|---|") if has_before else ("", ""))
     lines = ["| scene | steps (rejected) | evaluations | same steps | steps in the compiled driver | Python loop [s] "
              "| compiled driver [s] | per step: Python [us] | per step: compiled [us] | speed-up |" + extra[0],
              "|---|---|---|---|---|---|---|---|---|---|" + extra[1]]
@@ -130,7 +150,8 @@ def table(best: dict) -> str:
         if "before" in ways:
             a, b = ways["after"], ways["before"]
             row += (f" {a['wall']:.3f} | {b['wall']:.3f} | {100 * b['kernel_steps'] / b['steps']:.0f} % "
-                    f"| {b['wall'] / a['wall']:.2f}x |")
+                    f"| {b['wall'] / a['wall']:.2f}x | {a['python_steps']} / {b['python_steps']} "
+                    f"| {1e3 * a['python_wall']:.1f} / {1e3 * b['python_wall']:.1f} |")
         lines.append(row)
     return "\n".join(lines)
 
@@ -157,11 +178,15 @@ def main() -> None:
               f"before {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f}, after {load1[0]:.1f} / {load1[1]:.1f} / "
               f"{load1[2]:.1f} (1 / 5 / 15 min). Simulated: "
               + ", ".join(f"{label} {t_end:g} s" for label, (_, _, t_end) in SCENES.items())
-              + ". Per step: wall time over accepted steps. The steps at contact events (and the one after "
-              "each) are the Python loop's in every column; the steps of law contacts the compiled driver's "
-              "since 18cf73e (the share of the steps in the driver is given)"
+              + ". Per step: wall time over accepted steps. The step after each contact event is the Python "
+              "loop's in every column; the steps of law contacts the compiled driver's since 18cf73e, the steps "
+              "cut at contact events (located in the kernel) since 2a61818 (the share of the steps in the driver "
+              "is given)"
               + (f"; subprocess columns: the compiled driver of this checkout (git {_commit(ROOT)}) and of "
-                 f"{args.before} (git {_commit(args.before)}), each run in a fresh process" if args.before else "")
+                 f"{args.before} (git {_commit(args.before)}), each run in a fresh process, with the steps the "
+                 "Python loop took at contacts (``Simulation._event_step``) and the wall time of the samples it "
+                 "took (``Simulation._python_step``: those steps, locating and handling the events; of the "
+                 "fastest run)" if args.before else "")
               + ".\n")
     args.out.write_text(header + "\n" + text + "\n")
     print(f"wrote {args.out}")

@@ -10,7 +10,9 @@ each contact was resolved.
 * **Events** (``ContactStepping.events``): onset (``alpha - crater`` rising through 0), separation
   (falling through 0; for kinematic contacts the multiplier falling through 0, i.e. tension),
   maximum indentation (``alpha_dot`` falling through 0, elastoplastic laws). The stepper locates
-  them on the step's dense output and redoes the step to the event (``viz3d.simulate``).
+  them on the step's cubic Hermite interpolant (``brentq``) and redoes the step to the event
+  (``viz3d.simulate``); the compiled adaptive driver does the same in the kernel
+  (``viz3d.kernel.adaptive``, the event functions as data: ``event_rows``).
 * **Handlers** (``ContactStepping.handle``): law onset (memory, time scale of the contact), plastic
   impulse of a kinematic contact and its activation while compressive, restitution impulses
   (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
@@ -20,9 +22,9 @@ each contact was resolved.
   driver (it checks the signs of the event functions); while law contacts touch, the driver too,
   its steps bounded by ``step_bound`` and recorded, ``after_steps`` run on the records after the call
   (it keeps books and checks, and leaves the vector field alone) — unless a touching law contact has
-  stateful friction, whose stick anchors move between steps and change the force: Python. Locating
-  an event (brentq on the dense output), handling it and the step after it (its events start at a
-  root) are Python's.
+  stateful friction, whose stick anchors move between steps and change the force: Python. The
+  driver also locates each event and cuts its step there; handling the event (``handle``: memory,
+  impulses) and the step after it (its events start at a root) are Python's.
 * **Checks** (``ContactStepping.after_step``, at separation): while a law contact lasts, the
   numerics create no more energy than the error estimates of its steps allow (and its indentation
   stores no more than the energy available since onset); a law contact separates with the surfaces

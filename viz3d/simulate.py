@@ -97,7 +97,8 @@ class Simulation:
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
         when it covers the system and formulation; the NumPy path otherwise (``kernel_note`` says
-        which, and why). Adaptive steps at contact events (and the step after each), during law
+        which, and why). The compiled driver locates contact events too and cuts its step at them
+        (Python applies the event's handler); the step after each event, the steps during law
         contacts with stateful friction and with force elements that remember are taken in Python
         (``viz3d.events.ContactStepping.python_steps``); during other law contacts the compiled
         driver takes them and Python keeps the contacts' books on its step records afterwards.
@@ -143,6 +144,7 @@ class Simulation:
         if self._remembers and not state.element_memory:
             self.state = self._inner = state = state.replace(element_memory=element_memory(system, state))
         self._fired = None      # the event handled last: its contact's events start at a root next step
+        self._pending = None    # the event the compiled driver cut its last step at, not handled yet
         #: States right after contact events, not yet taken by ``drain_events`` (frames at events).
         self.event_states: list[State] = []
         self._E0 = None         # the ledger's initial total [J] (drives without contacts)
@@ -435,6 +437,9 @@ class Simulation:
         steps land on ``target`` (shortened by the contact step bound and by events), adaptive ones
         are sampled there by dense output. None when the compiled adaptive driver may take the
         next step (it takes the rest to ``target``)."""
+        if self._pending is not None:  # the compiled driver's step cut at an event: handled as the loop's own
+            name, self._pending = self._pending, None
+            self._inner = self._handle_event(name, self._inner)
         s = self._inner
         slack = 1e-12 * max(abs(target), self.dt)  # round-off of times, relative to the run's own scale
         end = target - slack
@@ -496,7 +501,13 @@ class Simulation:
         self._span = _Span(s.t, t_ev, s, system, lambda: hermite_interpolant(s.t, s.y, f0, t_ev, res_ev.y, f_ev),
                            h=t_ev - s.t) if self.controller is not None else None
         reached = contacts.after_step(self._accept(_state_at(system, t_ev, res_ev.y, s), None, t_ev - s.t), res_ev.error)
-        new = contacts.handle(name, reached)
+        return self._handle_event(name, reached)
+
+    def _handle_event(self, name: str, reached: State) -> State:
+        """The state after contact event ``name`` (``ContactStepping.handle``) at ``reached``, the end
+        of the step cut at it (by ``_event_step`` or the compiled driver); the next step's events of
+        that contact start at a root (``_fired``)."""
+        new = self._contacts.handle(name, reached)
         self._fired, self._f = name, None
         self.event_states.append(new)
         return new
@@ -547,11 +558,12 @@ class Simulation:
 
     def _adaptive_kernel_now(self) -> bool:
         """The kernel may take the next samples: the last step was not cut at an event (its span is
-        an RK step's), and with contacts, no event was just handled (the next step's events start
-        at a root) and ``ContactStepping.python_steps`` leaves the steps to the kernel."""
+        an RK step's; the event is handled, ``_pending``), and with contacts, no event was just
+        handled (the next step's events start at a root) and ``ContactStepping.python_steps``
+        leaves the steps to the kernel."""
         if self._carry is not None:
             return True
-        if self._span is not None and self._span.stages is None:
+        if self._pending is not None or (self._span is not None and self._span.stages is None):
             return False
         c = self._contacts
         return c is None or (self._fired is None and c.python_steps(self._inner) is None)
@@ -560,12 +572,13 @@ class Simulation:
         """Up to ``n_frames`` output states ``every`` samples apart, the adaptive steps and dense
         output in one kernel call: the states, counters, chart switches and contact memory of as
         many ``step`` calls. None when the kernel cannot take the next sample now; fewer states when
-        it stopped at a step that needs Python (an event, a failure: the Python path then redoes
-        that step from the same state and locates the event, or raises the diagnosis), when its
-        step records were full, or before a recorded step whose contact check fails (the Python
-        path redoes that step and raises the diagnosis)."""
-        from viz3d.kernel import FULL, OK
-        from viz3d.kernel.adaptive import EVALS, REJECTED, STEPS, T
+        it cut a step at a contact event (the event's handler is then ``_event_steps``'s, which takes
+        the rest of the sample), when it stopped at a step that needs Python (a failure, an event it
+        cannot locate: the Python path then redoes that step from the same state and raises the
+        diagnosis or locates the event), when its step records were full, or before a recorded step
+        whose contact check fails (the Python path redoes that step and raises the diagnosis)."""
+        from viz3d.kernel import EVENT, FULL, OK
+        from viz3d.kernel.adaptive import CUT, EVALS, REJECTED, STEPS, T
 
         if not self._adaptive_kernel_now():
             return None
@@ -601,8 +614,12 @@ class Simulation:
             self.state = states[-1]
         if status == FULL:
             self._capacity *= 2  # the next call records more steps (its frame needs them)
-        elif status != OK or failed is not None:  # the Python loop takes the step (and raises its diagnosis)
+        elif status != OK or failed is not None:  # the Python loop takes the step (and raises its diagnosis),
+            # or the event the driver cut its step at (its handler, the rest of the sample)
+            row = int(carry.flags[CUT]) - 1
             self._to_python()
+            if status == EVENT and failed is None:  # (the cut step's end is the inner state now)
+                self._pending = self._contacts.event_rows(like)[row].name
         return states
 
     def _step_records(self):
@@ -696,7 +713,7 @@ class Simulation:
     def _to_python(self) -> None:
         """Hand the adaptive state from the kernel's carry back to the Python path (no-op when it
         has it)."""
-        from viz3d.kernel.adaptive import DENSE, H, HAS_F, SPAN, SPAN_H, T, T0, T1
+        from viz3d.kernel.adaptive import CUT, DENSE, H, HAS_F, SPAN, SPAN_H, T, T0, T1
 
         c, self._carry = self._carry, None
         if c is None:
@@ -710,6 +727,11 @@ class Simulation:
         t0, t1 = float(c.times[T0]), float(c.times[T1])
         memory = like.memory if self._span_memory is None else self._span_memory
         start = _state_at(system, t0, c.y0.copy(), like.replace(chart=c.chart0.copy(), memory=memory))
+        if c.flags[CUT]:  # a step cut at an event: sampled by cubic Hermite, as _event_step's
+            f0, y1, f1 = c.K[0].copy(), c.y_cut.copy(), c.f1.copy()
+            self._span = _Span(t0, t1, start, system, lambda: hermite_interpolant(t0, start.y, f0, t1, y1, f1),
+                               h=float(c.times[SPAN_H]))
+            return
         stages, h = c.K[: len(self._kernel.tableau.b)].copy(), float(c.times[SPAN_H])
         rhs = self._field(start.chart, start.memory, start.element_memory)
         self._span = self._rk_span(rhs, start, t1, h, StepResult(None, f0=stages[0], stages=stages), c.f1.copy())

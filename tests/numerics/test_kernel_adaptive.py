@@ -1,7 +1,8 @@
 """The compiled adaptive driver (viz3d.kernel.adaptive) against the Python adaptive loop it replaces
-(``Simulation._adaptive_samples`` / ``_event_steps``, still the path at contact events, during law
-contacts with stateful friction and at failures): the same accepted and rejected steps, evaluations,
-contact events, chart switches, contact memory and diagnoses, and the same states to round-off.
+(``Simulation._adaptive_samples`` / ``_event_steps``, still the path of the step after each contact
+event, during law contacts with stateful friction and at failures): the same accepted and rejected
+steps, evaluations, contact events (located by both, the driver's cut at the same time), chart
+switches, contact memory and diagnoses, and the same states to round-off.
 
 The two paths run the same compiled stages, and the kernel adds the controller's error norm in
 numpy's order (``pairwise_sum``), so the steps agree to the last bit; only the dense output (a
@@ -10,7 +11,9 @@ Python path round differently.
 """
 
 import dataclasses
+import math
 import re
+import tomllib
 
 import numpy as np
 import pytest
@@ -50,10 +53,12 @@ SCENES_T_END = {"pendulum_strikes_bar": 4e-4, "impact_bronze_ball": 4e-4, "impac
 
 
 def _run(name, t_end: float, compiled_driver: bool, overrides=(), controller: Controller | None = None,
-         blowup_speed: float | None = None, monkeypatch=None, python_steps: list | None = None):
+         blowup_speed: float | None = None, monkeypatch=None, python_steps: list | None = None,
+         handled: list | None = None):
     """A headless run (``simulate.run``) through the compiled adaptive driver or the Python adaptive loop;
     ``(sim, trajectory, kernel calls)``; the steps the Python loop takes with contacts
-    (``Simulation._event_step``) counted into ``python_steps``. ``name``: a shipped scene or a path."""
+    (``Simulation._event_step``) counted into ``python_steps``, the contact events handled
+    (``Simulation._handle_event``) into ``handled``. ``name``: a shipped scene or a path."""
     path = name if not isinstance(name, str) else SCENES / f"{name}.toml"
     scene = with_sim(viz3d.load_scene(path, list(overrides)), t_end=t_end)
     system, state = viz3d.build(scene)
@@ -66,6 +71,9 @@ def _run(name, t_end: float, compiled_driver: bool, overrides=(), controller: Co
     event_step = Simulation._event_step
     counted = python_steps if python_steps is not None else []
     monkeypatch.setattr(Simulation, "_event_step", lambda self, *a: counted.append(1) or event_step(self, *a))
+    handle = Simulation._handle_event
+    events = handled if handled is not None else []
+    monkeypatch.setattr(Simulation, "_handle_event", lambda self, *a: events.append(1) or handle(self, *a))
     if not compiled_driver:
         monkeypatch.setattr(Simulation, "_adaptive_kernel_covers", lambda self: False)
     traj = run(sim, scene)
@@ -119,16 +127,17 @@ def _assert_same_memory(sa, sb, tol_factor):
 def test_compiled_adaptive_takes_the_python_steps(name, monkeypatch):
     """Each shipped adaptive scene the kernel covers: the same steps, rejections, evaluations, events,
     contact memory and states to round-off, with and without the compiled driver; the compiled
-    driver takes the steps of the law contacts (Python only those at events and right after)."""
-    python_steps = []
-    a = _run(name, SCENES_T_END[name], True, monkeypatch=monkeypatch, python_steps=python_steps)
+    driver takes the steps of the law contacts and cuts its steps at the events (Python only the
+    step right after each)."""
+    python_steps, handled = [], []
+    a = _run(name, SCENES_T_END[name], True, monkeypatch=monkeypatch, python_steps=python_steps, handled=handled)
     b = _run(name, SCENES_T_END[name], False, monkeypatch=monkeypatch)
     if name == "flexible_pendulum":
         assert a[0].n_rejected > 0  # the controller has rejections to reproduce
     else:
-        assert len(b[0].contacts.log) >= 2  # contact events, located by the Python loop both ways
-        # each event: the step cut at it and the next one (its events start at a root)
-        assert len(python_steps) <= 2 * len(b[0].contacts.log), f"{len(python_steps)} steps in Python"
+        assert len(b[0].contacts.log) >= 2  # contact events, located both ways
+        # each event: the next step (its events start at a root); the one cut at it is the driver's
+        assert len(python_steps) <= len(handled), f"{len(python_steps)} steps in Python, {len(handled)} events"
     # the scenes' default formulation projects after every step (a no-op without constraint rows)
     _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
 
@@ -241,6 +250,55 @@ def test_events_inside_output_frames(monkeypatch):
     b = _run("ball_on_flexible_beam", 0.024, False, ("sim.output_dt=5e-4",), monkeypatch=monkeypatch)
     assert len(b[0].contacts.log) >= 2
     _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+#: Scenes whose contact events the compiled driver locates, one of each kind: restitution impacts (an
+#: impulse at each onset: ``alpha`` rising through 0), the kinematic contact of the free bar (its
+#: separation on the multiplier), an elastoplastic law (its maximum indentation on ``alpha_dot``),
+#: law contacts with DOP853 (no FSAL stage: the field at the event is one more evaluation), and the
+#: text of the event each must log.
+LOCATED = {"restitution": ("bouncing_sphere", 0.4, ("contact.law=restitution",), "impulse"),
+           "kinematic": ("impact_free_bar", 1.6e-4, (), "contact end (separation"),
+           "elastoplastic": ("bouncing_sphere", 0.08, ("contact.law=linear_plastic", "contact.yield_stress=0.64e9"),
+                             "maximum indentation"),
+           "dop853": ("ball_on_flexible_beam", 0.024, ("sim.integrator=dop853",), "contact end (separation")}
+
+
+@pytest.mark.parametrize("kind", sorted(LOCATED))
+def test_events_located_in_the_compiled_driver(kind, monkeypatch):
+    """Every kind of event function: the compiled driver locates the event on the step's interpolant
+    and cuts its step there (Python takes only the step after each event), with the same steps,
+    evaluations, event times and contact memory as the Python loop."""
+    name, t_end, overrides, text = LOCATED[kind]
+    python_steps, handled = [], []
+    a = _run(name, t_end, True, overrides, monkeypatch=monkeypatch, python_steps=python_steps, handled=handled)
+    b = _run(name, t_end, False, overrides, monkeypatch=monkeypatch)
+    assert any(text in line for _, line in a[0].contacts.log), f"no {text!r} event"
+    assert handled and len(python_steps) <= len(handled), f"{len(python_steps)} steps in Python"
+    _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
+
+
+def test_impact_time_of_a_dropped_ball(monkeypatch):
+    """The ball of bouncing_sphere, dropped from rest through ``h`` under its weight ``F`` (a load,
+    no gravity field), meets the plate at ``sqrt(2 h m / F)``: the compiled driver's cut. The motion
+    is quadratic in t, which DOPRI5 and the cubic Hermite interpolant reproduce, so the time is off
+    by the root finder's tolerance only (``brentq`` stops with the root inside ``xtol + rtol t``,
+    ``xtol`` relative to the step cut, which is shorter than the impact time) and the round-off of
+    the gap (a few eps of ``h``) over the impact speed; the impact speed ``sqrt(2 h F / m)`` by the
+    time's error times the acceleration."""
+    from viz3d.integrators.adaptive import EVENT_RTOL, EVENT_XTOL
+
+    python_steps, handled = [], []
+    sim, traj, _ = _run("bouncing_sphere", 0.07, True, ("contact.law=restitution",), monkeypatch=monkeypatch,
+                        python_steps=python_steps, handled=handled)
+    impactor = tomllib.loads((SCENES / "bouncing_sphere.toml").read_text())["impactor"]
+    m, F, h = (impactor[key] for key in ("mass", "force", "gap"))
+    t_hit, v_hit = math.sqrt(2 * h * m / F), math.sqrt(2 * h * F / m)
+    assert handled and len(python_steps) <= len(handled)  # cut in the driver (Python: the steps after events)
+    bound = EVENT_XTOL * t_hit + EVENT_RTOL * t_hit + 8 * EPS * h / v_hit
+    assert abs(sim.contacts.records[0].t_start - t_hit) <= bound, f"{sim.contacts.records[0].t_start - t_hit:.2e} s"
+    # the speed at the located time: off by the acceleration F / m times the time's error
+    assert abs(sim.contacts.records[0].approach - v_hit) <= F / m * bound + 8 * EPS * v_hit
 
 
 def test_step_size_underflow_is_diagnosed_as_in_python(monkeypatch):

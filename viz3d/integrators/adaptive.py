@@ -22,8 +22,12 @@ from viz3d.integrators.base import Integrator, StepResult
 SAFETY = 0.9
 FAC_MIN = 0.2
 FAC_MAX = 5.0
-#: Event times are located to this relative precision of the step.
+#: Event times are located to this relative precision of the step (``brentq``'s ``xtol``), with
+#: ``brentq``'s least relative tolerance (4 eps, its default) and its default iteration limit; the
+#: compiled adaptive driver (``viz3d.kernel.adaptive``) locates events with the same three.
 EVENT_XTOL = 1e-12
+EVENT_RTOL = 4 * np.finfo(float).eps
+EVENT_MAXITER = 100
 
 
 class StepSizeUnderflow(RuntimeError):
@@ -91,11 +95,14 @@ class Event:
 
 
 def hermite(t0, y0, f0, t1, y1, f1, t):
-    """Cubic Hermite interpolant between two steps, at ``t`` (scalar or (m,) array)."""
+    """Cubic Hermite interpolant between two steps, at ``t`` (scalar or (m,) array). Squares are
+    products (numpy's scalar ``** 2`` calls ``pow``, which may round otherwise), so the compiled
+    adaptive driver's ``hermite_state`` gives the same bits."""
     h = t1 - t0
     s = (np.asarray(t, float) - t0) / h
     s = s[..., None] if np.ndim(s) else s
-    h00, h10 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2
+    u2 = (1 - s) * (1 - s)
+    h00, h10 = (1 + 2 * s) * u2, s * u2
     h01, h11 = s * s * (3 - 2 * s), s * s * (s - 1)
     return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
 
@@ -139,7 +146,7 @@ def _locate(g_of, t0: float, t1: float, g_end: float) -> float:
     lo_val = g_of(t0)
     if g_end == 0.0 or (np.sign(lo_val) == np.sign(g_end)):
         return t1
-    return float(brentq(g_of, t0, t1, xtol=EVENT_XTOL * (t1 - t0) + 1e-300))
+    return float(brentq(g_of, t0, t1, xtol=EVENT_XTOL * (t1 - t0) + 1e-300, rtol=EVENT_RTOL, maxiter=EVENT_MAXITER))
 
 
 def _fresh_crossing(ev, g_of, t0: float, t1: float, g_end: float) -> float | None:
@@ -154,7 +161,8 @@ def _fresh_crossing(ev, g_of, t0: float, t1: float, g_end: float) -> float | Non
         if side * g_of(t) > 0.0:
             armed = t
         elif armed is not None:
-            return float(brentq(g_of, armed, t, xtol=EVENT_XTOL * (t1 - t0) + 1e-300))
+            return float(brentq(g_of, armed, t, xtol=EVENT_XTOL * (t1 - t0) + 1e-300, rtol=EVENT_RTOL,
+                                maxiter=EVENT_MAXITER))
     return None
 
 

@@ -38,12 +38,12 @@ except ImportError:  # pragma: no cover - no numba, or a numba without it: _entr
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.projection import project_state
-from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, adaptive_frames
+from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
 from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
-__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "KernelData",
-           "kernel_for", "kernel_coverage", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
+__all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
+           "KernelData", "kernel_for", "kernel_coverage", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
            "AdaptiveCarry", "StepRecords"]
 
 
@@ -151,10 +151,10 @@ class AdaptiveCarry(NamedTuple):
     """What an adaptive run carries from one compiled call to the next (``viz3d.kernel.adaptive``,
     whose module docstring describes each field; updated in place).
 
-    y, f, y0, f1 : (n,)
+    y, f, y0, f1, y_cut : (n,)
     chart, chart0 : (nf, 3, 3)
     times : (5,) [s]
-    flags : (3,) int64
+    flags : (4,) int64
     counts : (3,) int64
     switches : (nb,) int64
         Chart switches per body during the calls.
@@ -174,15 +174,16 @@ class AdaptiveCarry(NamedTuple):
     K: np.ndarray
     Q: np.ndarray
     f1: np.ndarray
+    y_cut: np.ndarray
 
     @classmethod
     def empty(cls, n: int, n_frames: int, n_bodies: int, tableau) -> "AdaptiveCarry":
         """A carry for states of ``n`` entries and ``tableau``'s stages (and extra dense stages)."""
         z = np.zeros
         dense = tableau.dense
-        return cls(z(n), z((n_frames, 3, 3)), z(n), z(5), z(3, np.int64), z(3, np.int64), z(n_bodies, np.int64),
+        return cls(z(n), z((n_frames, 3, 3)), z(n), z(5), z(4, np.int64), z(3, np.int64), z(n_bodies, np.int64),
                    z(n), z((n_frames, 3, 3)), z((len(tableau.b) + len(dense.c_extra), n)), z((dense.P.shape[1], n)),
-                   z(n))
+                   z(n), z(n))
 
     def copy(self) -> "AdaptiveCarry":
         return AdaptiveCarry(*(a.copy() for a in self))
@@ -467,7 +468,7 @@ class KernelStepper:
         direction = np.array([e.direction for e in events], np.int64)
         z = np.empty
         scratch = (z(n), z(n), z(n), z(n), z((nf, 3, 3)), np.zeros(carry.switches.shape[0], np.int64),
-                   z((d.n_contacts, 11)), z(len(events)), z(len(events)))
+                   z((d.n_contacts, 11)), z(len(events)), z(len(events)), z(n))
         Ts, Y, charts = z(n_frames), z((n_frames, n)), z((n_frames, nf, 3, 3))
         record = records is not None
         records = records if record else StepRecords.empty(0, n, nf)
@@ -481,12 +482,12 @@ class KernelStepper:
 
 def _adaptive_method(tableau, controller) -> tuple:
     """The tableau and controller as the compiled adaptive driver takes them."""
-    from viz3d.integrators.adaptive import FAC_MAX, FAC_MIN, SAFETY
+    from viz3d.integrators.adaptive import EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, SAFETY
     from viz3d.integrators.explicit_rk import is_end_stage
 
     dense, c = tableau.dense, np.ascontiguousarray
     ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
-                     SAFETY, FAC_MIN, FAC_MAX], float)
+                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER], float)
     a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
     return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),

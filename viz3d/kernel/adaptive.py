@@ -5,9 +5,15 @@ continuous extension (``viz3d.integrators.tableaus.DenseOutput``) sampled at the
 between steps what ``viz3d.kernel.stepping.advance`` does (the ``projection`` formulation's
 projections, health checks, chart switches).
 
-A call stops *before committing* whatever needs Python, which then redoes it from the same carry
-(the kernel is deterministic) exactly as on a run without the kernel: an event function of the
-contacts changing sign over a step (``EVENT``: Python locates and handles the event), a failed
+A step over which an event function of the contacts changes sign is cut at the first event, as
+``Simulation._event_step`` cuts it: each crossing located on the step's cubic Hermite interpolant
+(``viz3d.integrators.adaptive.hermite``) by Brent's method with ``brentq``'s iteration and the
+Python loop's tolerances, the step redone to the earliest, its end settled and committed, the
+call ended (``EVENT``: ``flags[CUT]`` names the event row, Python applies the event's handler,
+e.g. a restitution impulse, and takes the next step, whose events start at a root). A call stops
+*before committing* whatever else needs Python, which then redoes it from the same carry (the
+kernel is deterministic) exactly as on a run without the kernel: an event function not finite on
+the interpolant or a root not converging (``UNLOCATED``: Python's ``brentq`` raises), a failed
 evaluation, projection or health check, a step below ``min_step`` (``UNDERFLOW``): Python writes
 the diagnosis. While a law contact acts (``record``), each accepted step's end time, settled state,
 chart and error estimate go to the step records (``rec_t`` (R,), ``rec_y`` (R, n), ``rec_chart``
@@ -24,6 +30,8 @@ The carry (arrays updated in place, see ``viz3d.kernel.KernelStepper.adaptive``)
 * ``y0`` (n,), ``chart0`` (nf, 3, 3), ``K`` (s + m, n), ``Q`` (degree, n): the last accepted step's
   start, its stages (then its continuous extension's extra stages) and dense-output coefficients
   (``y(t0 + x h) = y0 + sum_d x^(d + 1) Q[d]``) when ``flags[DENSE]``; ``f1`` (n,) the field at its end;
+* ``flags[CUT]``: 0, or 1 + the event row the last accepted step was cut at; ``y_cut`` (n,) that
+  step's end before settling (its Hermite interpolant runs from ``(y0, K[0])`` to ``(y_cut, f1)``);
 * ``counts``: accepted steps, rejected trial steps, vector-field evaluations.
 """
 
@@ -36,13 +44,18 @@ from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
 from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
 
-#: Status codes beyond ``viz3d.kernel.field``'s: an event function changed sign over the step
-#: about to be committed; the controller asked for a step below ``min_step``; the step records are
-#: full (the next step needs a record).
-EVENT, UNDERFLOW, FULL = 6, 7, 8
+#: Status codes beyond ``viz3d.kernel.field``'s: the last step was cut at a contact event (committed
+#: up to it, the handler is Python's); the controller asked for a step below ``min_step``; the step
+#: records are full (the next step needs a record); an event function changed sign over the step
+#: about to be committed but cannot be located here (not finite on the interpolant, the root finder
+#: out of iterations).
+EVENT, UNDERFLOW, FULL, UNLOCATED = 6, 7, 8, 9
 #: Indices of ``times``, ``flags`` and ``counts``.
 T, H, T0, T1, SPAN_H = 0, 1, 2, 3, 4
-HAS_F, SPAN, DENSE = 0, 1, 2
+HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
+#: Indices of the event tolerances in ``ctrl`` (after the controller's eight): ``brentq``'s
+#: ``xtol`` relative to the step, its ``rtol`` and iteration limit.
+EV_XTOL, EV_RTOL, EV_MAXITER = 8, 9, 10
 STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
 #: its ``alpha_dot``, a kinematic contact's multiplier.
@@ -174,6 +187,144 @@ def crosses(direction, g0, g1):
 
 
 @jit
+def event_value(e, t, y, chart, kind, index, floor, m, v, w, forces, rows, geometry, gap_out, ydot):
+    """Event function ``e`` alone at ``(t, y)`` (as ``event_values`` evaluates it, and as the Python
+    loop's ``ContactStepping._probe``: a multiplier only for a multiplier): (value, status)."""
+    if kind[e] == MULTIPLIER:
+        status = evaluate(t, y, chart, m, v, w, forces, rows, ydot)
+        return w.lam[index[e]], status
+    gaps(t, y, chart, m, v, w, geometry, gap_out)
+    if kind[e] == GAP:
+        return gap_out[index[e], 0] - floor[e], OK
+    return gap_out[index[e], 1], OK
+
+
+@inline
+def hermite_state(t, t0, t1, y0, f0, y1, f1, out):
+    """``viz3d.integrators.adaptive.hermite`` at the scalar ``t`` into ``out``: its operations in its
+    order, so the same bits."""
+    h = t1 - t0
+    s = (t - t0) / h
+    u2 = (1.0 - s) * (1.0 - s)
+    h00, h10 = (1.0 + 2.0 * s) * u2, s * u2
+    h01, h11 = s * s * (3.0 - 2.0 * s), s * s * (s - 1.0)
+    a, b = h10 * h, h11 * h
+    for j in range(out.shape[0]):
+        out[j] = h00 * y0[j] + a * f0[j] + h01 * y1[j] + b * f1[j]
+
+
+@jit
+def _on_interpolant(e, t, t0, t1, y0, f0, y1, f1, chart, kind, index, floor, m, v, w, forces, rows, geometry, gap_out,
+                    ydot, yh):
+    """Event function ``e`` on the step's cubic Hermite interpolant at ``t`` (``first_event``'s
+    ``g_of``): (value, status); ``UNLOCATED`` for a NaN (``brentq`` raises on one)."""
+    hermite_state(t, t0, t1, y0, f0, y1, f1, yh)
+    g, status = event_value(e, t, yh, chart, kind, index, floor, m, v, w, forces, rows, geometry, gap_out, ydot)
+    if status == OK and g != g:
+        return g, UNLOCATED
+    return g, status
+
+
+@jit
+def _brent(e, lo, hi, xtol, rtol, maxiter, t0, t1, y0, f0, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
+           geometry, gap_out, ydot, yh):
+    """Root of event ``e`` on the step's interpolant between ``lo`` and ``hi`` (where its values have
+    opposite signs): Brent's method (R. P. Brent, Algorithms for Minimization without Derivatives,
+    1973, ch. 4) in the form of ``scipy.optimize.brentq``: keep the root bracketed by the latest
+    estimate and a contrapoint, try inverse quadratic or secant interpolation, take it when it lands
+    well inside the bracket and shrinks fast enough, else bisect; never step less than the tolerance
+    ``(xtol + rtol |x|) / 2``. The same arithmetic in the same order as ``brentq``, so the Python
+    loop and the driver cut their steps at the same time. Returns (root, status): ``UNLOCATED``
+    after ``maxiter`` iterations (``brentq`` raises)."""
+    x_pre, x_cur = lo, hi
+    g_pre, status = _on_interpolant(e, x_pre, t0, t1, y0, f0, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
+                                    geometry, gap_out, ydot, yh)
+    if status != OK:
+        return x_cur, status
+    g_cur, status = _on_interpolant(e, x_cur, t0, t1, y0, f0, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
+                                    geometry, gap_out, ydot, yh)
+    if status != OK:
+        return x_cur, status
+    if g_pre == 0.0:
+        return x_pre, OK
+    if g_cur == 0.0:
+        return x_cur, OK
+    x_blk, g_blk, s_pre, s_cur = 0.0, 0.0, 0.0, 0.0
+    for _ in range(maxiter):
+        if g_pre != 0.0 and g_cur != 0.0 and (g_pre < 0.0) != (g_cur < 0.0):  # a new bracket
+            x_blk, g_blk = x_pre, g_pre
+            s_pre = s_cur = x_cur - x_pre
+        if abs(g_blk) < abs(g_cur):  # the best estimate is the one of least |g|
+            x_pre, x_cur, x_blk = x_cur, x_blk, x_cur
+            g_pre, g_cur, g_blk = g_cur, g_blk, g_cur
+        delta = (xtol + rtol * abs(x_cur)) / 2
+        s_bis = (x_blk - x_cur) / 2
+        if g_cur == 0.0 or abs(s_bis) < delta:
+            return x_cur, OK
+        s_pre, s_cur = _brent_step(x_pre, x_cur, x_blk, g_pre, g_cur, g_blk, s_pre, s_cur, s_bis, delta)
+        x_pre, g_pre = x_cur, g_cur
+        if abs(s_cur) > delta:
+            x_cur += s_cur
+        else:
+            x_cur += delta if s_bis > 0 else -delta
+        g_cur, status = _on_interpolant(e, x_cur, t0, t1, y0, f0, y1, f1, chart, kind, index, floor, m, v, w, forces,
+                                        rows, geometry, gap_out, ydot, yh)
+        if status != OK:
+            return x_cur, status
+    return x_cur, UNLOCATED
+
+
+@inline
+def _brent_step(x_pre, x_cur, x_blk, g_pre, g_cur, g_blk, s_pre, s_cur, s_bis, delta):
+    """``_brent``'s next (previous step, step): interpolated (secant when the contrapoint is the
+    previous estimate, else inverse quadratic) when that step is short enough, else bisection."""
+    if abs(s_pre) > delta and abs(g_cur) < abs(g_pre):
+        if x_pre == x_blk:
+            trial = -g_cur * (x_cur - x_pre) / (g_cur - g_pre)
+        else:
+            d_pre = (g_pre - g_cur) / (x_pre - x_cur)
+            d_blk = (g_blk - g_cur) / (x_blk - x_cur)
+            trial = -g_cur * (g_blk * d_blk - g_pre * d_pre) / (d_blk * d_pre * (g_blk - g_pre))
+        if 2 * abs(trial) < min(abs(s_pre), 3 * abs(s_bis) - delta):
+            return s_cur, trial
+    return s_bis, s_bis
+
+
+@jit
+def _first_event(t, h, y, f, y1, f1, chart, ctrl, kind, index, floor, direction, g0, g1, m, v, w, forces, rows,
+                 geometry, gap_out, ydot, yh):
+    """``viz3d.integrators.adaptive.first_event`` over the step from ``(t, y)`` (field ``f``) to
+    ``(t + h, y1)`` (field ``f1``), the event values ``g0`` and ``g1`` at its ends, no event fresh
+    (``_locate``: the step's end when the interpolant does not change sign): (row, time, status) of
+    the earliest crossing, the first row of the earliest time."""
+    t1 = t + h
+    xtol = ctrl[EV_XTOL] * (t1 - t) + 1e-300
+    best, t_best = -1, t1
+    for e in range(kind.shape[0]):
+        if not crosses(direction[e], g0[e], g1[e]):
+            continue
+        g_lo, status = _on_interpolant(e, t, t, t1, y, f, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
+                                       geometry, gap_out, ydot, yh)
+        if status != OK:
+            return best, t_best, status
+        t_e = t1
+        if g1[e] != 0.0 and _sign(g_lo) != _sign(g1[e]):
+            t_e, status = _brent(e, t, t1, xtol, ctrl[EV_RTOL], int(ctrl[EV_MAXITER]), t, t1, y, f, y1, f1, chart,
+                                 kind, index, floor, m, v, w, forces, rows, geometry, gap_out, ydot, yh)
+            if status != OK:
+                return best, t_best, status
+        if best < 0 or t_e < t_best:
+            best, t_best = e, t_e
+    return best, t_best, OK
+
+
+@inline
+def _sign(x):
+    """``np.sign`` of a number that is not NaN."""
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+@jit
 def dense_coefficients(t0, h, y0, chart0, f1, s, P, c_extra, a_extra, reuse, m, v, w, forces, rows, K, yi, Q):
     """``ExplicitRK.dense_coefficients``: the extra stages into ``K[s:]`` (``reuse[i]``: the stage is
     ``f1``) and ``Q = h P^T K``; returns (evaluations, status)."""
@@ -238,8 +389,8 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
 def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal,
                     P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
                     rec_err, n_rec, m, v, w, forces, rows, geometry,
-                    y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1,
-                    k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, Y, charts, Ts):
+                    y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1, y_cut,
+                    k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, yh, Y, charts, Ts):
     """Up to ``n_frames`` output frames, ``every`` samples apart, of an adaptive run (the carry in
     place, see the module docstring): sample ``i`` of the run is at ``t_start + i dt``, the first
     here is ``n0 + 1``. Frame ``f``'s time, state and chart go to ``Ts[f]``, ``Y[f]``,
@@ -248,8 +399,9 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
     and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``; with
     ``record`` every accepted step goes to the step records (module docstring).
 
-    Returns (frames done, samples done in the next frame, status); on a status other than ``OK``
-    nothing of the step or sample that stopped the call is committed."""
+    Returns (frames done, samples done in the next frame, status); on a status other than ``OK`` and
+    ``EVENT`` (the step cut at the event committed and recorded) nothing of the step or sample that
+    stopped the call is committed."""
     s = tb.shape[0]
     t_s = 0.0
     for frame in range(n_frames):
@@ -265,12 +417,14 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
                     return frame, sample, FULL
                 status = _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
                                       ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f,
-                                      times, flags, counts, switches, y0, chart0, K, f1, k, yi, y1, err, chart1,
-                                      sw, gap_out, g0, g1)
-                if status != OK:
+                                      times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
+                                      chart1, sw, gap_out, g0, g1, yh)
+                if status != OK and status != EVENT:
                     return frame, sample, status
                 if record:
                     _record(times[T], y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec)
+                if status == EVENT:
+                    return frame, sample, status
             if contact_mode and abs(times[T] - target) <= slack:
                 t_s = times[T]
                 _copy(ys, y)
@@ -337,9 +491,10 @@ def _unit_parameters(n_rot, n_frames, y):
 @jit
 def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor, ev_dir,
                  m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0, chart0, K, f1,
-                 k, yi, y1, err, chart1, sw, gap_out, g0, g1):
-    """One accepted step from the inner state, then what ``Simulation._accept`` does after it;
-    committed to the carry only when nothing needs Python (see the module docstring)."""
+                 y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
+    """One accepted step from the inner state (cut at the first contact event it crosses:
+    ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the carry only
+    when nothing needs Python (see the module docstring)."""
     t = times[T]
     if flags[HAS_F] == 0:
         status = evaluate(t, y, chart, m, v, w, forces, rows, f)
@@ -362,14 +517,56 @@ def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, 
     if contact_mode:
         status = _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows,
                                 geometry, gap_out, yi, g0, g1)
+        if status == EVENT:
+            return _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
+                                 ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times,
+                                 flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw,
+                                 gap_out, g0, g1, yh)
         if status != OK:
             return status
     status = _settled(t + h, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
     if status != OK:
         return status
-    _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, flags, counts, switches, y0, chart0,
-            K, f1, k, yi, chart1, sw)
+    _commit(t, t + h, h, h_next, n_rejected, n_evals, 0, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
+            chart0, K, f1, k, yi, chart1, sw)
     return OK
+
+
+@jit
+def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index,
+                  ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0,
+                  chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
+    """The accepted step from ``(t, y)`` to ``(t + h, y1)`` (``h_next`` proposed after it, ``n_rejected``
+    trials and ``n_evals`` evaluations before it), over which an event function changes sign, cut
+    as ``Simulation._event_step`` cuts it: the first event located (``_first_event``), the step
+    redone from ``(t, y)`` to it (its own error estimate into ``err``, its end field into ``f1``),
+    settled and committed with ``flags[CUT]`` (the next step as the controller proposed it, no turn
+    limit, no field kept: the event's handler changes the state). Returns ``EVENT``, or the status
+    of what failed (nothing committed)."""
+    e, t_ev, status = _first_event(t, h, y, f, y1, f1, chart, ctrl, ev_kind, ev_index, ev_floor, ev_dir, g0, g1, m, v,
+                                   w, forces, rows, geometry, gap_out, yi, yh)
+    if status != OK:
+        return status
+    s = tb.shape[0]
+    h_ev = t_ev - t
+    status = rk_step(t, h_ev, y, chart, f, True, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
+    if status != OK:
+        return status
+    n_evals += s - 1
+    if fsal:
+        _copy(f1, k[s - 1])
+    else:
+        n_evals += 1
+        status = evaluate(t_ev, y1, chart, m, v, w, forces, rows, f1)
+        if status != OK:
+            return status
+    status = _settled(t_ev, h_ev, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
+    if status != OK:
+        return status
+    _copy(y_cut, y1)
+    _commit(t, t_ev, h_ev, h_next, n_rejected, n_evals, e + 1, 0.0, m, y, chart, f, times, flags, counts, switches, y0,
+            chart0, K, f1, k, yi, chart1, sw)
+    return EVENT
 
 
 @jit
@@ -415,30 +612,31 @@ def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
 
 
 @jit
-def _commit(t, h, h_next, n_rejected, n_evals, max_turn, m, y, chart, f, times, flags, counts, switches, y0, chart0, K,
-            f1, k, y_end, chart_end, sw):
-    """The accepted step into the carry: its span (start, stages, length), the settled end state as
-    the inner state, the next step (``min(h_next, turn_limit)``), the field kept when the end state
-    is the step's own (no projection, no chart switch, no Euler parameters to normalise:
-    ``Simulation._settle``), the counters."""
+def _commit(t, t1, h, h_next, n_rejected, n_evals, cut, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
+            chart0, K, f1, k, y_end, chart_end, sw):
+    """The accepted step ``[t, t1]`` of length ``h`` into the carry: its span (start, stages, length,
+    ``cut``: 0 or 1 + the event row it was cut at), the settled end state as the inner state, the
+    next step (``min(h_next, turn_limit)``; ``h_next`` after a cut), the field kept when the end
+    state is the step's own (no cut, no projection, no chart switch, no Euler parameters to
+    normalise: ``Simulation._settle``), the counters."""
     switched = False
     for b in range(sw.shape[0]):
         switches[b] += sw[b]
         switched = switched or sw[b] != 0
-    times[T0], times[T1], times[SPAN_H] = t, t + h, h
+    times[T0], times[T1], times[SPAN_H] = t, t1, h
     _copy(y0, y)
     _copy(y, y_end)
     for i in range(k.shape[0]):
         _copy(K[i], k[i])
     _copy_chart(chart0, chart)
     _copy_chart(chart, chart_end)
-    times[T] = t + h
-    times[H] = min(h_next, turn_limit(m.frame_body.shape[0], m.n_rot, f1, max_turn))
-    keep = m.projects != 1 and not switched and m.n_rot != 4  # (Euler parameters are normalised: a new state)
+    times[T] = t1
+    times[H] = h_next if cut else min(h_next, turn_limit(m.frame_body.shape[0], m.n_rot, f1, max_turn))
+    keep = cut == 0 and m.projects != 1 and not switched and m.n_rot != 4  # (Euler parameters are normalised: a new state)
     flags[HAS_F] = 1 if keep else 0
     if keep:
         _copy(f, f1)
-    flags[SPAN], flags[DENSE] = 1, 0
+    flags[SPAN], flags[DENSE], flags[CUT] = 1, 0, cut
     counts[STEPS] += 1
     counts[REJECTED] += n_rejected
     counts[EVALS] += n_evals
