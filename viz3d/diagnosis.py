@@ -96,17 +96,61 @@ def check_violation(system: System, states, violation, limit: float) -> None:
                                 frame=i)
 
 
-def check_capacity(states, scalars: dict, capacity: dict[str, float]) -> None:
-    """Raise ``SimulationFailure`` at the first of ``states`` where a drive's effort (frame scalar
-    ``drive/<name>/effort``, one value per state) exceeds its ``capacity[name]`` [N or N m]: the
-    mechanism jams, or the drive is too small for it."""
-    for name, limit in capacity.items():
-        effort = np.abs(np.asarray(scalars.get(f"drive/{name}/effort", ()), float))
-        bad = np.flatnonzero(effort > limit)
-        if bad.size:
-            i = int(bad[0])
-            raise SimulationFailure(f"t = {states[i].t:.6g} s: drive {name!r} needs {effort[i]:.4g} (N or N m), over its "
-                                    f"capacity {limit:.4g}: the mechanism jams or the drive is too small", frame=i)
+def held_effort(t: np.ndarray, effort: np.ndarray, window: float) -> np.ndarray:
+    """The effort each frame has held for the last ``window`` seconds: ``min |effort_j|`` over the
+    frames from the last one at or before ``t_i - window`` to frame i (so that they span at least
+    ``window``), shape (n,) [N or N m]; NaN where no frame is that old. ``window = 0``: ``|effort|``
+    itself. Times ``t`` (n,) ascending [s]."""
+    t, e = np.asarray(t, float), np.abs(np.asarray(effort, float))
+    if window <= 0.0:
+        return e
+    start = _window_start(t, window)
+    return np.array([e[a:i + 1].min() if a >= 0 else np.nan for i, a in enumerate(start)])
+
+
+def _window_start(t: np.ndarray, window: float) -> np.ndarray:
+    """Index of the last of the times ``t`` (n,) at or before each ``t_i - window`` (-1: none), (n,)."""
+    return np.searchsorted(t, t - window + 1e-9, side="right") - 1
+
+
+class CapacityWatch:
+    """Stops a run whose drive has needed more than its capacity for its ``capacity_time``.
+
+    A drive's frame scalar ``drive/<name>/effort`` is held against ``capacity`` [N or N m] over the
+    last ``capacity_time`` [s] of frames (``held_effort``), across the chunks of frames a run checks:
+    ``SimulationFailure`` at the first frame whose held effort exceeds it, saying since when the
+    drive has been over. ``capacity_time = 0``: the first frame over it. Rigid bodies on a velocity
+    drive pass a contact's impact to the drive within a step; a capacity held over a time longer
+    than the impact (a few ms for steel on steel) and shorter than a stall is what jams a windlass.
+
+    Parameters
+    ----------
+    limits : dict
+        ``name -> (capacity, capacity_time)`` of the drives that have a capacity.
+    """
+
+    def __init__(self, limits: dict[str, tuple[float, float]]):
+        self.limits = limits
+        self._tail = {name: (np.zeros(0), np.zeros(0)) for name in limits}  # the last window's frames
+
+    def check(self, t: np.ndarray, scalars: dict) -> None:
+        """Check the next frames: times ``t`` (n,) [s] and their ``scalars`` (frame columns)."""
+        t = np.asarray(t, float)
+        for name, (limit, window) in self.limits.items():
+            effort = np.abs(np.asarray(scalars.get(f"drive/{name}/effort", np.zeros(t.size)), float))
+            t_all, e_all = (np.concatenate(x) for x in zip(self._tail[name], (t, effort)))
+            held = held_effort(t_all, e_all, window)[-t.size:] if t.size else np.zeros(0)
+            bad = np.flatnonzero(held > limit)
+            if bad.size:
+                i = int(bad[0])
+                over = e_all[:len(t_all) - t.size + i + 1] > limit  # ... up to this frame: its run of frames over
+                since = len(over) - (int(np.argmin(over[::-1])) if not over.all() else len(over))
+                held_text = f" since t = {t_all[since]:.6g} s" if window > 0.0 else ""
+                raise SimulationFailure(f"t = {t[i]:.6g} s: drive {name!r} needs {effort[i]:.4g} (N or N m), over its "
+                                        f"capacity {limit:.4g}{held_text}: the mechanism jams or the drive is too "
+                                        "small", frame=i)
+            first = max(int(_window_start(t_all[-1:], window)[0]), 0) if t_all.size else 0
+            self._tail[name] = (t_all[first:], e_all[first:])
 
 
 class EnergyWatch:

@@ -20,10 +20,10 @@ import numpy as np
 from viz3d.columns import CHUNK, FrameColumns, StateLog
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
+    CapacityWatch,
     EnergyWatch,
     RunComplete,
     SimulationFailure,
-    check_capacity,
     check_chart,
     check_state,
     check_violation,
@@ -923,12 +923,13 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
     (``RunComplete``); and whether there is such a goal. The live viewer applies the same checks."""
     cfg = scene.data["sim"]
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
-    capacity = {d["name"]: d["capacity"] for d in scene.data["drives"] if "capacity" in d}
+    capacity = CapacityWatch({d["name"]: (d["capacity"], d["capacity_time"]) for d in scene.data["drives"]
+                              if "capacity" in d})
     goal = seated_stop(scene.data["stowage"], sim.system.bodies.names) if "stowage" in scene.data else None
 
     def check(cols, states):
         check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
-        check_capacity(states, cols.scalars, capacity)
+        capacity.check(cols.t, cols.scalars)
         energy.check(cols)
         if goal is not None:
             goal(cols, states)

@@ -4,12 +4,15 @@ hauled bodies reach their stowed poses?
 * **seated**: at the end of the run every body is within ``tolerance`` [m] of its stowed centre of
   mass and ``angle_tolerance`` [deg] of its stowed orientation (the angle of ``R_stowed^T R``); the
   time given is when they entered that tolerance for good;
-* **jammed**: the drive needed more than its capacity (the run stops there with a diagnosis), or
+* **jammed**: the drive needed more than its capacity for its ``capacity_time`` (the run stops there
+  with a diagnosis; ``viz3d.diagnosis.held_effort``), or
   the bodies moved less than ``stall_distance`` over the last ``stall_time`` of a run that ended
   short of seated while the drive was still hauling;
 * **not reached**: anything else (the haul ended short of the stowed pose, still moving).
 
-The peak hauling force is the largest ``|effort|`` of the drive over the run.
+The peak hauling force is the largest effort the drive held for its ``capacity_time`` (the one the
+jam is judged by; ``|effort|`` itself when that is 0); the largest ``|effort|`` of any frame, an
+impact's spike included, is the peak transient.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from viz3d.diagnosis import RunComplete
+from viz3d.diagnosis import RunComplete, held_effort
 from viz3d.outputs import HawseTension
 
 OUTCOMES = ("seated", "jammed", "not reached")
@@ -35,13 +38,15 @@ class Verdict:
     time : float
         When it was decided [s]: seated since, jammed at; the last frame for not reached.
     peak_force : float
-        Largest |effort| of the drive [N].
+        Largest effort the drive held for its ``capacity_time`` [N].
     position_error : float
         Largest distance of a body from its stowed centre of mass at the end [m].
     angle_error : float
         Largest angle of a body from its stowed orientation at the end [deg].
     reason : str
         One line a user reads.
+    peak_transient : float
+        Largest |effort| of any frame [N] (an impact's spike included).
     """
 
     outcome: str
@@ -50,10 +55,11 @@ class Verdict:
     position_error: float
     angle_error: float
     reason: str
+    peak_transient: float = float("nan")
 
     def line(self) -> str:
         return (f"{self.outcome} at t = {self.time:.3f} s ({self.reason}); peak hauling force "
-                f"{self.peak_force / 1e3:.1f} kN; at the end {self.position_error:.3f} m and {self.angle_error:.2f} deg "
+                f"{self.peak_force / 1e3:.1f} kN ({self.peak_transient / 1e3:.1f} kN transient); at the end {self.position_error:.3f} m and {self.angle_error:.2f} deg "
                 f"from stowed")
 
     def as_dict(self) -> dict:
@@ -75,31 +81,38 @@ def pose_errors(spec: dict, t_position: np.ndarray, t_rotation: np.ndarray, inde
 
 
 def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarray, body_names, effort: np.ndarray,
-            capacity: float | None, hauling: np.ndarray) -> Verdict:
+            capacity: float | None, hauling: np.ndarray, capacity_time: float = 0.0) -> Verdict:
     """The ``Verdict`` of a run from its frames: times ``t`` (n_t,), body positions (n_t, nb, 3) and
     rotations (n_t, nb, 3, 3), the drive's effort (n_t,) [N], its capacity [N] (None: unlimited)
-    and whether it hauls at each frame (n_t,) (its prescribed speed is not zero)."""
+    held for ``capacity_time`` [s], and whether it hauls at each frame (n_t,) (its prescribed speed
+    is not zero)."""
     names = list(body_names)
     index = [names.index(b) for b in spec["bodies"]]
     dist, angle = pose_errors(spec, position, rotation, index)
-    peak = float(np.max(np.abs(effort))) if effort.size else 0.0
+    held = held_effort(t, effort, capacity_time)
+    spanned = np.isfinite(held).any()
+    peak = float(np.nanmax(held)) if spanned else float(np.max(np.abs(effort), initial=0.0))
     args = (peak, float(dist[-1]), float(angle[-1]))
-    if capacity is not None and peak > capacity:
-        i = int(np.argmax(np.abs(effort) > capacity))
-        return Verdict("jammed", float(t[i]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
-                       f"capacity {capacity / 1e3:.1f} kN")
+    extra = {"peak_transient": float(np.max(np.abs(effort), initial=0.0))}
+    if capacity is not None and spanned and peak > capacity:
+        i = int(np.argmax(held > capacity))
+        over = np.abs(effort[:i + 1]) > capacity
+        since = i + 1 - (int(np.argmin(over[::-1])) if not over.all() else i + 1)
+        held_text = f" for {t[i] - t[since]:.3g} s" if capacity_time > 0.0 else ""
+        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
+                       f"capacity {capacity / 1e3:.1f} kN{held_text}", **extra)
     inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
     if inside[-1]:
         since = len(inside) - int(np.argmin(inside[::-1])) if not inside.all() else 0
         return Verdict("seated", float(t[since]), *args, f"within {spec['tolerance']:g} m and "
-                       f"{spec['angle_tolerance']:g} deg of the stowed pose")
+                       f"{spec['angle_tolerance']:g} deg of the stowed pose", **extra)
     window = t >= t[-1] - spec["stall_time"]
     if t[-1] - t[0] >= spec["stall_time"] and hauling[-1]:
         moved = np.linalg.norm(position[window][:, index] - position[window][-1:, index], axis=-1).max()
         if moved < spec["stall_distance"]:
             return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
-                           f"{spec['stall_time']:g} s while the drive hauled")
-    return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose")
+                           f"{spec['stall_time']:g} s while the drive hauled", **extra)
+    return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose", **extra)
 
 
 def seated_stop(spec: dict, body_names):
@@ -135,7 +148,8 @@ def run_verdict(data: dict, cols, body_names) -> Verdict | None:
                      and (coordinate is None or k == f"joint/{joint['name']}/{coordinate}_rate")), None)
     hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
     effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
-    v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling)
+    v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling,
+                drive.get("capacity_time", 0.0))
     depth0 = float(np.asarray(cols.scalars.get("collision/max_depth", [0.0]))[0])
     if v.outcome == "jammed" and depth0 > 0.0:  # a scene that starts in contact may 'jam' on its own overlap
         v = replace(v, reason=f"{v.reason}; at t = 0 shapes already overlapped by {depth0:.3g} m (check the "

@@ -111,3 +111,44 @@ def test_a_jam_from_a_starting_overlap_says_so(depth0):
     v = run_verdict(data, cols, ["anchor"])
     assert v.outcome == "jammed" and v.time == pytest.approx(0.3)
     assert ("already overlapped by 0.011 m" in v.reason) == (depth0 > 0)
+
+
+def test_a_spike_shorter_than_capacity_time_is_no_jam_but_a_held_overload_is():
+    """A drive with ``capacity_time`` 0.25 s (frames every 0.1 s): one frame at 7e5 N over its 4.5e5 N
+    capacity (an impact's spike) leaves the anchor seated, with peak force 2e5 N held and 7e5 N
+    transient; 5e5 N from t = 3 s on is a jam at 3 s, decided once held from 3.0 to 3.3 s."""
+    P, R = _approach(6.0)
+    spike = np.where(np.isclose(T, 3.0), 7e5, 2e5)
+    v = verdict(SPEC, T, P, R, ["anchor"], spike, 4.5e5, np.ones(T.size, bool), capacity_time=0.25)
+    assert v.outcome == "seated" and v.peak_force == 2e5 and v.peak_transient == 7e5
+    assert verdict(SPEC, T, P, R, ["anchor"], spike, 4.5e5, np.ones(T.size, bool)).outcome == "jammed"  # 0 s
+    held = np.where(T >= 3.0, 5e5, 2e5)
+    v = verdict(SPEC, T, P, R, ["anchor"], held, 4.5e5, np.ones(T.size, bool), capacity_time=0.25)
+    assert v.outcome == "jammed" and v.time == pytest.approx(3.0) and v.peak_force == 5e5
+    assert "for 0.3 s" in v.reason
+
+
+def test_held_effort_is_the_least_effort_over_the_window():
+    from viz3d.diagnosis import held_effort
+
+    t = np.arange(8) * 0.1
+    e = np.array([1.0, -5.0, 4.0, 6.0, -7.0, 2.0, 9.0, 8.0])
+    np.testing.assert_array_equal(held_effort(t, e, 0.0), np.abs(e))
+    np.testing.assert_array_equal(held_effort(t, e, 0.2), [np.nan, np.nan, 1.0, 4.0, 4.0, 2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(held_effort(t, e, 0.25)[3:], [1.0, 4.0, 2.0, 2.0, 2.0])
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 101])
+def test_the_capacity_watch_stops_a_run_once_the_overload_is_held_in_chunks_of_any_length(chunk):
+    """CapacityWatch over frames given in chunks: a spike passes; an overload from t = 3 s stops the
+    run at the frame of t = 3.3 s (held 0.25 s at frames 0.1 s apart), saying since when."""
+    from viz3d.diagnosis import CapacityWatch, SimulationFailure
+
+    effort = np.where(T >= 3.0, 5e5, 2e5)
+    effort[10] = 9e5                                                # a spike at t = 1 s
+    watch = CapacityWatch({"windlass": (4.5e5, 0.25)})
+    with pytest.raises(SimulationFailure) as failed:
+        for a in range(0, T.size, chunk):
+            watch.check(T[a:a + chunk], {"drive/windlass/effort": effort[a:a + chunk]})
+    assert T[a + failed.value.frame] == pytest.approx(3.3)
+    assert "since t = 3 s" in str(failed.value) and "'windlass'" in str(failed.value)

@@ -87,6 +87,8 @@ SHIP = Table({
     "stall_time": Field(positive, 2.0, "jammed: the anchor moves less than stall_distance in this time while the "
                         "windlass hauls [s]"),
     "stall_distance": Field(positive, 0.02, "[m]"),
+    "overload_time": Field(nonnegative, 0.25, "jammed: the windlass needed more than its capacity for this long [s] "
+                           "(an impact of the anchor on the hull lasts about 10 ms, Hertz; a jam holds it)"),
     "sections": Field(positive_int, 32, "points round the pipe's section in the meshes"),
 }, "generator: a ship's anchor hoisted by its windlass into the hawse pipe and pocket (seed 004)")
 
@@ -212,7 +214,8 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     ]
     out["drives"] = list(raw.get("drives", [])) + [
         {"name": "windlass", "joint": "windlass_guide", "mode": "velocity", "kind": "ramp", "amplitude": v,
-         "start": 0.0, "duration": t_r, "capacity": capacity},
+         "start": 0.0, "duration": t_r, "capacity": capacity,
+         "capacity_time": p["overload_time"]},
     ]
     out["forces"] = list(raw.get("forces", [])) + [
         # the joint's angle is 0 where the flukes start, on their outer stop: phi = phi0 + angle

@@ -507,7 +507,9 @@ DRIVE = Table({
     "start": Field(number, 0.0, "[s] (ramp, smooth_ramp)"),
     "duration": Field(nonnegative, 0.0, "[s] (ramp, smooth_ramp)"),
     "capacity": Field(positive, OPTIONAL, "largest |effort| the drive can give [N or N m] (a windlass's): the run "
-                      "stops with a diagnosis at the first output frame that needs more"),
+                      "stops with a diagnosis once it has needed more for capacity_time"),
+    "capacity_time": Field(nonnegative, 0.0, "[s] how long the drive may need more than its capacity (judged on "
+                           "the output frames: the least |effort| over this time); 0: not at all"),
 }, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
 
 STOWAGE = Table({
