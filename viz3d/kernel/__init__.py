@@ -15,12 +15,8 @@ element type.
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
 (adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection``
 (the ``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
-<<<<<<< HEAD
-steps and runs of them, compiled: ``viz3d.ali3p``'s compiled path).
-=======
-trial points and band matrices: ``viz3d.ali3p``'s compiled path), ``collisions`` (the shape contacts' piece and
-their stick anchors, packed through ``Packer.collision_items``: ``viz3d.contact`` is a layer below).
->>>>>>> h-kcoll
+steps and runs of them, compiled: ``viz3d.ali3p``'s compiled path), ``collisions`` (the shape contacts'
+piece and their stick anchors, packed through ``Packer.collision_items``: ``viz3d.contact`` is a layer below).
 """
 
 from __future__ import annotations
