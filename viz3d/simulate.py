@@ -45,7 +45,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
-from viz3d.system import State, System
+from viz3d.system import State, States, System
 from viz3d.trajectory import Trajectory
 
 #: Output interval when the scene gives none [s].
@@ -237,8 +237,10 @@ class Simulation:
                 new = self._adaptive_samples(target)
         except SingularConstraintError:
             raise SimulationFailure(self._singular_message(self.state)) from None
-        except (ProjectionError, StepSizeUnderflow) as exc:
-            raise SimulationFailure(f"t = {target:.6g} s: {exc}") from None
+        except ProjectionError as exc:  # at the failing step's time: adaptive steps end between the samples
+            raise SimulationFailure(f"t = {exc.t:.6g} s: {exc}") from None
+        except StepSizeUnderflow as exc:  # (its message quotes the step's time)
+            raise SimulationFailure(str(exc)) from None
         finally:
             self.n_rhs += sum(f.n_evals for f in self._fields)
             self._fields.clear()
@@ -309,7 +311,7 @@ class Simulation:
         (``_adaptive_kernel_covers``)."""
         return self._kernel_ready() or self._adaptive_kernel_covers()
 
-    def output_states(self, n_frames: int, every: int) -> list[State]:
+    def output_states(self, n_frames: int, every: int) -> States | list[State]:
         """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
         states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
         the states before the failing frame are returned (``state`` is the last); ``steps(every)``
@@ -324,7 +326,7 @@ class Simulation:
             states, done, status = self._frames_run(done, every)
         return states
 
-    def _frames_run(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
+    def _frames_run(self, n_frames: int, every: int) -> tuple[States | list[State], int, int]:
         """``output_states``'s kernel call from the current state: (the frames' states, frames done,
         status); the states (none on a failure), counters and chart switches move only when every
         frame succeeded."""
@@ -339,9 +341,9 @@ class Simulation:
             self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
             return [], done, status
         self.n_rhs += done * every * self._kernel.tableau.stages
-        nq, nv, n0 = system.n_q, system.n_v, self.n_samples
-        states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
-                                    Y[f, nq + nv:], s.memory, s.element_memory) for f in range(done)]
+        n0 = self.n_samples
+        ts = np.array([self.t0 + (n0 + (f + 1) * every) * self.dt for f in range(done)])
+        states = States.alike(ts, Y, charts, system.n_q, system.n_v, s)
         self.state = states[-1]
         self.n_samples += done * every
         self.n_steps += done * every
@@ -534,8 +536,9 @@ class Simulation:
             self._inner = like.replace(memory=memories[-1])
         elif carry.counts[STEPS]:
             self._span_memory = None
-        states = [_state_at(self.system, float(Ts[f]), Y[f], like.replace(chart=charts[f], memory=self._memory_at(
-                  float(Ts[f]), records, memories, like.memory))) for f in range(done)]
+        states = States(Ts, Y, charts, self.system.n_q, self.system.n_v,
+                        tuple(self._memory_at(float(Ts[f]), records, memories, like.memory) for f in range(done)),
+                        (like.element_memory,) * done)
         self.n_samples += done * every
         if states:
             self.state = states[-1]
@@ -864,7 +867,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
     bar = ProgressBar(n_steps) if progress else None
-    status, wall0 = "ok", time.perf_counter()
+    status, wall0, internal = "ok", time.perf_counter(), None
     check, has_goal = run_checks(sim, scene)
     with InterruptGuard() as guard:
         emitter = _Emitter(sim, sinks, guard)
@@ -880,9 +883,9 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                 if sim.batches_frames and n % fine == 0 and n_steps - n >= fine:
                     want = min((n_steps - n) // fine, log.room)
                     states = sim.output_states(want, fine)
-                    for state in states:
-                        n += fine
-                        log.record(state, n % every == 0 or n == n_steps)  # (may compute and check the chunk)
+                    ns = n + fine * np.arange(1, len(states) + 1)
+                    n += fine * len(states)
+                    log.record_all(States.of(states), (ns % every == 0) | (ns == n_steps))  # (may compute and check the chunk)
                     if bar is not None:
                         bar.update(n)
                     if len(states) == want:
@@ -906,7 +909,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             import traceback
 
             traceback.print_exc()
-            status = f"stopped by an internal error at t = {sim.state.t:.6g} s: {type(exc).__name__}: {exc}"
+            status, internal = "internal error", f"{type(exc).__name__}: {exc}"
         finally:
             if bar is not None:
                 bar.close()
@@ -915,12 +918,15 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                     log.check = None
                     emitter.events(last=True)
                 cols = log.columns(check=False)  # (the instants computed before the stop, to the sinks too)
+                t_stop = cols.t[-1] if len(cols) else sim.state.t  # (the state may be a chunk ahead of its frames)
                 if status == "interrupted":
-                    status = f"interrupted at t = {cols.t[-1] if len(cols) else sim.state.t:.6g} s"
+                    status = f"interrupted at t = {t_stop:.6g} s"
+                elif internal is not None:
+                    status = f"stopped by an internal error at t = {t_stop:.6g} s: {internal}"
                 verdict = run_verdict(scene.data, cols, sim.system.bodies.names)
                 emitter.announce(run_events(scene.data, cols)
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
-                emitter.close(status)  # (events after the last returned state are not on the trajectory)
+                emitter.close(status, t_stop)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
     if joints := {**ledger_fields(sim.system, cols), **joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
@@ -1011,10 +1017,11 @@ class _Emitter:
             for s in self.opened:
                 s.event(t, text)
 
-    def close(self, status: str) -> None:
+    def close(self, status: str, t: float) -> None:
+        """The run's ``status`` to every sink at time ``t`` [s], then close them."""
         for s in self.opened:
             try:
-                s.event(self.sim.state.t, f"status: {status}", "info" if status == "ok" else "error")
+                s.event(t, f"status: {status}", "info" if status == "ok" else "error")
             finally:
                 s.close()
 

@@ -42,14 +42,24 @@ __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EV
            "AdaptiveCarry", "StepRecords"]
 
 
+#: The last packing, ``(system, formulation, data)``: a run packs its system for the initial
+#: projection (``viz3d.scene.build``) and again for its steps; the packed data is only read.
+_LAST_PACKED: list = []
+
+
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
-    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``."""
+    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``
+    (the same system and an equal formulation as the last call's: the same data, not packed again)."""
     if numba is None:
         return None, "numba is not installed"
+    if _LAST_PACKED and _LAST_PACKED[0][0] is system and _LAST_PACKED[0][1] == formulation:
+        return _LAST_PACKED[0][2], None
     try:
-        return pack(system, formulation), None
+        data = pack(system, formulation)
     except Unsupported as e:
         return None, str(e)
+    _LAST_PACKED[:] = [(system, formulation, data)]
+    return data, None
 
 
 def kernel_for(system, formulation) -> KernelData | None:
@@ -248,7 +258,9 @@ def _entry_point(dispatcher, args):
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
     if entry is None:
-        entry = _ENTRIES[key] = _typed_entry(dispatcher, args)
+        entry = _typed_entry(dispatcher, args)
+        if entry is not dispatcher:  # (not compiled nor loaded in this process yet: look again after a call)
+            _ENTRIES[key] = entry
     return entry
 
 
@@ -282,11 +294,17 @@ class KernelStepper:
         return self._view
 
     def _call(self, dispatcher, *args):
+        """``dispatcher(*args)`` through its compiled entry for these argument types: found once per
+        stepper (``_entry_point``, once per process), the dispatcher itself only on the process's
+        first call (which compiles or loads the entry)."""
         fn = self._entries.get(dispatcher)
         if fn is None:
-            result = dispatcher(*args)
-            self._entries[dispatcher] = _entry_point(dispatcher, args)
-            return result
+            fn = _entry_point(dispatcher, args)
+            if fn is dispatcher:
+                result = dispatcher(*args)
+                self._entries[dispatcher] = _entry_point(dispatcher, args)
+                return result
+            self._entries[dispatcher] = fn
         return fn(*args)
 
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:

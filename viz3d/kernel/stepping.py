@@ -41,7 +41,7 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
             y[j] = acc
         if not _finite(y):
             return step + 1, NONFINITE
-        if m.projects == 1:
+        if m.projects == 1 and m.row_body.shape[0] > 0:  # (a call passing the model costs, even with no rows)
             status = project(t0 + (step + 1) * h, y, chart, m, v, w, rows)
             if status == SINGULAR:
                 return step, status
