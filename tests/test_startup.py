@@ -112,7 +112,7 @@ q = system.join_q(np.array([[0.0, 0.0, 0.1]]), theta)
 state = State(0.0, q, np.array([0.0, 0.0, 0.0, 0.0, 0.0, 50.0]), chart)
 stepper = KernelStepper(kernel_for(system, Projection(1e-12)), RK4)
 y, chart = state.y.copy(), state.chart.copy()
-Y, charts, done, _, status = stepper.frames(3, 2, 0, 0.0, 1e-3, y, chart, np.zeros(1, np.int64), 1e6)
+Y, charts, done, _, status, _ = stepper.frames(3, 2, 0, 0.0, 1e-3, y, chart, np.zeros(1, np.int64), 1e6)
 assert done == 3 and status == 0, (done, status)
 stepper.sample(np.array([0.002, 0.004, 0.006]), Y, charts, ())
 """

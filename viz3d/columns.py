@@ -299,8 +299,10 @@ def _sampled(sim, stepper, states: States) -> tuple[FrameColumns, object]:
     system = sim.system
     nb = system.n_bodies
     ts, Y, charts = states.t, states.Y, states.chart  # charts (N, nf, 3, 3), nf may be 0
-    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states.memory[a]) for a, b in _groups(states.memory)]
-    s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
+    s = states.samples  # (taken with the states by the kernel's batched stepping)
+    if s is None:
+        samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states.memory[a]) for a, b in _groups(states.memory)]
+        s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
     cfgs = _configurations(stepper.data, ts, s) if (system.bodies.flexible or system.outputs) else None

@@ -335,15 +335,16 @@ class Simulation:
         s, system = self.state, self.system
         y, chart = s.y, s.chart.copy()  # (State.y is a new array)
         switches = np.zeros(system.n_bodies, np.int64)
-        Y, charts, done, partial, status = self._kernel.frames(n_frames, every, self.n_samples, self.t0, self.dt, y,
-                                                               chart, switches, self.blowup_speed)
+        Y, charts, done, partial, status, samples = self._kernel.frames(
+            n_frames, every, self.n_samples, self.t0, self.dt, y, chart, switches, self.blowup_speed,
+            self.kernel_sampler() is not None)
         if status != OK:  # the failed frame's evaluations count (a singular step stops inside its stages)
             self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
             return [], done, status
         self.n_rhs += done * every * self._kernel.tableau.stages
         n0 = self.n_samples
         ts = np.array([self.t0 + (n0 + (f + 1) * every) * self.dt for f in range(done)])
-        states = States.alike(ts, Y, charts, system.n_q, system.n_v, s)
+        states = States.alike(ts, Y, charts, system.n_q, system.n_v, s, samples)
         self.state = states[-1]
         self.n_samples += done * every
         self.n_steps += done * every

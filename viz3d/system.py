@@ -242,6 +242,8 @@ class States:
         Where ``q`` and ``v`` end in a row of ``Y``.
     memory, element_memory : tuple, length N
         Each state's ``State.memory`` and ``State.element_memory``.
+    samples : viz3d.kernel.Samples, optional
+        Their output samples when the kernel took them with the states (``KernelStepper.frames``).
     """
 
     t: FloatArray
@@ -251,12 +253,14 @@ class States:
     n_v: int
     memory: tuple
     element_memory: tuple
+    samples: object = None
 
     @classmethod
-    def alike(cls, t: FloatArray, Y: FloatArray, chart: FloatArray, n_q: int, n_v: int, like: State) -> "States":
+    def alike(cls, t: FloatArray, Y: FloatArray, chart: FloatArray, n_q: int, n_v: int, like: State,
+              samples=None) -> "States":
         """States whose contact and element memory are ``like``'s."""
         n = t.shape[0]
-        return cls(t, Y, chart, n_q, n_v, (like.memory,) * n, (like.element_memory,) * n)
+        return cls(t, Y, chart, n_q, n_v, (like.memory,) * n, (like.element_memory,) * n, samples)
 
     @classmethod
     def of(cls, states) -> "States":
@@ -272,13 +276,17 @@ class States:
 
     @classmethod
     def join(cls, parts: list["States"]) -> "States":
-        """Consecutive ``parts`` as one ``States``."""
+        """Consecutive ``parts`` as one ``States`` (with samples when every part has them)."""
         if len(parts) == 1:
             return parts[0]
         p0 = parts[0]
+        samples = None
+        if all(p.samples is not None for p in parts):
+            samples = type(p0.samples)(*(np.concatenate(x) for x in zip(*(p.samples for p in parts))))
         return cls(np.concatenate([p.t for p in parts]), np.concatenate([p.Y for p in parts]),
                    np.concatenate([p.chart for p in parts]), p0.n_q, p0.n_v,
-                   tuple(m for p in parts for m in p.memory), tuple(m for p in parts for m in p.element_memory))
+                   tuple(m for p in parts for m in p.memory), tuple(m for p in parts for m in p.element_memory),
+                   samples)
 
     def __len__(self) -> int:
         return self.t.shape[0]
@@ -290,8 +298,9 @@ class States:
             return self
         if isinstance(i, (slice, np.ndarray, list)):
             idx = np.arange(len(self))[i]
+            samples = None if self.samples is None else type(self.samples)(*(a[i] for a in self.samples))
             return States(self.t[i], self.Y[i], self.chart[i], self.n_q, self.n_v,
-                          tuple(self.memory[k] for k in idx), tuple(self.element_memory[k] for k in idx))
+                          tuple(self.memory[k] for k in idx), tuple(self.element_memory[k] for k in idx), samples)
         y, n_q, n_v = self.Y[i], self.n_q, self.n_v
         return State(float(self.t[i]), y[:n_q], y[n_q:n_q + n_v], self.chart[i], y[n_q + n_v:], self.memory[i],
                      self.element_memory[i])
