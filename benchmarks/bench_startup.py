@@ -17,9 +17,11 @@ and ``viz3d run scenes/heavy_top.toml --t-end 0.01`` (10 steps). ``--before DIR`
 tree too (an earlier version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through
 PYTHONPATH, in the same rounds. A last table splits one run into its phases (imports, scene load and
 build, the initial projection included: in the kernel for a covered rigid system, through the kernel's
-one entry for a run, ``advance_frames``, loaded from numba's cache; the kernel's first call = stepping
-and sampling a frame; the rest of the run: the steps, the output), wall and CPU time, best of
-``--repeat``.
+one entry for a run, ``advance_frames``, loaded from numba's cache; before that entry took the
+sampling and projection too, the initial projection loaded an entry of its own; the kernel's first
+call = one step through ``advance_frames``: loading it, on trees where the build did not; the rest of
+the run: the steps and their sampling, whose entry earlier trees loaded here, the output), wall and
+CPU time, best of ``--repeat``.
 The load average is quoted before and after.
 """
 
@@ -69,7 +71,7 @@ from viz3d.integrators.tableaus import RK4
 from viz3d.kernel import KernelStepper, kernel_for
 data = kernel_for(system, make_formulation(scene.data["sim"]))
 y, chart = state.y.copy(), state.chart.copy()
-KernelStepper(data, RK4).frames(1, 1, 0, 0.0, 1e-3, y, chart, np.zeros(system.n_bodies, np.int64), 1e6, True)
+KernelStepper(data, RK4).frames(1, 1, 0, 0.0, 1e-3, y, chart, np.zeros(system.n_bodies, np.int64), 1e6)
 t3 = now()
 main(["run", {scene!r}, "--t-end", "0.01", "--out", {out!r}, "--no-progress"])
 t4 = now()
