@@ -40,24 +40,14 @@ __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EV
            "AdaptiveCarry", "StepRecords"]
 
 
-#: The last packing, ``(system, formulation, data)``: a run packs its system for the initial
-#: projection (``viz3d.scene.build``) and again for its steps; the packed data is only read.
-_LAST_PACKED: list = []
-
-
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
-    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``
-    (the same system and an equal formulation as the last call's: the same data, not packed again)."""
+    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``."""
     if numba is None:
         return None, "numba is not installed"
-    if _LAST_PACKED and _LAST_PACKED[0][0] is system and _LAST_PACKED[0][1] == formulation:
-        return _LAST_PACKED[0][2], None
     try:
-        data = pack(system, formulation)
+        return pack(system, formulation), None
     except Unsupported as e:
         return None, str(e)
-    _LAST_PACKED[:] = [(system, formulation, data)]
-    return data, None
 
 
 def kernel_for(system, formulation) -> KernelData | None:
