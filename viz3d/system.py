@@ -226,7 +226,7 @@ class State:
         return np.concatenate([self.q, self.v, self.w]) if self.w.size else np.concatenate([self.q, self.v])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class States:
     """The states of a run at N instants as arrays (a sequence of ``State``, each built when indexed):
     what the kernel returns for a batch of output frames, without a ``State`` per frame.
