@@ -15,6 +15,24 @@ element type.
 Modules: ``model`` (packing), ``field`` (the vector field), ``stepping`` (RK steps), ``adaptive``
 (adaptive runs: error control, dense output, event sign checks, step records of law contacts), ``projection``
 (the ``projection`` formulation's post-step projections), ``sampling`` (output samples), ``ali3p`` (ALI3-P's
+steps and runs of them, compiled: ``viz3d.ali3p``'s compiled path), ``collisions`` (the shape contacts'
+piece and their stick anchors, packed through ``Packer.collision_items``: ``viz3d.contact`` is a layer below).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from viz3d.compiled import numba
+
+try:  # numba's fingerprint of an argument's type (C, fast), the key of its own dispatch cache
+    from numba._dispatcher import compute_fingerprint
+except ImportError:  # pragma: no cover - no numba, or a numba without it: _entry_point types each time
+    pass
+from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
+from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
 from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
