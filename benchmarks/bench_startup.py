@@ -16,10 +16,12 @@ kernel and imports numba only), ``import viz3d``, ``import viz3d.cli``,
 and ``viz3d run scenes/heavy_top.toml --t-end 0.01`` (10 steps). ``--before DIR`` measures a second source
 tree too (an earlier version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through
 PYTHONPATH, in the same rounds. A last table splits one run into its phases (imports, scene load and
-build, the initial projection included: in the kernel for a covered rigid system, its projection entry
-loaded from numba's cache; the kernel's first call = loading the run's stepping entry, ``advance_frames``, from numba's
-cache, the rest of the run: its sampling entry loaded, the steps, the output), wall and CPU time,
-best of ``--repeat``.
+build, the initial projection included: in the kernel for a covered rigid system, through the kernel's
+one entry for a run, ``advance_frames``, loaded from numba's cache; before that entry took the
+sampling and projection too, the initial projection loaded an entry of its own; the kernel's first
+call = one step through ``advance_frames``: loading it, on trees where the build did not; the rest of
+the run: the steps and their sampling, whose entry earlier trees loaded here, the output), wall and
+CPU time, best of ``--repeat``.
 The load average is quoted before and after.
 """
 

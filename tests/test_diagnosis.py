@@ -61,3 +61,24 @@ def test_redundant_joints_are_named(write_scene):
         assert "'hinge', 'hinge_again' are redundant" in str(exc) and "scene.toml: joints:" in str(exc)
     else:
         raise AssertionError("redundant joints were not reported")
+
+
+def test_a_failing_adaptive_step_is_quoted_at_its_own_time_not_the_next_sample():
+    """Adaptive steps end between the output samples (here 0.01 s apart, steps of a few ms at rtol
+    1e-9): a projection that cannot reach its tolerance (1e-16 m, below the round-off of |C|) stops
+    the run at the time of the step it failed on (after the last frame; the step may end past the
+    next sample, which it had to reach first), not at the next sample's time, on the compiled path
+    and on NumPy's."""
+    import re
+
+    from conftest import SCENES
+
+    for compiled in ("true", "false"):
+        traj = viz3d.simulate(SCENES / "chain.toml", ["chain.n=3", "sim.formulation=projection", "sim.integrator=dopri5",
+                                                      "sim.dt=0.01", "sim.rtol=1e-9", "sim.atol=1e-12",
+                                                      "sim.projection_tol=1e-16", "sim.t_end=1.0",
+                                                      f"sim.compiled={compiled}"])
+        assert "position projection left" in traj.status, traj.status
+        t_fail = float(re.match(r"t = (\S+) s: ", traj.status).group(1))
+        sample = traj.t[-1] + 0.01
+        assert traj.t[-1] < t_fail < sample + 0.01 and abs(t_fail - sample) > 1e-6, (traj.status, traj.t[-1])

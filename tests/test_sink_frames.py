@@ -153,4 +153,5 @@ def test_a_sink_that_fails_ends_the_run_with_the_frames_it_got():
     sink = Fails()
     traj = viz3d.simulate(SCENES / "heavy_top.toml", ["sim.t_end=0.3"], sinks=[sink])
     assert traj.status.startswith("stopped by an internal error") and "RuntimeError: disk full" in traj.status
+    assert "at t = 0.2 s:" in traj.status, traj.status  # its last frame's time, not the state's a chunk later
     assert traj.t[-1] == pytest.approx(0.2) and sink.t[-1] == pytest.approx(0.2)  # the frames up to the failure

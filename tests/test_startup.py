@@ -83,6 +83,24 @@ def test_a_warm_rigid_run_imports_no_scipy_linalg(tmp_path):
     assert not offending(modules, ("scipy.linalg", "scipy.linalg.lapack", "scipy.linalg.cython_lapack"))
 
 
+def test_a_warm_rigid_run_loads_one_compiled_entry(tmp_path):
+    """Each compiled entry loaded from numba's cache costs a run's start tens of milliseconds (its
+    library carries its own copy of the vector field): a covered rigid run's initial projection, steps
+    and output samples all go through ``advance_frames``, the one entry it loads."""
+    pytest.importorskip("numba")
+    out = tmp_path / "top.npz"
+    run = ("from viz3d.cli import main\n"
+           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
+    loaded_after(run)  # warms numba's cache
+    probe = (run + "import sys\nfrom numba.core.registry import CPUDispatcher\n"
+             "entries = sorted({d.py_func.__qualname__ for name, mod in list(sys.modules.items()) if name.startswith('viz3d')"
+             " for d in vars(mod).values() if isinstance(d, CPUDispatcher) and d.overloads"
+             " and not d.targetoptions.get('no_cpython_wrapper')})\n"
+             "print(entries)\n"
+             "assert entries == ['advance_frames'], entries\n")
+    loaded_after(probe)
+
+
 def test_the_compiled_kernel_needs_no_lapack():
     """The kernel's solves are its own loops (no ``np.linalg`` in compiled code, which would make numba
     import scipy.linalg.cython_lapack when the code runs): stepping, projecting and sampling a top on a
@@ -112,7 +130,7 @@ q = system.join_q(np.array([[0.0, 0.0, 0.1]]), theta)
 state = State(0.0, q, np.array([0.0, 0.0, 0.0, 0.0, 0.0, 50.0]), chart)
 stepper = KernelStepper(kernel_for(system, Projection(1e-12)), RK4)
 y, chart = state.y.copy(), state.chart.copy()
-Y, charts, done, _, status = stepper.frames(3, 2, 0, 0.0, 1e-3, y, chart, np.zeros(1, np.int64), 1e6)
+Y, charts, done, _, status, _ = stepper.frames(3, 2, 0, 0.0, 1e-3, y, chart, np.zeros(1, np.int64), 1e6)
 assert done == 3 and status == 0, (done, status)
 stepper.sample(np.array([0.002, 0.004, 0.006]), Y, charts, ())
 """

@@ -32,7 +32,7 @@ from viz3d.contact.contacts import Gap
 from viz3d.frames import Frame, drawing_of, ledger_scalars
 from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
-from viz3d.system import State, System
+from viz3d.system import State, States, System
 
 #: States turned into columns at a time (the run's health checks on energy and constraint
 #: violation see frames in chunks this long; a chunk of a 50-link chain holds about 2 MB).
@@ -149,8 +149,9 @@ class StateLog:
                  drawings: tuple = ()):
         self.sim, self.check, self.chunk = sim, check, chunk
         self.emit, self.hold, self.drawings = emit, hold or nullcontext, drawings
-        self.states: list[State] = []
-        self.outputs: list[bool] = []
+        self.pieces: list[States] = []                   # the instants kept, in batches
+        self.outputs: list[np.ndarray] = []              # per batch: which are output instants
+        self.kept = 0                                    # instants kept
         self.notes: list[tuple[int, float, str]] = []   # (instant it precedes, t, text)
         self.handed = 0                                  # instants of the chunk being flushed handed on
         self.parts: list[FrameColumns] = []
@@ -160,39 +161,48 @@ class StateLog:
     @property
     def room(self) -> int:
         """Instants that can be recorded before the chunk is computed (at least 1)."""
-        return max(1, self.chunk - len(self.states))
+        return max(1, self.chunk - self.kept)
 
     def record(self, state: State, output: bool = True) -> None:
         """Keep ``state`` (an output instant, else one only the sinks get); compute the chunk when
         it is full."""
-        if not output and self.emit is None:
+        self.record_all(States.of([state]), np.array([output]))
+
+    def record_all(self, states: States, outputs: np.ndarray) -> None:
+        """``record`` of each of ``states`` (``outputs`` (N,) bool: which are output instants) in one
+        call: the kernel's batches of frames without a ``State`` each."""
+        if self.emit is None and not outputs.all():
+            states, outputs = states[outputs], outputs[outputs]
+        if not len(states):
             return
-        self.states.append(state)
-        self.outputs.append(output)
-        if len(self.states) >= self.chunk:
+        self.pieces.append(states)
+        self.outputs.append(outputs)
+        self.kept += len(states)
+        if self.kept >= self.chunk:
             self.flush()
 
     def note(self, t: float, text: str) -> None:
         """A text for the sinks at time ``t`` [s], handed on after the instants recorded so far."""
         if self.emit is not None:
-            self.notes.append((len(self.states), t, text))
+            self.notes.append((self.kept, t, text))
 
     def flush(self, check: bool = True) -> None:
         """Turn the instants kept so far into columns, check the output ones, hand the frames on;
         a check that fails at output frame ``i`` of the chunk (its exception's ``frame``) keeps (and
         hands on) the instants up to that frame only. An interrupt (inside ``hold``) leaves the
         instants not handed on yet pending (before the check) or drops them (after it)."""
-        if not self.states and not self.notes:
+        if not self.kept and not self.notes:
             return
-        states, outputs = list(self.states), np.array(self.outputs, bool)
-        cols, frame_at = self._columns(states) if states else (None, None)
+        states = States.join(self.pieces) if self.pieces else None
+        outputs = np.concatenate(self.outputs) if self.outputs else np.zeros(0, bool)
+        cols, frame_at = self._columns(states) if states is not None else (None, None)
         out = np.flatnonzero(outputs)
         part = None if cols is None else cols if out.size == len(states) else cols.take(out)
         limit, failure = len(states), None
         with self.hold():
             try:
                 if check and self.check is not None and part is not None:
-                    self.check(part, [states[i] for i in out])
+                    self.check(part, states if out.size == len(states) else states[out])
             except Exception as exc:
                 failure = exc
                 if getattr(exc, "frame", None) is not None:
@@ -200,7 +210,7 @@ class StateLog:
         notes, self.handed = self.notes, 0
         try:
             with self.hold():  # (without sinks the chunk is taken and kept at once)
-                self.states, self.outputs, self.notes = [], [], []
+                self.pieces, self.outputs, self.notes, self.kept = [], [], [], 0
                 if self.emit is None:
                     self.handed = limit
             self._hand_on(notes, frame_at, outputs, limit)
@@ -236,14 +246,16 @@ class StateLog:
 
     # ------------------------------------------------------------------ the two paths
 
-    def _columns(self, states: list[State]) -> tuple[FrameColumns, Callable[[int], Frame]]:
+    def _columns(self, states: States) -> tuple[FrameColumns, Callable[[int], Frame]]:
         return chunk_frames(self.sim, states, self.drawings)
 
 
-def chunk_frames(sim, states: list[State], drawings: tuple = ()) -> tuple[FrameColumns, Callable[[int], Frame]]:
-    """The ``FrameColumns`` of ``states`` and the ``Frame`` of each, by index (drawing the flexible
-    bodies of ``drawings``): from the kernel's samples in one call (``frame_of``) when it covers the
-    run, else each state's NumPy frame (``Simulation.frame``)."""
+def chunk_frames(sim, states, drawings: tuple = ()) -> tuple[FrameColumns, Callable[[int], Frame]]:
+    """The ``FrameColumns`` of ``states`` (a sequence of ``State``, or ``States``) and the ``Frame``
+    of each, by index (drawing the flexible bodies of ``drawings``): from the kernel's samples in
+    one call (``frame_of``) when it covers the run, else each state's NumPy frame
+    (``Simulation.frame``)."""
+    states = States.of(states)
     stepper = sim.kernel_sampler()
     if stepper is not None:
         try:
@@ -269,28 +281,29 @@ def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, 
                  ColumnRow(cols.scalars, i), draw)
 
 
-def _groups(states: list[State]) -> list[tuple[int, int]]:
+def _groups(memory: tuple, elements: tuple) -> list[tuple[int, int]]:
     """Runs ``[a, b)`` of consecutive states sharing one contact memory object and one force elements'
-    memory object."""
+    memory object (``memory``, ``elements``: each state's)."""
+    if len(set(map(id, memory))) <= 1 and len(set(map(id, elements))) <= 1:
+        return [(0, len(memory))] if memory else []
     out, a = [], 0
-    for i in range(1, len(states) + 1):
-        if (i == len(states) or states[i].memory is not states[a].memory
-                or states[i].element_memory is not states[a].element_memory):
+    for i in range(1, len(memory) + 1):
+        if i == len(memory) or memory[i] is not memory[a] or elements[i] is not elements[a]:
             out.append((a, i))
             a = i
     return out
 
 
-def _sampled(sim, stepper, states: list[State]) -> tuple[FrameColumns, object]:
+def _sampled(sim, stepper, states: States) -> tuple[FrameColumns, object]:
     """Columns of ``states`` from the kernel's samples (see the module docstring), and the samples."""
     system = sim.system
     nb = system.n_bodies
-    ts = np.array([s.t for s in states])
-    Y = np.array([s.y for s in states])
-    charts = np.stack([s.chart for s in states])  # (N, nf, 3, 3), nf may be 0
-    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states[a].memory, states[a].element_memory)
-               for a, b in _groups(states)]
-    s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
+    ts, Y, charts = states.t, states.Y, states.chart  # charts (N, nf, 3, 3), nf may be 0
+    s = states.samples  # (taken with the states by the kernel's batched stepping)
+    if s is None:
+        samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states.memory[a], states.element_memory[a])
+                   for a, b in _groups(states.memory, states.element_memory)]
+        s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
     measured = [e for e in system.forces if hasattr(e, "scalars")]  # (shape contacts: counts, depth, force)
@@ -370,7 +383,7 @@ def _rows(system: System, s) -> tuple[FloatArray, FloatArray]:
     return violation, np.concatenate(reactions, axis=1)
 
 
-def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatArray:
+def _contact_columns(sim, data, states: States, s, scalars: dict) -> FloatArray:
     """The contacts' scalars (force, indentation per contact) into ``scalars``; returns each contact's
     elastic energy (n, k) [J]. A contact's law force and stored energy are zero unless it overlaps
     or touches: only such states are evaluated one by one."""
@@ -381,7 +394,7 @@ def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatA
     k_all = data.n_contacts
     U, F = np.zeros((n, k_all)), np.zeros((n, k_all))
     alpha = s.gap[:, :, 0]
-    touching = np.array([any(p.touching for phases in st.memory for p in phases) for st in states], dtype=bool)
+    touching = np.array([any(p.touching for phases in mem for p in phases) for mem in states.memory], dtype=bool)
     for i in np.flatnonzero((alpha > 0.0).any(axis=1) | touching):
         st = states[i]
         g = s.gap[i]
@@ -399,7 +412,7 @@ def _contact_columns(sim, data, states: list[State], s, scalars: dict) -> FloatA
     return U
 
 
-def _ledger_columns(sim, states: list[State], T, V_forces, strain, U, scalars: dict) -> None:
+def _ledger_columns(sim, states: States, T, V_forces, strain, U, scalars: dict) -> None:
     """The energy ledger's scalars (``viz3d.frames.ledger_scalars``) into ``scalars``: kinetic ``T``,
     the force elements' potentials ``V_forces`` (n, 2) (signed, others), ``strain`` (n,) and the
     contacts' stored energies ``U`` (n, k) [J]."""

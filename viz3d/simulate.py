@@ -45,7 +45,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
-from viz3d.system import State, System
+from viz3d.system import State, States, System
 from viz3d.trajectory import Trajectory
 
 #: Output interval when the scene gives none [s].
@@ -240,8 +240,10 @@ class Simulation:
                 new = self._adaptive_samples(target)
         except SingularConstraintError:
             raise SimulationFailure(self._singular_message(self.state)) from None
-        except (ProjectionError, StepSizeUnderflow) as exc:
-            raise SimulationFailure(f"t = {target:.6g} s: {exc}") from None
+        except ProjectionError as exc:  # at the failing step's time: adaptive steps end between the samples
+            raise SimulationFailure(f"t = {exc.t:.6g} s: {exc}") from None
+        except StepSizeUnderflow as exc:  # (its message quotes the step's time)
+            raise SimulationFailure(str(exc)) from None
         finally:
             self.n_rhs += sum(f.n_evals for f in self._fields)
             self._fields.clear()
@@ -320,7 +322,7 @@ class Simulation:
         (``_adaptive_kernel_covers``); those of a formulation that steps itself (``_own_kernel_ready``)."""
         return self._kernel_ready() or self._adaptive_kernel_covers() or self._own_kernel_ready()
 
-    def output_states(self, n_frames: int, every: int) -> list[State]:
+    def output_states(self, n_frames: int, every: int) -> States | list[State]:
         """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
         states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
         the states before the failing frame are returned (``state`` is the last); ``steps(every)``
@@ -337,7 +339,7 @@ class Simulation:
             states, done, status = self._frames_run(done, every)
         return states
 
-    def _frames_run(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
+    def _frames_run(self, n_frames: int, every: int) -> tuple[States | list[State], int, int]:
         """``output_states``'s kernel call from the current state: (the frames' states, frames done,
         status); the states (none on a failure), counters and chart switches move only when every
         frame succeeded. Force elements with memory: one call per frame (each state carries its own
@@ -346,31 +348,33 @@ class Simulation:
 
         if not self._kernel.data.anchors:
             return self._frames_call(n_frames, every)
-        states: list[State] = []
+        parts: list[States] = []
         for _ in range(n_frames):
             got, _, status = self._frames_call(1, every)
-            states += got
             if status != OK:
-                return states, 0, status
-        return states, n_frames, OK
+                return (States.join(parts) if parts else []), 0, status
+            parts.append(got)
+        return States.join(parts), n_frames, OK
 
-    def _frames_call(self, n_frames: int, every: int) -> tuple[list[State], int, int]:
+    def _frames_call(self, n_frames: int, every: int) -> tuple[States | list[State], int, int]:
         """``_frames_run`` in one kernel call."""
         from viz3d.kernel import OK, SINGULAR
 
         s, system = self.state, self.system
         y, chart = s.y, s.chart.copy()  # (State.y is a new array)
         switches = np.zeros(system.n_bodies, np.int64)
-        Y, charts, done, partial, status = self._kernel.frames(n_frames, every, self.n_samples, self.t0, self.dt, y,
-                                                               chart, switches, self.blowup_speed, s.element_memory)
+        anchors = bool(self._kernel.data.anchors)  # (sampled after the call, with each state's anchors)
+        Y, charts, done, partial, status, samples = self._kernel.frames(
+            n_frames, every, self.n_samples, self.t0, self.dt, y, chart, switches, self.blowup_speed,
+            s.element_memory, self.kernel_sampler() is not None and not anchors)
         if status != OK:  # the failed frame's evaluations count (a singular step stops inside its stages)
             self.n_rhs += (done * every + partial + (status == SINGULAR)) * self._kernel.tableau.stages
             return [], done, status
         self.n_rhs += done * every * self._kernel.tableau.stages
-        nq, nv, n0 = system.n_q, system.n_v, self.n_samples
+        n0 = self.n_samples
         elements = self._kernel_elements()  # (one frame when it changes: _frames_run)
-        states = [State(self.t0 + (n0 + (f + 1) * every) * self.dt, Y[f, :nq], Y[f, nq:nq + nv], charts[f],
-                        Y[f, nq + nv:], s.memory, elements) for f in range(done)]
+        ts = np.array([self.t0 + (n0 + (f + 1) * every) * self.dt for f in range(done)])
+        states = States.alike(ts, Y, charts, system.n_q, system.n_v, s.replace(element_memory=elements), samples)
         self.state = states[-1]
         self.n_samples += done * every
         self.n_steps += done * every
@@ -607,8 +611,9 @@ class Simulation:
             self._inner = like.replace(memory=memories[-1])
         elif carry.counts[STEPS]:
             self._span_memory = None
-        states = [_state_at(self.system, float(Ts[f]), Y[f], like.replace(chart=charts[f], memory=self._memory_at(
-                  float(Ts[f]), records, memories, like.memory))) for f in range(done)]
+        states = States(Ts, Y, charts, self.system.n_q, self.system.n_v,
+                        tuple(self._memory_at(float(Ts[f]), records, memories, like.memory) for f in range(done)),
+                        (like.element_memory,) * done)
         self.n_samples += done * every
         if states:
             self.state = states[-1]
@@ -947,7 +952,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
     bar = ProgressBar(n_steps) if progress else None
-    status, wall0 = "ok", time.perf_counter()
+    status, wall0, internal = "ok", time.perf_counter(), None
     check, has_goal = run_checks(sim, scene)
     with InterruptGuard() as guard:
         emitter = _Emitter(sim, sinks, guard)
@@ -963,9 +968,9 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                 if sim.batches_frames and n % fine == 0 and n_steps - n >= fine:
                     want = min((n_steps - n) // fine, log.room)
                     states = sim.output_states(want, fine)
-                    for state in states:
-                        n += fine
-                        log.record(state, n % every == 0 or n == n_steps)  # (may compute and check the chunk)
+                    ns = n + fine * np.arange(1, len(states) + 1)
+                    n += fine * len(states)
+                    log.record_all(States.of(states), (ns % every == 0) | (ns == n_steps))  # (may compute and check the chunk)
                     if bar is not None:
                         bar.update(n)
                     if len(states) == want:
@@ -989,7 +994,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             import traceback
 
             traceback.print_exc()
-            status = f"stopped by an internal error at t = {sim.state.t:.6g} s: {type(exc).__name__}: {exc}"
+            status, internal = "internal error", f"{type(exc).__name__}: {exc}"
         finally:
             if bar is not None:
                 bar.close()
@@ -998,12 +1003,15 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                     log.check = None
                     emitter.events(last=True)
                 cols = log.columns(check=False)  # (the instants computed before the stop, to the sinks too)
+                t_stop = cols.t[-1] if len(cols) else sim.state.t  # (the state may be a chunk ahead of its frames)
                 if status == "interrupted":
-                    status = f"interrupted at t = {cols.t[-1] if len(cols) else sim.state.t:.6g} s"
+                    status = f"interrupted at t = {t_stop:.6g} s"
+                elif internal is not None:
+                    status = f"stopped by an internal error at t = {t_stop:.6g} s: {internal}"
                 verdict = run_verdict(scene.data, cols, sim.system.bodies.names)
                 emitter.announce(run_events(scene.data, cols)
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
-                emitter.close(status)  # (events after the last returned state are not on the trajectory)
+                emitter.close(status, t_stop)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
     if joints := {**ledger_fields(sim.system, cols), **joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
@@ -1094,10 +1102,11 @@ class _Emitter:
             for s in self.opened:
                 s.event(t, text)
 
-    def close(self, status: str) -> None:
+    def close(self, status: str, t: float) -> None:
+        """The run's ``status`` to every sink at time ``t`` [s], then close them."""
         for s in self.opened:
             try:
-                s.event(self.sim.state.t, f"status: {status}", "info" if status == "ok" else "error")
+                s.event(t, f"status: {status}", "info" if status == "ok" else "error")
             finally:
                 s.close()
 

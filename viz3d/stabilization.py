@@ -22,7 +22,11 @@ MAX_ITER = 50
 
 
 class ProjectionError(RuntimeError):
-    """The position projection did not converge."""
+    """The position projection did not converge; ``t`` [s] is the time of the state projected."""
+
+    def __init__(self, message: str, t: float):
+        super().__init__(message)
+        self.t = t
 
 
 def _min_norm_correction(system, cfg, rows, r) -> FloatArray:
@@ -58,7 +62,8 @@ def project_positions(system, q: FloatArray, chart: FloatArray, tol: float = 1e-
         dW, dphi = system.split_v(dx)
         eta = system.elastic_part(q, system.n_frames * system.n_q_body) + system.elastic_part(dx, 6 * system.n_frames)
         q = system.join_q(W_r + dW, system.rotation.correct(theta, dphi), eta)
-    raise ProjectionError(f"position projection left max |C| = {np.max(np.abs(C)):.3e} m after {max_iter} iterations")
+    raise ProjectionError(f"position projection left max |C| = {np.max(np.abs(C)):.3e} m after {max_iter} iterations",
+                          t)
 
 
 def project_velocities(system, q: FloatArray, v: FloatArray, chart: FloatArray, memory: tuple = (),

@@ -224,3 +224,86 @@ class State:
     def y(self) -> FloatArray:
         """``[q, v, w]`` stacked, shape (n_q + n_v + n_aux,): what integrators advance."""
         return np.concatenate([self.q, self.v, self.w]) if self.w.size else np.concatenate([self.q, self.v])
+
+
+@dataclass(frozen=True, eq=False)
+class States:
+    """The states of a run at N instants as arrays (a sequence of ``State``, each built when indexed):
+    what the kernel returns for a batch of output frames, without a ``State`` per frame.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Times [s].
+    Y : ndarray, shape (N, n_q + n_v + n_aux)
+        Each state's ``State.y``.
+    chart : ndarray, shape (N, nf, 3, 3)
+    n_q, n_v : int
+        Where ``q`` and ``v`` end in a row of ``Y``.
+    memory, element_memory : tuple, length N
+        Each state's ``State.memory`` and ``State.element_memory``.
+    samples : viz3d.kernel.Samples, optional
+        Their output samples when the kernel took them with the states (``KernelStepper.frames``).
+    """
+
+    t: FloatArray
+    Y: FloatArray
+    chart: FloatArray
+    n_q: int
+    n_v: int
+    memory: tuple
+    element_memory: tuple
+    samples: object = None
+
+    @classmethod
+    def alike(cls, t: FloatArray, Y: FloatArray, chart: FloatArray, n_q: int, n_v: int, like: State,
+              samples=None) -> "States":
+        """States whose contact and element memory are ``like``'s."""
+        n = t.shape[0]
+        return cls(t, Y, chart, n_q, n_v, (like.memory,) * n, (like.element_memory,) * n, samples)
+
+    @classmethod
+    def of(cls, states) -> "States":
+        """``states`` (a sequence of ``State`` or a ``States``, all of one system) as one ``States``."""
+        if isinstance(states, States):
+            return states
+        if not states:
+            return cls(np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0, 3, 3)), 0, 0, (), ())
+        s0 = states[0]
+        return cls(np.array([s.t for s in states], float), np.array([s.y for s in states]),
+                   np.stack([s.chart for s in states]), s0.q.shape[0], s0.v.shape[0],
+                   tuple(s.memory for s in states), tuple(s.element_memory for s in states))
+
+    @classmethod
+    def join(cls, parts: list["States"]) -> "States":
+        """Consecutive ``parts`` as one ``States`` (with samples when every part has them)."""
+        if len(parts) == 1:
+            return parts[0]
+        p0 = parts[0]
+        samples = None
+        if all(p.samples is not None for p in parts):
+            samples = type(p0.samples)(*(np.concatenate(x) for x in zip(*(p.samples for p in parts))))
+        return cls(np.concatenate([p.t for p in parts]), np.concatenate([p.Y for p in parts]),
+                   np.concatenate([p.chart for p in parts]), p0.n_q, p0.n_v,
+                   tuple(m for p in parts for m in p.memory), tuple(m for p in parts for m in p.element_memory),
+                   samples)
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+    def __getitem__(self, i):
+        """State ``i`` (its ``q``, ``v``, ``w`` views of ``Y[i]``), or the ``States`` of a slice or an
+        index array."""
+        if isinstance(i, np.ndarray) and i.dtype == bool and i.all():
+            return self
+        if isinstance(i, (slice, np.ndarray, list)):
+            idx = np.arange(len(self))[i]
+            samples = None if self.samples is None else type(self.samples)(*(a[i] for a in self.samples))
+            return States(self.t[i], self.Y[i], self.chart[i], self.n_q, self.n_v,
+                          tuple(self.memory[k] for k in idx), tuple(self.element_memory[k] for k in idx), samples)
+        y, n_q, n_v = self.Y[i], self.n_q, self.n_v
+        return State(float(self.t[i]), y[:n_q], y[n_q:n_q + n_v], self.chart[i], y[n_q + n_v:], self.memory[i],
+                     self.element_memory[i])
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))

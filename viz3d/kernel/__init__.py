@@ -33,9 +33,7 @@ except ImportError:  # pragma: no cover - no numba, or a numba without it: _entr
     pass
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
 from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
-from viz3d.kernel.projection import project_state
 from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
-from viz3d.kernel.sampling import sample
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
@@ -276,7 +274,9 @@ def _entry_point(dispatcher, args):
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
     if entry is None:
-        entry = _ENTRIES[key] = _typed_entry(dispatcher, args)
+        entry = _typed_entry(dispatcher, args)
+        if entry is not dispatcher:  # (not compiled nor loaded in this process yet: look again after a call)
+            _ENTRIES[key] = entry
     return entry
 
 
@@ -322,11 +322,17 @@ class KernelStepper:
         return stored_elements(self.data, like)
 
     def _call(self, dispatcher, *args):
+        """``dispatcher(*args)`` through its compiled entry for these argument types: found once per
+        stepper (``_entry_point``, once per process), the dispatcher itself only on the process's
+        first call (which compiles or loads the entry)."""
         fn = self._entries.get(dispatcher)
         if fn is None:
-            result = dispatcher(*args)
-            self._entries[dispatcher] = _entry_point(dispatcher, args)
-            return result
+            fn = _entry_point(dispatcher, args)
+            if fn is dispatcher:
+                result = dispatcher(*args)
+                self._entries[dispatcher] = _entry_point(dispatcher, args)
+                return result
+            self._entries[dispatcher] = fn
         return fn(*args)
 
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
@@ -347,9 +353,12 @@ class KernelStepper:
         """``(y', ok)``: ``y`` projected onto the constraints at ``t`` [s] (``viz3d.kernel.projection``,
         the ``projection`` formulation's ``post_step``), a new array; ``ok`` False when the projection
         failed (the NumPy path then raises its diagnosis)."""
-        d = self.data
         out = np.array(y, dtype=np.float64)  # a C-contiguous copy, projected in place
-        return out, self._call(project_state, t, out, _c(chart), d.model, self.view(memory), self.ws[1], d.rows) == OK
+        chart = _c(chart)
+        status = self._frames_call(0, -1, 0, t, 0.0, out, chart, np.zeros(0, np.int64), 0.0,
+                                   np.empty((0, out.shape[0])), np.empty((0, *chart.shape)), np.empty(0),
+                                   np.zeros(1, np.int64), self._samples(0), self.view(memory))[2]
+        return out, status == OK
 
     def state_ok(self, y: np.ndarray, h: float, max_speed: float) -> bool:
         """True when ``viz3d.diagnosis.check_state`` passes ``y`` after a step ``h`` (compiled);
@@ -392,18 +401,26 @@ class KernelStepper:
         from one compiled call (see ``Samples``); raises ``LinAlgError`` naming the first state whose
         evaluation fails."""
         self.load(elements)
-        d, m = self.data, self.data.model
-        n, nb1, n_c = ts.shape[0], m.nb + 1, self.ws[0].C.shape[0]
-        z = np.empty
-        out = Samples(z((n, nb1, 3)), z((n, nb1, 3, 3)), z((n, nb1, 3)), z((n, nb1, 3)), z((n, nb1, 3)),
-                      z((n, m.n_e)), z((n, m.n_e)), z((n, n_c)), z((n, n_c)), z((n, n_c, 2, 6)),
-                      z((n, d.n_contacts, 11)), z(n), z((n, 2)))
-        v, w = self.view(memory), self.ws[1]
-        done = self._call(sample, _c(ts), _c(Y), _c(charts), m, v, w, d.forces, d.rows, d.geometry, d.energies,
-                          np.empty(m.n_q + m.n_v + m.n_aux), *out)
+        n = ts.shape[0]
+        out = self._samples(n)
+        if n == 0:
+            return out
+        Y, charts = _c(Y), _c(charts)
+        done, _, _ = self._frames_call(n, 0, 0, 0.0, 0.0, Y[0], charts[0],
+                                       np.zeros(0, np.int64), 0.0, Y, charts, _c(ts), np.zeros(1, np.int64), out,
+                                       self.view(memory))
         if done < n:
             raise np.linalg.LinAlgError(f"t = {ts[done]:.6g} s: mass block or constraint matrix is not positive definite")
         return out
+
+    def _samples(self, n: int) -> "Samples":
+        """Uninitialised ``Samples`` of ``n`` states."""
+        d, m = self.data, self.data.model
+        nb1, n_c = m.nb + 1, self.ws[0].C.shape[0]
+        z = np.empty
+        return Samples(z((n, nb1, 3)), z((n, nb1, 3, 3)), z((n, nb1, 3)), z((n, nb1, 3)), z((n, nb1, 3)),
+                       z((n, m.n_e)), z((n, m.n_e)), z((n, n_c)), z((n, n_c)), z((n, n_c, 2, 6)),
+                       z((n, d.n_contacts, 11)), z(n), z((n, 2)))
 
     def step(self, t: float, h: float, y: np.ndarray, chart: np.ndarray, switches: np.ndarray,
              max_speed: float, n_steps: int = 1, elements: tuple = ()) -> tuple[int, int]:
@@ -427,21 +444,35 @@ class KernelStepper:
 
 
     def frames(self, n_frames: int, every: int, n0: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,
-               switches: np.ndarray, max_speed: float, elements: tuple = ()) -> tuple[np.ndarray, np.ndarray, int, int, int]:
+               switches: np.ndarray, max_speed: float, elements: tuple = (), sampling: bool = False
+               ) -> tuple[np.ndarray, np.ndarray, int, int, int, "Samples | None"]:
         """``n_frames`` times ``every`` steps of ``y``, ``chart`` in place, from step ``n0`` of a run
         started at ``t0`` [s] and the force elements' memory ``elements`` (``stored`` gives it after
-        the last frame): ``(Y, charts, frames done, steps done in the next frame, status)``, ``Y``
-        (frames done, n) and ``charts`` the states after each frame."""
-        tab, d = self.tableau, self.data
-        v, w = self.ws
+        the last frame): ``(Y, charts, frames done, steps done in the next frame, status, samples)``,
+        ``Y`` (frames done, n) and ``charts`` the states after each frame; with ``sampling``,
+        ``samples`` are their ``sample`` (taken in the same call; None when an evaluation failed
+        there, or without ``sampling``). The run's contacts' memory must be empty (fixed steps are
+        batched only without contacts)."""
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
         self._fresh(elements)
         Y, charts = np.empty((n_frames, y.shape[0])), np.empty((n_frames, *chart.shape))
-        done, partial, status = self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, tab.a, tab.b,
-                                           tab.c, max_speed, d.model, v, w, d.forces, d.rows, d.memories, self._k,
-                                           self._yi, Y, charts)
-        return Y[:done], charts[:done], done, partial, status
+        out = self._samples(n_frames if sampling else 0)
+        sampled = np.array([int(sampling)], np.int64)
+        done, partial, status = self._frames_call(n_frames, every, n0, t0, h, y, chart, switches, max_speed, Y, charts,
+                                                  np.empty(n_frames), sampled, out, self.ws[0])
+        samples = Samples(*(a[:done] for a in out)) if sampled[0] == 1 else None
+        return Y[:done], charts[:done], done, partial, status, samples
+
+    def _frames_call(self, n_frames, every, n0, t0, h, y, chart, switches, max_speed, Y, charts, ts, sampled, out, v):
+        """``advance_frames`` with this stepper's tableau (an empty one for a stepper without: sampling
+        only), model, view ``v`` and workspace."""
+        d, tab = self.data, self.tableau
+        ta, tb, tc = (_c(tab.a), _c(tab.b), _c(tab.c)) if tab is not None else (np.zeros((0, 0)), np.zeros(0),
+                                                                               np.zeros(0))
+        return self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed,
+                          d.model, v, self.ws[1], d.forces, d.rows, d.memories, self._k, self._yi, Y, charts, ts, sampled,
+                          d.geometry, d.energies, np.empty(self._yi.shape[0]), *out)
 
     def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,
                  controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,

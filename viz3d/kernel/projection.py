@@ -13,7 +13,7 @@ Velocities, at the projected positions: ``v -= M^-1 C_v^T (C_v M^-1 C_v^T)^-1 (C
 
 from __future__ import annotations
 
-from viz3d.compiled import entry, inline, jit
+from viz3d.compiled import inline, jit
 from viz3d.flexible.floating_kernel import FX_FLOATING, shape_moments
 from viz3d.kernel.field import (
     OK,
@@ -62,13 +62,6 @@ def project(t, y, chart, m, v, w, rows):
         return SINGULAR
     _move_velocities(m, w, y)
     return OK
-
-
-@entry
-def project_state(t, y, chart, m, v, w, rows):
-    """``project`` callable from Python (``KernelStepper.project``: the steps the kernel does not
-    take itself)."""
-    return project(t, y, chart, m, v, w, rows)
 
 
 @inline

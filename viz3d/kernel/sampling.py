@@ -1,4 +1,6 @@
-"""Output samples of many states in one compiled call: what an output frame needs from the kernel.
+"""Output samples of states: what an output frame needs from the kernel, taken inside the kernel's
+one entry for output frames (``viz3d.kernel.stepping.advance_frames``), for the states it steps or
+for given ones.
 
 For each state ``(t_i, y_i, chart_i)`` (one contact memory for the whole batch): the vector field's
 evaluation (kinematics, forces, multipliers), then the frames' poses and twists, the elastic
@@ -9,7 +11,7 @@ Nothing is allocated here: the caller hands the output arrays (``viz3d.kernel.Ke
 
 from __future__ import annotations
 
-from viz3d.compiled import energy_piece, entry, gap_piece
+from viz3d.compiled import energy_piece, gap_piece, jit
 from viz3d.kernel.field import OK, evaluate
 from viz3d.kernel.model import RIGID
 
@@ -20,49 +22,49 @@ except ImportError:  # pragma: no cover
         return x
 
 
-@entry
-def sample(ts, Y, charts, m, v, w, forces, rows, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C,
-           J, gap, T, V):
-    """Fill row ``i`` of the outputs for every state ``i`` (shapes: N states, nb + 1 bodies, n_e
+@jit
+def sample_state(i, t, y, chart, m, v, w, forces, rows, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot,
+                 lam, C, J, gap, T, V):
+    """Row ``i`` of the outputs for the state ``(t, y, chart)`` (shapes: N states, nb + 1 bodies, n_e
     elastic coordinates, n_c rows, k contacts): ``r``, ``vW``, ``wW``, ``wB`` (N, nb + 1, 3), ``R``
     (N, nb + 1, 3, 3), ``eta``, ``eta_dot`` (N, n_e), ``lam``, ``C`` (N, n_c), ``J`` (N, n_c, 2, 6),
     ``gap`` (N, k, 11), ``T`` (N,) rigid kinetic energy [J], ``V`` (N, 2) potential energy (signed,
-    non-negative) [J]. Returns the number of states done: ``i < N`` when state ``i``'s evaluation
-    failed (a mass block or the constraint matrix not positive definite)."""
-    for i in range(ts.shape[0]):
-        if evaluate(ts[i], Y[i], charts[i], m, v, w, forces, rows, ydot) != OK:
-            return i
-        T[i] = 0.0
-        for b in range(m.nb + 1):
+    non-negative) [J]; False when its evaluation failed (a mass block or the constraint matrix not
+    positive definite). Called by the kernel's one entry for output frames,
+    ``viz3d.kernel.stepping.advance_frames``, as it steps them or on given states."""
+    if evaluate(t, y, chart, m, v, w, forces, rows, ydot) != OK:
+        return False
+    T[i] = 0.0
+    for b in range(m.nb + 1):
+        for a in range(3):
+            r[i, b, a] = w.r[b, a]
+            vW[i, b, a] = w.vW[b, a]
+            wW[i, b, a] = v.wW[b, a]
+            wB[i, b, a] = w.wB[b, a]
+            for c in range(3):
+                R[i, b, a, c] = v.R[b, a, c]
+        if m.body_kind[b] == RIGID and m.mass_inv[b] > 0.0:
+            s = 0.0
             for a in range(3):
-                r[i, b, a] = w.r[b, a]
-                vW[i, b, a] = w.vW[b, a]
-                wW[i, b, a] = v.wW[b, a]
-                wB[i, b, a] = w.wB[b, a]
+                s += w.vW[b, a] * w.vW[b, a] / m.mass_inv[b]
                 for c in range(3):
-                    R[i, b, a, c] = v.R[b, a, c]
-            if m.body_kind[b] == RIGID and m.mass_inv[b] > 0.0:
-                s = 0.0
-                for a in range(3):
-                    s += w.vW[b, a] * w.vW[b, a] / m.mass_inv[b]
-                    for c in range(3):
-                        s += w.wB[b, a] * m.inertia[b, a, c] * w.wB[b, c]
-                T[i] += 0.5 * s
-        for e in range(m.n_e):
-            eta[i, e] = w.eta[e]
-            eta_dot[i, e] = w.eta_dot[e]
-        for k in range(w.lam.shape[0]):
-            lam[i, k] = w.lam[k]
-            C[i, k] = v.C[k]
-            for s_ in range(2):
-                for a in range(6):
-                    J[i, k, s_, a] = v.J[k, s_, a]
-        for d in literal_unroll(geometry):
-            if d.i.shape[0] > 0:
-                gap_piece(d, v, gap[i])
-        V[i, 0] = 0.0
-        V[i, 1] = 0.0
-        for d in literal_unroll(energies):
-            if d.i.shape[0] > 0:
-                energy_piece(d, v, V[i])
-    return ts.shape[0]
+                    s += w.wB[b, a] * m.inertia[b, a, c] * w.wB[b, c]
+            T[i] += 0.5 * s
+    for e in range(m.n_e):
+        eta[i, e] = w.eta[e]
+        eta_dot[i, e] = w.eta_dot[e]
+    for k in range(w.lam.shape[0]):
+        lam[i, k] = w.lam[k]
+        C[i, k] = v.C[k]
+        for s_ in range(2):
+            for a in range(6):
+                J[i, k, s_, a] = v.J[k, s_, a]
+    for d in literal_unroll(geometry):
+        if d.i.shape[0] > 0:
+            gap_piece(d, v, gap[i])
+    V[i, 0] = 0.0
+    V[i, 1] = 0.0
+    for d in literal_unroll(energies):
+        if d.i.shape[0] > 0:
+            energy_piece(d, v, V[i])
+    return True

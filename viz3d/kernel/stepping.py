@@ -13,6 +13,7 @@ from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
 from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation
 from viz3d.kernel.projection import project
+from viz3d.kernel.sampling import sample_state
 from viz3d.points import kinematics
 
 try:
@@ -50,7 +51,7 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
             y[j] = acc
         if not _finite(y):
             return step + 1, NONFINITE
-        if m.projects == 1:
+        if m.projects == 1 and m.row_body.shape[0] > 0:  # (a call passing the model costs, even with no rows)
             status = project(t0 + (step + 1) * h, y, chart, m, v, w, rows)
             if status == SINGULAR:
                 return step, status
@@ -80,12 +81,37 @@ def renew(t, m, v, w, y, chart, memories):
 
 @entry
 def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, memories,
-                   k, yi, Y, charts):
-    """Up to ``n_frames`` calls of ``advance`` of ``every`` steps each, the first from step ``n0`` of
-    a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the time the run's
-    own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and ``charts[f]``.
-    Returns (frames done, steps done in the next frame, status): a run's output frames in one call,
-    free of the per-frame Python overhead. On a failure ``y`` holds the failed step's result."""
+                   k, yi, Y, charts, ts, sampled, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap,
+                   T, V):
+    """A run's output frames in one call, free of the per-frame Python overhead: its one compiled
+    entry for stepping and sampling (each entry loaded from numba's cache costs a run's start tens
+    of milliseconds).
+
+    ``every`` > 0: up to ``n_frames`` calls of ``advance`` of ``every`` steps each, the first from
+    step ``n0`` of a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the
+    time the run's own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and
+    ``charts[f]``, its time into ``ts[f]`` and, while ``sampled[0]`` (given as 1) is not cleared,
+    its output sample into row ``f`` of ``r`` ... ``V`` (``viz3d.kernel.sampling.sample_state``): a
+    state whose evaluation fails there clears ``sampled[0]`` (the caller then samples none of the
+    call's frames here). On a failure ``y`` holds the failed step's result.
+
+    ``every`` = 0: the output samples of the given states ``(ts[f], Y[f], charts[f])``, nothing
+    stepped.
+
+    ``every`` < 0: ``y`` projected in place onto the constraints at ``t0``
+    (``viz3d.kernel.projection.project``: the initial projection, and the steps the kernel does not
+    take itself).
+
+    Returns (frames done, steps done in the next frame, status); sampling only, ``SINGULAR`` at
+    the first state whose evaluation fails; projecting, (0, 0, the projection's status)."""
+    if every < 0:
+        return 0, 0, project(t0, y, chart, m, v, w, rows)
+    if every == 0:
+        for f in range(n_frames):
+            if not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies, ydot, r, R, vW,
+                                wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
+                return f, 0, SINGULAR
+        return n_frames, 0, OK
     for f in range(n_frames):
         done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w,
                                forces, rows, memories, k, yi)
@@ -97,6 +123,10 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, m
             for i in range(3):
                 for c in range(3):
                     charts[f, b, i, c] = chart[b, i, c]
+        ts[f] = t0 + (n0 + (f + 1) * every) * h
+        if sampled[0] == 1 and not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies,
+                                                 ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
+            sampled[0] = 0
     return n_frames, every, OK
 
 
