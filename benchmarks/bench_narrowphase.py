@@ -35,19 +35,14 @@ SCENE = ROOT / "scenes" / "anchor_hoist.toml"
 def states(t: float):
     """The hoist's ``Collisions`` and configurations at its output frames up to ``t``."""
     from viz3d.contact.collision import Collisions
-    from viz3d.kinematics import Configuration, pose_from, twist_from
+    from viz3d.kinematics import resting_configurations
     from viz3d.scene.build import build
 
     scene = viz3d.load_scene(SCENE, [f"sim.t_end={t}", "sim.output_dt=0.05"])
     traj = viz3d.simulate(scene)
     system, _ = build(scene)
     col = next(f for f in system.forces if isinstance(f, Collisions))
-    nb = col.n_bodies
-    cfgs = []
-    for k in range(len(traj.t)):
-        pose = pose_from(traj.position[k], traj.rotation[k])
-        cfgs.append(Configuration(float(traj.t[k]), pose, twist_from(np.zeros((nb, 3)), np.zeros((nb, 3)), pose)))
-    return col, cfgs
+    return col, resting_configurations(traj.t, traj.position, traj.rotation)
 
 
 def detect_times(col, cfgs, repeats: int) -> dict:

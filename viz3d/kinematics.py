@@ -108,3 +108,15 @@ class Configuration:
     twist: Twist
     eta: tuple = ()
     eta_dot: tuple = ()
+
+
+def resting_configurations(t: FloatArray, W_r: FloatArray, R_WB: FloatArray) -> list[Configuration]:
+    """Configurations at times ``t`` (n,) [s] with the bodies' poses ``W_r`` (n, nb, 3) [m] and
+    ``R_WB`` (n, nb, 3, 3) and zero twists (rigid bodies): what geometry alone (contact detection)
+    needs of a trajectory's frames."""
+    out = []
+    for k in range(len(t)):
+        pose = pose_from(W_r[k], R_WB[k])
+        zero = np.zeros((W_r.shape[1], 3))
+        out.append(Configuration(float(t[k]), pose, twist_from(zero, zero, pose)))
+    return out

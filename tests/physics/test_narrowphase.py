@@ -217,7 +217,7 @@ def test_contacts_on_a_random_triangle_soup_are_coals(kind):
 
 
 def _hoist_states():
-    from viz3d.kinematics import Configuration, pose_from, twist_from
+    from viz3d.kinematics import resting_configurations
     from viz3d.scene.build import build
 
     scene = viz3d.load_scene(ROOT / "scenes" / "anchor_hoist.toml", ["sim.t_end=0.3", "sim.output_dt=0.05"])
@@ -225,12 +225,7 @@ def _hoist_states():
     assert traj.status == "ok", traj.status
     system, _ = build(scene)
     col = next(f for f in system.forces if isinstance(f, Collisions))
-    nb = col.n_bodies
-    cfgs = []
-    for k in range(len(traj.t)):
-        pose = pose_from(traj.position[k], traj.rotation[k])
-        cfgs.append(Configuration(float(traj.t[k]), pose, twist_from(np.zeros((nb, 3)), np.zeros((nb, 3)), pose)))
-    return col, cfgs
+    return col, resting_configurations(traj.t, traj.position, traj.rotation)
 
 
 @pytest.fixture(scope="module")
