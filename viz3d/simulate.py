@@ -1008,7 +1008,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                     status = f"interrupted at t = {t_stop:.6g} s"
                 elif internal is not None:
                     status = f"stopped by an internal error at t = {t_stop:.6g} s: {internal}"
-                verdict = run_verdict(scene.data, cols, sim.system.bodies.names)
+                failed = status not in ("ok",) and internal is None and not status.startswith("interrupted")
+                verdict = run_verdict(scene.data, cols, sim.system.bodies.names, failed)
                 emitter.announce(run_events(scene.data, cols)
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
                 emitter.close(status, t_stop)  # (events after the last returned state are not on the trajectory)

@@ -81,11 +81,13 @@ def pose_errors(spec: dict, t_position: np.ndarray, t_rotation: np.ndarray, inde
 
 
 def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarray, body_names, effort: np.ndarray,
-            capacity: float | None, hauling: np.ndarray, capacity_time: float = 0.0) -> Verdict:
+            capacity: float | None, hauling: np.ndarray, capacity_time: float = 0.0, stopped: bool = False) -> Verdict:
     """The ``Verdict`` of a run from its frames: times ``t`` (n_t,), body positions (n_t, nb, 3) and
     rotations (n_t, nb, 3, 3), the drive's effort (n_t,) [N], its capacity [N] (None: unlimited)
     held for ``capacity_time`` [s], and whether it hauls at each frame (n_t,) (its prescribed speed
-    is not zero)."""
+    is not zero). ``stopped``: the run failed after its last frame (diverged): a drive over its
+    capacity at that frame jammed (a rigid drive pulling a wedged body drives the contact force up
+    until the step cannot follow, sooner than ``capacity_time``)."""
     names = list(body_names)
     index = [names.index(b) for b in spec["bodies"]]
     dist, angle = pose_errors(spec, position, rotation, index)
@@ -101,6 +103,11 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
         held_text = f" for {t[i] - t[since]:.3g} s" if capacity_time > 0.0 else ""
         return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
                        f"capacity {capacity / 1e3:.1f} kN{held_text}", **extra)
+    if capacity is not None and stopped and effort.size and abs(effort[-1]) > capacity:
+        over = np.abs(effort) > capacity
+        since = len(over) - (int(np.argmin(over[::-1])) if not over.all() else len(over))
+        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[-1]) / 1e3:.1f} kN, over its "
+                       f"capacity {capacity / 1e3:.1f} kN since t = {t[since]:.6g} s when the run failed", **extra)
     inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
     if inside[-1]:
         since = len(inside) - int(np.argmin(inside[::-1])) if not inside.all() else 0
@@ -135,7 +142,7 @@ def seated_stop(spec: dict, body_names):
     return check
 
 
-def run_verdict(data: dict, cols, body_names) -> Verdict | None:
+def run_verdict(data: dict, cols, body_names, stopped: bool = False) -> Verdict | None:
     """The ``Verdict`` of a run of the scene ``data`` from its frame columns (``viz3d.columns``); None
     without a ``[stowage]`` table."""
     spec = data.get("stowage")
@@ -149,7 +156,7 @@ def run_verdict(data: dict, cols, body_names) -> Verdict | None:
     hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
     effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
     v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling,
-                drive.get("capacity_time", 0.0))
+                drive.get("capacity_time", 0.0), stopped)
     depth0 = float(np.asarray(cols.scalars.get("collision/max_depth", [0.0]))[0])
     if v.outcome == "jammed" and depth0 > 0.0:  # a scene that starts in contact may 'jam' on its own overlap
         v = replace(v, reason=f"{v.reason}; at t = 0 shapes already overlapped by {depth0:.3g} m (check the "

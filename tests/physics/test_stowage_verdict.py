@@ -152,3 +152,18 @@ def test_the_capacity_watch_stops_a_run_once_the_overload_is_held_in_chunks_of_a
             watch.check(T[a:a + chunk], {"drive/windlass/effort": effort[a:a + chunk]})
     assert T[a + failed.value.frame] == pytest.approx(3.3)
     assert "since t = 3 s" in str(failed.value) and "'windlass'" in str(failed.value)
+
+
+def test_a_run_that_fails_while_its_drive_is_over_capacity_jammed():
+    """A wedged anchor on a rigid drive: the effort passes the capacity at t = 3.0 s and the run
+    diverges before capacity_time (its frames end at 3.1 s): jammed since 3.0 s. The same frames
+    of a run that did not fail, or one that failed with its drive under capacity, are not a jam."""
+    P, R = _approach(6.0)
+    n = 32                                                          # frames to t = 3.1 s
+    effort = np.where(T[:n] >= 3.0, 4e7, 2e5)
+    args = (SPEC, T[:n], P[:n], R[:n], ["anchor"])
+    v = verdict(*args, effort, 4.5e5, np.ones(n, bool), capacity_time=0.25, stopped=True)
+    assert v.outcome == "jammed" and v.time == pytest.approx(3.0) and "when the run failed" in v.reason
+    assert verdict(*args, effort, 4.5e5, np.ones(n, bool), capacity_time=0.25).outcome == "not reached"
+    calm = np.full(n, 2e5)
+    assert verdict(*args, calm, 4.5e5, np.ones(n, bool), capacity_time=0.25, stopped=True).outcome == "not reached"
