@@ -108,6 +108,13 @@ def held_effort(t: np.ndarray, effort: np.ndarray, window: float) -> np.ndarray:
     return np.array([e[a:i + 1].min() if a >= 0 else np.nan for i, a in enumerate(start)])
 
 
+def overload_start(effort: np.ndarray, limit: float, i: int) -> int:
+    """First index of the run of consecutive frames over ``limit`` (|effort| > limit) that ends at
+    frame ``i``: where the overload of frame ``i`` began. ``effort`` (n,) [N or N m]."""
+    over = np.abs(np.asarray(effort[:i + 1], float)) > limit
+    return 0 if over.all() else i + 1 - int(np.argmin(over[::-1]))
+
+
 def _window_start(t: np.ndarray, window: float) -> np.ndarray:
     """Index of the last of the times ``t`` (n,) at or before each ``t_i - window`` (-1: none), (n,)."""
     return np.searchsorted(t, t - window + 1e-9, side="right") - 1
@@ -143,8 +150,7 @@ class CapacityWatch:
             bad = np.flatnonzero(held > limit)
             if bad.size:
                 i = int(bad[0])
-                over = e_all[:len(t_all) - t.size + i + 1] > limit  # ... up to this frame: its run of frames over
-                since = len(over) - (int(np.argmin(over[::-1])) if not over.all() else len(over))
+                since = overload_start(e_all, limit, len(t_all) - t.size + i)
                 held_text = f" since t = {t_all[since]:.6g} s" if window > 0.0 else ""
                 raise SimulationFailure(f"t = {t[i]:.6g} s: drive {name!r} needs {effort[i]:.4g} (N or N m), over its "
                                         f"capacity {limit:.4g}{held_text}: the mechanism jams or the drive is too "

@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from viz3d.diagnosis import RunComplete, held_effort
+from viz3d.diagnosis import RunComplete, held_effort, overload_start
 from viz3d.outputs import HawseTension
 
 OUTCOMES = ("seated", "jammed", "not reached")
@@ -59,8 +59,8 @@ class Verdict:
 
     def line(self) -> str:
         return (f"{self.outcome} at t = {self.time:.3f} s ({self.reason}); peak hauling force "
-                f"{self.peak_force / 1e3:.1f} kN ({self.peak_transient / 1e3:.1f} kN transient); at the end {self.position_error:.3f} m and {self.angle_error:.2f} deg "
-                f"from stowed")
+                f"{self.peak_force / 1e3:.1f} kN ({self.peak_transient / 1e3:.1f} kN transient); at the end "
+                f"{self.position_error:.3f} m and {self.angle_error:.2f} deg from stowed")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -98,14 +98,12 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
     extra = {"peak_transient": float(np.max(np.abs(effort), initial=0.0))}
     if capacity is not None and spanned and peak > capacity:
         i = int(np.argmax(held > capacity))
-        over = np.abs(effort[:i + 1]) > capacity
-        since = i + 1 - (int(np.argmin(over[::-1])) if not over.all() else i + 1)
+        since = overload_start(effort, capacity, i)
         held_text = f" for {t[i] - t[since]:.3g} s" if capacity_time > 0.0 else ""
         return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
                        f"capacity {capacity / 1e3:.1f} kN{held_text}", **extra)
     if capacity is not None and stopped and effort.size and abs(effort[-1]) > capacity:
-        over = np.abs(effort) > capacity
-        since = len(over) - (int(np.argmin(over[::-1])) if not over.all() else len(over))
+        since = overload_start(effort, capacity, len(effort) - 1)
         return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[-1]) / 1e3:.1f} kN, over its "
                        f"capacity {capacity / 1e3:.1f} kN since t = {t[since]:.6g} s when the run failed", **extra)
     inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
