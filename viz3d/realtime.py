@@ -34,7 +34,7 @@ from viz3d.scene.load import Scene, load_scene
 from viz3d.scene.schema import SceneError
 from viz3d.scene.visuals import flexible_drawings, live_plots, scene_visuals
 from viz3d.simulate import Simulation, run_checks
-from viz3d.sink import frame_due
+from viz3d.sink import FRAME_SLACK, frame_due
 
 #: Frames published per second of wall time [Hz].
 DISPLAY_RATE = 60.0
@@ -44,6 +44,9 @@ HISTORY = 1200
 RTF_WINDOW = 1.0
 #: A backlog larger than this [s of wall time] is dropped (the runner cannot keep up).
 MAX_LAG = 0.25
+#: Steps to an instant are rounded up from this much [steps] below it: a step count a hair over
+#: an integer from round-off must not carry a batch past the instant (one more call instead).
+BATCH_SLACK = 1e-6
 
 
 # ---------------------------------------------------------------------------- drivers
@@ -78,6 +81,7 @@ class Driver:
         self._drawings = flexible_drawings(self.scene, self.system)
         self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s] (default: the start)
         self._t0 = state.t
+        self._step_cost: float | None = None  # wall time of a step on the last call [s]
         self.settings = settings
 
     @property
@@ -95,11 +99,16 @@ class Driver:
     def advance(self, t_target: float, deadline: float, commands: queue.Queue) -> None:
         """Step until ``t_target`` [s], the wall-clock ``deadline`` or a pending command; sinks with a
         ``frame_dt`` get a frame whenever it has passed (``viz3d.sink.frame_due``) and every contact
-        event's."""
+        event's.
+
+        The steps go several at a time through the batched path of a headless run
+        (``Simulation.output_states``: one kernel call, no Python per step), as many as reach
+        ``t_target`` or the next instant a sink wants, and as fit in the wall time left at the cost
+        of a step measured on the last call; the simulated states are those of single steps."""
         sinks = [s for s in self.sinks if s.frame_dt is not None]
         states, takers = [], []  # the instants some sink wants, and which sinks
         while self.sim.state.t < t_target and time.perf_counter() < deadline and commands.empty():
-            self.sim.step()
+            self._take(self._batch(t_target, deadline, sinks))
             for event in self.sim.drain_events(self.sim.state.t):
                 states.append(event)
                 takers.append(sinks)
@@ -114,6 +123,27 @@ class Driver:
             for i, to in enumerate(takers):
                 for s in to:
                     s.log(frame_at(i))
+
+    def _batch(self, t_target: float, deadline: float, sinks: list) -> int:
+        """Steps for the next call: to ``t_target`` or the next sink's instant, whichever comes
+        first, and no more than fit before ``deadline`` at ``_step_cost`` (one before it is known)."""
+        sim = self.sim
+        if not sim.batches_frames or self._step_cost is None:
+            return 1
+        t_next = min([t_target] + [self._last_t.get(id(s), self._t0) + s.frame_dt - FRAME_SLACK for s in sinks])
+        n = math.ceil((t_next - sim.state.t) / sim.dt - BATCH_SLACK)  # (rounded down a hair: never past t_next)
+        fits = (deadline - time.perf_counter()) / max(self._step_cost, 1e-12)  # (inf without a deadline)
+        return max(1, n if fits >= n else math.floor(fits))
+
+    def _take(self, n: int) -> None:
+        """``n`` steps: through ``Simulation.output_states`` when it batches them, else (and for the
+        diagnosis of a step that fails in the batch) ``Simulation.steps``; ``_step_cost`` measured."""
+        sim, goal, start = self.sim, self.sim.n_samples + n, time.perf_counter()
+        if n > 1 and sim.batches_frames:
+            sim.output_states(1, n)
+        if sim.n_samples < goal:
+            sim.steps(goal - sim.n_samples)
+        self._step_cost = (time.perf_counter() - start) / n
 
     def step_once(self) -> None:
         self.advance(self.t + 0.5 * self.sim.dt, math.inf, queue.Queue())

@@ -438,12 +438,14 @@ class Viewer:
     # ------------------------------------------------------------------ display loop
 
     def _loop(self) -> None:
-        next_plot = 0.0
+        next_plot, shown = 0.0, None
         while not self._stop.is_set():
             tick = time.perf_counter()
             snap = self.runner.snapshot
             if snap is not None:
-                self._show(snap)
+                if snap is not shown:  # a snapshot is shown once (the runner publishes at most at this rate)
+                    self._show(snap)
+                    shown = snap
                 if tick >= next_plot:
                     self._plots(snap)
                     next_plot = tick + 1.0 / PLOT_RATE
