@@ -32,6 +32,7 @@ import argparse
 import asyncio
 import datetime
 import functools
+import multiprocessing
 import os
 import threading
 import time
@@ -65,16 +66,14 @@ def _is_pose(m: dict, node: str | None = "/bodies/group0") -> bool:
             and (node is None or m["name"] == node))
 
 
-async def _count(port: int, seconds: float, warmup: float = 1.0, node: str | None = "/bodies/group0",
-                 on_start=None) -> dict:
+async def _count(port: int, seconds: float, warmup: float = 1.0, node: str | None = "/bodies/group0") -> dict:
     """Pose updates of ``node`` (None: of any batched mesh, counted once per websocket frame) and
-    plot updates a client receives over ``seconds`` after ``warmup`` [s]; ``on_start()`` is called
-    when counting starts."""
+    plot updates a client receives over ``seconds`` after ``warmup`` [s]."""
     n = {"poses": 0, "plots": 0}
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[f"viser-v{viser.__version__}"],
                                   max_size=None) as ws:
         start = time.monotonic() + warmup
-        end, started = start + seconds, False
+        end = start + seconds
         while time.monotonic() < end:
             try:
                 frame = await asyncio.wait_for(ws.recv(), timeout=0.1)
@@ -82,9 +81,6 @@ async def _count(port: int, seconds: float, warmup: float = 1.0, node: str | Non
                 continue
             if time.monotonic() < start:
                 continue
-            if not started and on_start is not None:
-                on_start()
-            started = True
             messages = _messages(frame)
             n["poses"] += (any(_is_pose(m, None) for m in messages) if node is None
                            else sum(1 for m in messages if _is_pose(m, node)))
@@ -176,29 +172,41 @@ def _uptime() -> str:
     return "load average: " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+def _client(port: int, seconds: float, warmup: float, out) -> None:
+    """The websocket client, in its own process (as a browser is: its decoding takes no time from
+    the viewer's interpreter); its counts go to the queue ``out``."""
+    out.put(asyncio.run(_count(port, seconds, warmup, node=None)))
+
+
 def measure_viewer(path: Path, seconds: float, warmup: float, speed: float, forces: bool, clock: Clock) -> dict:
-    """The viewer on ``path`` with a client connected, over ``seconds`` after ``warmup`` [s]."""
+    """The viewer on ``path`` with a client connected, over ``seconds`` after ``warmup`` [s] of
+    simulation (which starts when the client connects)."""
     runner = SimRunner(viz3d.load_scene(path), speed=speed)
     viewer = Viewer(runner, port=0)
     viewer.flags["forces"] = forces
     viewer.start()
-    mark = {}
-
-    def start():
-        clock.reset()
-        mark.update(wall=time.perf_counter(), t=runner.driver.t, steps=runner.sim.n_steps, shown=viewer.frames_shown)
-
+    context = multiprocessing.get_context("spawn")
+    counts = context.Queue()
+    client = context.Process(target=_client, args=(viewer.server.get_port(), seconds, warmup, counts))
+    client.start()
     try:
-        got = asyncio.run(_count(viewer.server.get_port(), seconds, warmup, node=None, on_start=start))
-        wall = time.perf_counter() - mark["wall"]
-        t_b, steps = runner.driver.t, runner.sim.n_steps - mark["steps"]
+        while runner.waiting or runner.snapshot.waiting:
+            time.sleep(0.01)
+        time.sleep(warmup)
+        clock.reset()
+        wall0, t_a, steps0, shown0 = time.perf_counter(), runner.driver.t, runner.sim.n_steps, viewer.frames_shown
+        time.sleep(seconds)
+        wall = time.perf_counter() - wall0
+        t_b, steps, shown = runner.driver.t, runner.sim.n_steps - steps0, viewer.frames_shown - shown0
         parts = {k: (clock.wall[k], clock.calls[k]) for k in clock.wall}
+        got = counts.get(timeout=seconds + 60)
         status = runner.snapshot.status
     finally:
+        client.join(timeout=10)
         viewer.stop()
-    return {"t_a": mark["t"], "t_b": t_b, "wall": wall, "rtf": (t_b - mark["t"]) / wall, "steps": steps,
-            "pushed_hz": (viewer.frames_shown - mark["shown"]) / wall, "poses_hz": got["poses"] / seconds,
-            "plots_hz": got["plots"] / seconds, "parts": parts, "status": status}
+    return {"t_a": t_a, "t_b": t_b, "wall": wall, "rtf": (t_b - t_a) / wall, "steps": steps,
+            "pushed_hz": shown / wall, "poses_hz": got["poses"] / seconds, "plots_hz": got["plots"] / seconds,
+            "parts": parts, "status": status}
 
 
 def measure_headless(path: Path, t_a: float, t_b: float) -> dict:
@@ -226,7 +234,7 @@ def scene_report(path: Path, seconds: float, warmup: float, speed: float, forces
     clock = instrument()
     lines = [f"`{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}`, "
              f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, viewer at --speed {speed:g}, "
-             f"contact and reaction arrows {'on' if forces else 'off'}, one websocket client of viser's protocol.",
+             f"contact and reaction arrows {'on' if forces else 'off'}, one websocket client of viser's protocol (its own process).",
              "", "| pair | load before | viewer: sim interval [s] | viewer: real-time factor | headless, same interval: "
              "real-time factor | viewer / headless | frames pushed [Hz] | pose updates received [Hz] | "
              "plot updates received [Hz] | load after |", "|---|---|---|---|---|---|---|---|---|---|"]

@@ -44,6 +44,12 @@ HISTORY = 1200
 RTF_WINDOW = 1.0
 #: A backlog larger than this [s of wall time] is dropped (the runner cannot keep up).
 MAX_LAG = 0.25
+#: While the simulation lags behind its target, the frames it publishes (a kernel sample, the
+#: checks; and the display's drawing and pose updates of each, which hold the interpreter while the
+#: kernel waits) take at most this share of the wall time: fewer frames, more steps ...
+FRAME_SHARE = 0.1
+#: ... but no fewer frames than this per second [Hz].
+MIN_FRAME_RATE = 10.0
 #: Steps to an instant are rounded up from this much [steps] below it: a step count a hair over
 #: an integer from round-off must not carry a batch past the instant (one more call instead).
 BATCH_SLACK = 1e-6
@@ -257,6 +263,8 @@ class SimRunner(threading.Thread):
         self.snapshot: Snapshot | None = None
         self._history: deque = deque(maxlen=HISTORY)
         self._rtf_samples: deque = deque()
+        self._behind = False                 # the last advance ended short of its target
+        self._frame_cost = 0.0               # wall time of the last published frame [s]
         self._stopped = threading.Event()
         self._load(scene, speed)
 
@@ -312,6 +320,7 @@ class SimRunner(threading.Thread):
     def _rebase(self) -> None:
         self._wall_ref, self._sim_ref = time.perf_counter(), self.driver.t
         self._rtf_samples.clear()
+        self._behind = False
 
     def _end_recording(self, why: str) -> None:
         """Sinks record one run: a reset or a scene change ends it (the file stays complete)."""
@@ -400,6 +409,7 @@ class SimRunner(threading.Thread):
             target = min(target, d.t_end)
         self._guarded(d.advance, target, now + 1.0 / self.display_rate, self.commands)
         now = time.perf_counter()
+        self._behind = d.t < target
         if target - d.t > self.speed * MAX_LAG:  # cannot keep up: drop the backlog
             self._wall_ref, self._sim_ref = now, d.t
         self._rtf_samples.append((now, d.t))
@@ -418,7 +428,7 @@ class SimRunner(threading.Thread):
     def _publish(self, force: bool) -> None:
         now = time.perf_counter()
         last = getattr(self, "_last_publish", -np.inf)
-        if not force and now - last < 1.0 / self.display_rate:
+        if not force and now - last < self._frame_interval():
             return
         self._last_publish = now
         d = self.driver
@@ -432,3 +442,13 @@ class SimRunner(threading.Thread):
             self._history.append((frame.t, *d.plot_values(frame)))
         self.snapshot = Snapshot(self.generation, d.visuals, frame, self.playing, self.speed, self._rtf(), self.status,
                                  dict(d.settings), d.t_end, d.plots, np.array(self._history), self.waiting)
+        self._frame_cost = time.perf_counter() - now
+
+    def _frame_interval(self) -> float:
+        """Wall time between published frames [s]: ``1 / display_rate``, longer while the run lags
+        behind and frames would take more than ``FRAME_SHARE`` of the wall time (at most
+        ``1 / MIN_FRAME_RATE``)."""
+        interval = 1.0 / self.display_rate
+        if self._behind:
+            interval = min(max(interval, self._frame_cost / FRAME_SHARE), max(interval, 1.0 / MIN_FRAME_RATE))
+        return interval

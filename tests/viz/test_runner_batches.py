@@ -1,11 +1,12 @@
-"""The live runner's steps in batches (``viz3d.realtime.Driver.advance`` through
-``Simulation.output_states``, the headless run's batched path): the same states and sink frames as
-one step at a time."""
+"""The live runner's cost: steps in batches (``viz3d.realtime.Driver.advance`` through
+``Simulation.output_states``, the headless run's batched path) give the same states and sink frames as
+one step at a time; a run that lags behind publishes fewer frames (``SimRunner._frame_interval``)."""
 
 import math
 import queue
 
 import numpy as np
+import pytest
 
 import viz3d
 from viz3d.realtime import make_driver
@@ -53,3 +54,20 @@ def test_batched_steps_give_the_states_and_frames_of_single_steps():
     assert len(s_sink.frames) == math.floor(TARGETS[-1] / FrameLog.frame_dt + 1e-9)
     for a, b in zip(b_sink.frames, s_sink.frames):
         np.testing.assert_array_equal(a.W_r, b.W_r, err_msg=f"W_r at t = {a.t}")
+
+
+def test_a_lagging_run_publishes_frames_within_their_share_of_the_wall_time():
+    """While the simulation lags behind, frames come no more often than their cost over
+    FRAME_SHARE allows, never fewer than MIN_FRAME_RATE; on time, at the display rate."""
+    from viz3d.realtime import FRAME_SHARE, MIN_FRAME_RATE, SimRunner
+
+    runner = SimRunner(viz3d.load_scene(SCENES / "chain.toml", ["chain.n=5"]), display_rate=60.0)
+    try:
+        runner._frame_cost = 0.2 * FRAME_SHARE / MIN_FRAME_RATE  # a fifth of what the floor allows
+        assert runner._frame_interval() == 1.0 / 60.0
+        runner._behind = True
+        assert runner._frame_interval() == pytest.approx(max(1.0 / 60.0, 0.2 / MIN_FRAME_RATE), rel=1e-12)
+        runner._frame_cost = 3.0 * FRAME_SHARE / MIN_FRAME_RATE
+        assert runner._frame_interval() == 1.0 / MIN_FRAME_RATE
+    finally:
+        runner.stop()
