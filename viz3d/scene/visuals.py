@@ -93,10 +93,15 @@ def live_plots(element) -> tuple[tuple[str, str], ...]:
     from viz3d.forces import JointStop
 
     if isinstance(element, JointStop):
-        return tuple((f"{name}: {js.names[j]} {js.FREE[c][0]} [rad or m]", f"joint/{js.names[j]}/{js.FREE[c][0]}")
+        return tuple((f"{name}: {js.names[j]} {js.FREE[c][0]} [{_unit(js.FREE[c][0])}]", f"joint/{js.names[j]}/{js.FREE[c][0]}")
                      for name, js, j, c in zip(element.names, element.joints, element.index, element.free))
     plot = getattr(element, "live_plot", None)
     return (plot,) if plot else ()
+
+
+def _unit(coordinate: str) -> str:
+    """The unit of a joint's relative coordinate by its name (``Joint.FREE``): angles in rad, distances in m."""
+    return "rad" if coordinate.startswith("angle") else "m"
 
 
 def _bar_depth(system: System) -> float:
