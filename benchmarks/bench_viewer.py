@@ -13,7 +13,9 @@ arrows shown unless ``--no-forces``) with the same client connected, run at ``--
 it cannot reach measures what it can do: the achieved factor is then its capacity; ``--speed 1``
 whether it holds real time). After ``--warmup`` s of wall time, over ``--seconds`` s:
 
-* the achieved real-time factor (simulated time advanced / wall time) over ``[t_a, t_b]``;
+* the achieved real-time factor (simulated time advanced / wall time) over ``[t_a, t_b]``, and the
+  process's CPU time per simulated second (all its threads; on a loaded machine the wall time
+  also holds the waits for a core, the CPU time less so);
 * display updates per second: frames pushed by the display loop, pose updates and plot updates
   received by the client;
 * the wall time of each part of the work, per simulation step: kernel stepping, the runner's
@@ -148,7 +150,7 @@ PARTS = ((Simulation, "step", "kernel"), (Simulation, "steps", "kernel"), (Simul
 ROWS = (("kernel", "simulation", "kernel stepping (Simulation.step / steps / output_states)"),
         ("advance", "simulation", "Driver.advance in all (stepping, events, sinks' frames)"),
         ("publish", "simulation", "SimRunner._publish in all (frame, checks, plot values, snapshot)"),
-        ("frame", "simulation", "  its frame (Driver.frame: kernel sample of one state)"),
+        ("frame", "simulation", "  its frame (Driver.frame: a kernel sample of one state, the contacts' scalars)"),
         ("check", "simulation", "  its checks (Driver.check: run_checks on the frame)"),
         ("plot values", "simulation", "  its plot values"),
         ("show", "display", "SceneNodes.show in all (pose updates, arrows)"),
@@ -194,9 +196,10 @@ def measure_viewer(path: Path, seconds: float, warmup: float, speed: float, forc
             time.sleep(0.01)
         time.sleep(warmup)
         clock.reset()
-        wall0, t_a, steps0, shown0 = time.perf_counter(), runner.driver.t, runner.sim.n_steps, viewer.frames_shown
+        wall0, cpu0, t_a = time.perf_counter(), time.process_time(), runner.driver.t
+        steps0, shown0 = runner.sim.n_steps, viewer.frames_shown
         time.sleep(seconds)
-        wall = time.perf_counter() - wall0
+        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         t_b, steps, shown = runner.driver.t, runner.sim.n_steps - steps0, viewer.frames_shown - shown0
         parts = {k: (clock.wall[k], clock.calls[k]) for k in clock.wall}
         got = counts.get(timeout=seconds + 60)
@@ -204,7 +207,7 @@ def measure_viewer(path: Path, seconds: float, warmup: float, speed: float, forc
     finally:
         client.join(timeout=10)
         viewer.stop()
-    return {"t_a": t_a, "t_b": t_b, "wall": wall, "rtf": (t_b - t_a) / wall, "steps": steps,
+    return {"t_a": t_a, "t_b": t_b, "wall": wall, "rtf": (t_b - t_a) / wall, "cpu": cpu / (t_b - t_a), "steps": steps,
             "pushed_hz": shown / wall, "poses_hz": got["poses"] / seconds, "plots_hz": got["plots"] / seconds,
             "parts": parts, "status": status}
 
@@ -212,12 +215,12 @@ def measure_viewer(path: Path, seconds: float, warmup: float, speed: float, forc
 def measure_headless(path: Path, t_a: float, t_b: float) -> dict:
     """The headless run of ``path`` to ``t_b``: its wall time over ``[t_a, t_b]``, interpolated
     between the times its kernel calls return (the run's frames come a chunk at a time)."""
-    stamps = [(time.perf_counter(), 0.0)]
+    stamps = [(time.perf_counter(), time.process_time(), 0.0)]
     step = Simulation.output_states
 
     def stamped(sim, *args, **kwargs):
         out = step(sim, *args, **kwargs)
-        stamps.append((time.perf_counter(), sim.state.t))
+        stamps.append((time.perf_counter(), time.process_time(), sim.state.t))
         return out
 
     Simulation.output_states = stamped
@@ -225,19 +228,23 @@ def measure_headless(path: Path, t_a: float, t_b: float) -> dict:
         traj = simulate(path, t_end=t_b)
     finally:
         Simulation.output_states = step
-    wall, t = np.array(stamps).T
+    wall, cpu, t = np.array(stamps).T
     wall_a, wall_b = np.interp([t_a, t_b], t, wall)
-    return {"wall": wall_b - wall_a, "rtf": (t_b - t_a) / (wall_b - wall_a), "status": traj.status}
+    cpu_a, cpu_b = np.interp([t_a, t_b], t, cpu)
+    return {"wall": wall_b - wall_a, "rtf": (t_b - t_a) / (wall_b - wall_a), "cpu": (cpu_b - cpu_a) / (t_b - t_a),
+            "status": traj.status}
 
 
 def scene_report(path: Path, seconds: float, warmup: float, speed: float, forces: bool, repeat: int) -> str:
     clock = instrument()
     lines = [f"`{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}`, "
              f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, viewer at --speed {speed:g}, "
-             f"contact and reaction arrows {'on' if forces else 'off'}, one websocket client of viser's protocol (its own process).",
+             f"contact and reaction arrows {'on' if forces else 'off'}, "
+             "one websocket client of viser's protocol (its own process).",
              "", "| pair | load before | viewer: sim interval [s] | viewer: real-time factor | headless, same interval: "
-             "real-time factor | viewer / headless | frames pushed [Hz] | pose updates received [Hz] | "
-             "plot updates received [Hz] | load after |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "real-time factor | viewer / headless | CPU per simulated second [s]: viewer, headless, ratio | "
+             "frames pushed [Hz] | pose updates received [Hz] | plot updates received [Hz] | load after |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     splits = []
     for k in range(repeat):
         before = _uptime()
@@ -245,11 +252,12 @@ def scene_report(path: Path, seconds: float, warmup: float, speed: float, forces
         h = measure_headless(path, v["t_a"], v["t_b"])
         after = _uptime()
         lines.append(f"| {k + 1} | {before.split(': ')[1]} | {v['t_a']:.2f}-{v['t_b']:.2f} | {v['rtf']:.3f} | "
-                     f"{h['rtf']:.3f} | {v['rtf'] / h['rtf']:.3f} | {v['pushed_hz']:.1f} | {v['poses_hz']:.1f} | "
+                     f"{h['rtf']:.3f} | {v['rtf'] / h['rtf']:.3f} | {v['cpu']:.3f}, {h['cpu']:.3f}, {v['cpu'] / h['cpu']:.3f} | "
+                     f"{v['pushed_hz']:.1f} | {v['poses_hz']:.1f} | "
                      f"{v['plots_hz']:.1f} | {after.split(': ')[1]} |")
         print(lines[-1], flush=True)
         if v["status"] != "ok" or h["status"] != "ok":
-            lines.append(f"|  | statuses: viewer {v['status']!r}, headless {h['status']!r} | | | | | | | | |")
+            lines.append(f"|  | statuses: viewer {v['status']!r}, headless {h['status']!r} | | | | | | | | | |")
         splits.append(v)
     lines += ["", "Where the viewer's wall time went (last pair), per simulation step "
               f"({splits[-1]['steps']} steps, {splits[-1]['wall']:.1f} s of wall):", "",

@@ -59,6 +59,7 @@ def test_the_hoist_viewer_streams_its_plots_and_contact_arrows_to_a_client():
     import asyncio
 
     from test_viewer import _collect
+
     from viz3d.realtime import SimRunner
     from viz3d.viz.viewer_viser import Viewer
 
@@ -90,6 +91,7 @@ def test_the_hoist_recording_holds_the_live_channels(tmp_path):
     """`viz3d run --record` on anchor_hoist: every panel of the recording's blueprint (the viewer's
     panels, SceneVisuals.plots) has its series in the file, the hawse tension, hauling force and
     crown angle among them, finite; the contact arrows are recorded."""
+    from viz3d.scene.visuals import scene_visuals
     from viz3d.viz.recorder_rerun import RerunRecorder
     from viz3d.viz.rrd import entities, read_scalars
 
@@ -97,8 +99,6 @@ def test_the_hoist_recording_holds_the_live_channels(tmp_path):
     traj = viz3d.simulate(SCENES / "anchor_hoist.toml", t_end=0.2, sinks=[RerunRecorder(path)])
     assert traj.status == "ok"
     recorded = {e for e, _ in entities(path)}
-    from viz3d.scene.visuals import scene_visuals
-
     scene = viz3d.load_scene(SCENES / "anchor_hoist.toml")
     for title, origin in scene_visuals(scene, viz3d.build(scene)[0]).plots:
         assert any(e.startswith(f"/plots/{origin}") for e in recorded), f"{title}: nothing under /plots/{origin}"
