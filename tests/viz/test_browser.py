@@ -111,3 +111,41 @@ def test_viewer_in_a_real_browser():
     finally:
         viewer.stop()
     assert (artifacts / "viewer.png").stat().st_size > 10_000
+
+
+#: The anchor hoist's panels a browser must show (titles up to their unit, prefixed live).
+HOIST_PANELS = ("Energy", "Drive effort", "Chain tension at the hawse", "flukes_stop: crown angle",
+                "Shape contacts: normal force")
+
+
+def test_anchor_hoist_in_a_real_browser():
+    """anchor_hoist in Chromium: the Forces toggle (contact arrows) switched on from the page, the
+    hoist's plots drawn with their titles, the 3D canvas not blank."""
+    sync_api = _require_browser()
+    artifacts = Path(os.environ.get("VIZ3D_ARTIFACTS", tempfile.mkdtemp(prefix="viz3d-browser-")))
+    artifacts.mkdir(parents=True, exist_ok=True)
+    runner = SimRunner(viz3d.load_scene(SCENES / "anchor_hoist.toml"))
+    viewer = Viewer(runner, port=0, scenes_dir=SCENES)
+    viewer.start()
+    try:
+        with sync_api.sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1280, "height": 1600})
+                page.goto(viewer.url, wait_until="commit", timeout=TIMEOUT * 1000)
+                assert wait_for(lambda: runner.snapshot.frame.t > 0.2), "simulation not running"
+                page.get_by_role("checkbox", name="Forces", exact=True).dispatch_event("click")
+                assert wait_for(lambda: viewer.flags["forces"]), "the Forces toggle did not reach the viewer"
+                for panel in HOIST_PANELS:
+                    assert wait_for(lambda panel=panel: page.get_by_text(panel, exact=False).count() > 0), \
+                        f"no plot titled {panel!r} on the page"
+                for close in page.locator("button.mantine-Notification-closeButton").all():
+                    close.dispatch_event("click")
+                canvas = page.locator("canvas").first
+                assert wait_for(lambda: drawn_fraction(canvas.screenshot()) > MIN_DRAWN_FRACTION, timeout=TIMEOUT), \
+                    "the 3D canvas stayed blank"
+                page.screenshot(path=str(artifacts / "anchor_hoist.png"))
+            finally:
+                browser.close()
+    finally:
+        viewer.stop()
