@@ -13,17 +13,18 @@ for the children).
 
 Cases: Python alone, ``import numpy``, ``import numba``, ``import numba, scipy.linalg`` (what a run
 imported while its initial projection called LAPACK; a rigid run the kernel covers now projects in the
-kernel and imports numba only), ``import viz3d``, ``import viz3d.cli``,
-``viz3d run scenes/heavy_top.toml --t-end 0.01`` (10 steps) and ``viz3d check scenes/heavy_top.toml`` (load
-and build on the NumPy path: no compiled kernel). ``--before DIR`` measures a second source
-tree too (an earlier version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through
-PYTHONPATH, in the same rounds. A last table splits one run into its phases (imports, scene load and
-build, the initial projection included: in the kernel for a covered rigid system, through the kernel's
-one entry for a run, ``advance_frames``, loaded from numba's cache; before that entry took the
-sampling and projection too, the initial projection loaded an entry of its own; the kernel's first
-call = one step through ``advance_frames``: loading it, on trees where the build did not; the rest of
-the run: the steps and their sampling, whose entry earlier trees loaded here, the output), wall and
-CPU time, median of ``--repeat``.
+kernel and imports numba only), ``import viz3d``, ``import viz3d.cli``, ``viz3d run
+scenes/heavy_top.toml --t-end 0.01`` (10 steps) and ``viz3d check scenes/heavy_top.toml`` (load and build
+on the NumPy path: no compiled kernel). ``--before DIR`` measures a second source tree too (an earlier
+version, e.g. ``git archive <commit> | tar -x -C DIR``), imported through PYTHONPATH, in the same rounds.
+
+A last table splits one run into its phases, timed from within the process: the imports (numpy's,
+numba's, viz3d's modules); scene load and build, the initial projection included (in the kernel for a
+covered rigid system, through the kernel's one entry for a run, ``advance_frames``, loaded from numba's
+cache; before that entry took the sampling and projection too, the initial projection loaded an entry of
+its own); the kernel's first call, one step through ``advance_frames`` (loading it, on trees where the
+build did not); the rest of the run (the steps and their sampling, whose entry earlier trees loaded
+here, the output). Wall and CPU time, median of ``--repeat``.
 The load average (``uptime``'s) is quoted before and after.
 """
 
@@ -57,7 +58,7 @@ CASES = [
 #: The two clocks of every measurement.
 CLOCKS = ("wall", "CPU")
 #: The phases of ``PHASES``.
-PHASE_NAMES = ("imports", "load and build", "kernel from cache", "run")
+PHASE_NAMES = ("import numpy", "import numba", "import viz3d's modules", "load and build", "kernel from cache", "run")
 #: One run split into phases (printed as JSON: wall and CPU seconds of each).
 PHASES = """
 import time
@@ -65,6 +66,9 @@ def now():
     return time.perf_counter(), time.process_time()
 t0 = now()
 import numpy as np
+ta = now()
+import numba
+tb = now()
 from viz3d.cli import main
 from viz3d.scene.build import build, make_formulation
 from viz3d.scene.load import load_scene
@@ -82,7 +86,7 @@ main(["run", {scene!r}, "--t-end", "0.01", "--out", {out!r}, "--no-progress"])
 t4 = now()
 import json
 names = {names!r}
-ts = (t0, t1, t2, t3, t4)
+ts = (t0, ta, tb, t1, t2, t3, t4)
 print(json.dumps({{f"{{k}} {{c}}": ts[i + 1][j] - ts[i][j] for i, k in enumerate(names) for j, c in enumerate(("wall", "CPU"))}}))
 """
 
