@@ -328,7 +328,7 @@ def _loading_cache():
     * the target refresh before a load, for code that needs the target at run time: the NRT (viz3d
       compiles with ``_nrt=False``), object-mode blocks (none here), typed containers. Compiling,
       the one thing that needs the typing and lowering, refreshes first in numba's compiler;
-    * locating and probing the cache directory, for each of the 200 compiled functions as it is
+    * locating and probing the cache directory, for each of the 204 compiled functions as it is
       decorated: on the first load or save of that function (``__getattr__``);
     * parsing the bitcode a loaded entry keeps for linking into other libraries (megabytes for the
       kernel's entries, 0.1 s of a run's start), which a call from Python never needs: when a later
@@ -338,12 +338,15 @@ def _loading_cache():
     try:
         from llvmlite import binding as ll
         from numba.core.caching import CompileResultCacheImpl, FunctionCache
-        from numba.core.codegen import JITCodeLibrary
+        from numba.core.codegen import JITCodeLibrary, JITCPUCodegen, JitEngine
     except ImportError:  # pragma: no cover
         return None
-    needs = ((FunctionCache, "_load_overload"), (FunctionCache, "_guard_against_spurious_io_errors"),
-             (JITCodeLibrary, "_get_module_for_linking"), (JITCodeLibrary, "_set_compiled_object"))
-    if not all(hasattr(cls, m) for cls, m in needs):
+    needs = {FunctionCache: ("_load_overload", "_guard_against_spurious_io_errors"),
+             JITCodeLibrary: ("_get_module_for_linking", "_set_compiled_object", "enable_object_caching",
+                              "_finalize_final_module"),
+             JitEngine: ("is_symbol_defined", "_load_defined_symbols")}  # the latter fills ``_defined_symbols``
+    if JITCPUCodegen._library_class is not JITCodeLibrary or not all(
+            hasattr(cls, m) for cls, names in needs.items() for m in names):
         return None  # pragma: no cover
 
     class LinkLaterLibrary(JITCodeLibrary):
