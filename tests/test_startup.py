@@ -58,6 +58,14 @@ def test_a_headless_run_imports_only_what_it_uses(tmp_path):
     assert out.exists()
 
 
+def test_check_builds_without_the_compiled_kernel():
+    """``viz3d check`` builds its scenes on the NumPy path: no kernel module is imported, so no compiled
+    entry is loaded from numba's cache, nor compiled (minutes) on a cold one, to check a scene."""
+    modules = loaded_after("from viz3d.cli import main\nassert main(['check', 'scenes/heavy_top.toml']) == 0")
+    assert "viz3d.scene.build" in modules
+    assert not sorted(m for m in modules if m.startswith("viz3d.kernel"))
+
+
 def test_a_warm_run_loads_its_kernel_without_numbas_target_refresh(tmp_path):
     pytest.importorskip("numba")
     out = tmp_path / "top.npz"

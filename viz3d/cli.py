@@ -730,9 +730,15 @@ def cmd_check(args) -> int:
 
 
 def _check_built(scene) -> str:
+    """What ``scene`` builds, built on the NumPy path (``sim.compiled = false``): its initial projection
+    then raises the diagnoses a run's kernel projection hands on to it, and no compiled kernel is
+    loaded, nor compiled on a cold numba cache (minutes) only to be checked."""
+    from dataclasses import replace
+
     from viz3d.scene.build import build
 
-    system = build(scene)[0]
+    numpy_path = {**scene.data, "sim": {**scene.data["sim"], "compiled": False}}
+    system = build(replace(scene, data=numpy_path))[0]
     what = f"{system.n_bodies} bodies, {len(system.joint_names)} joints"
     if scene.data["contacts"]:
         what += f", {len(scene.data['contacts'])} contacts ({', '.join(c['law'] for c in scene.data['contacts'])})"

@@ -37,7 +37,10 @@ raise out of the run and lose its frames).
 A cache hit skips numba's target refresh (``LoadingCache``): before every load numba imports and
 installs the typing and lowering of all it supports (NRT, typed containers, linear algebra and
 scipy.linalg, ...), 0.1-0.2 s at a run's start, in case the loaded code needs them. viz3d's does
-not (no NRT, no object mode); a miss compiles, and numba's compiler refreshes first.
+not (no NRT, no object mode); a miss compiles, and numba's compiler refreshes first. Nor does a
+cache hit parse the bitcode numba keeps with a compiled entry for linking it into later compilations
+(0.1 s for the kernel's ``advance_frames``): that is parsed when a compilation links it. And the
+cache directory is located when a function is first loaded or compiled, not as it is decorated.
 """
 
 from __future__ import annotations
@@ -318,20 +321,94 @@ def _is_ours(py_file: str) -> bool:
 
 
 def _loading_cache():
-    """numba's cache of a function that loads a hit without refreshing the target first, or None
-    when this numba's cache lacks the private methods it builds on (the cache is numba's own then).
+    """numba's cache of a function, made cheap at a run's start, or None when this numba lacks the
+    private pieces it builds on (the cache is numba's own then). Three things numba does at once are
+    done only when needed:
 
-    The refresh is for code that needs the target at run time: the NRT (viz3d compiles with
-    ``_nrt=False``), object-mode blocks (none here), typed containers. Compiling, the one thing
-    that needs the typing and lowering, refreshes first in numba's compiler."""
+    * the target refresh before a load, for code that needs the target at run time: the NRT (viz3d
+      compiles with ``_nrt=False``), object-mode blocks (none here), typed containers. Compiling,
+      the one thing that needs the typing and lowering, refreshes first in numba's compiler;
+    * locating and probing the cache directory, for each of the 204 compiled functions as it is
+      decorated: on the first load or save of that function (``__getattr__``);
+    * parsing the bitcode a loaded entry keeps for linking into other libraries (megabytes for the
+      kernel's entries, 0.1 s of a run's start), which a call from Python never needs: when a later
+      compilation links the entry (``LinkLaterLibrary``). The names the entry defines, which numba
+      reads from that bitcode, are stored with it (``LinkLaterImpl.reduce``).
+    """
     try:
-        from numba.core.caching import FunctionCache
+        from llvmlite import binding as ll
+        from numba.core.caching import CompileResultCacheImpl, FunctionCache
+        from numba.core.codegen import JITCodeLibrary, JITCPUCodegen, JitEngine
     except ImportError:  # pragma: no cover
         return None
-    if not all(hasattr(FunctionCache, m) for m in ("_load_overload", "_guard_against_spurious_io_errors")):
+    needs = {FunctionCache: ("_load_overload", "_guard_against_spurious_io_errors"),
+             JITCodeLibrary: ("_get_module_for_linking", "_set_compiled_object", "enable_object_caching",
+                              "_finalize_final_module"),
+             JitEngine: ("is_symbol_defined", "_load_defined_symbols")}  # the latter fills ``_defined_symbols``
+    if JITCPUCodegen._library_class is not JITCodeLibrary or not all(
+            hasattr(cls, m) for cls, names in needs.items() for m in names):
         return None  # pragma: no cover
 
+    class LinkLaterLibrary(JITCodeLibrary):
+        """A library loaded from the cache (object code), its module for linking parsed on demand."""
+
+        _shared_bitcode = None
+
+        @classmethod
+        def _unserialize(cls, codegen, state):  # numba's, for ("object", data) with the defined names
+            name, kind, (object_code, shared_bitcode, defined) = state
+            self = cls(codegen, name)
+            self.enable_object_caching()
+            self._set_compiled_object(object_code)
+            self._shared_bitcode = shared_bitcode
+            self._finalize_final_module()
+            codegen._engine._defined_symbols.update(defined)
+            return self
+
+        def _get_module_for_linking(self):
+            if self._shared_module is None and self._shared_bitcode is not None:
+                self._shared_module = ll.parse_bitcode(self._shared_bitcode)
+            return super()._get_module_for_linking()
+
+    class LinkLaterImpl(CompileResultCacheImpl):
+        """numba's cache entries, the library's payload ``(object code, bitcode for linking, defined
+        names)``, loaded as a ``LinkLaterLibrary``."""
+
+        def reduce(self, cres):
+            (name, kind, data), *rest = super().reduce(cres)
+            shared = cres.library._get_module_for_linking()
+            defined = tuple(sorted(g.name for gs in (shared.functions, shared.global_variables) for g in gs
+                                   if not g.is_declaration))
+            return ((name, kind, (*data, defined)), *rest)
+
+        def rebuild(self, target_context, payload):
+            codegen = target_context.codegen()
+            codegen._library_class = LinkLaterLibrary  # numba's compiler lock is held: no other load sees it
+            try:
+                return super().rebuild(target_context, payload)
+            finally:
+                del codegen._library_class
+
     class LoadingCache(FunctionCache):
+        _impl_class = LinkLaterImpl
+
+        def __init__(self, py_func):
+            source_stamp()  # the key is the code this process imported, whenever the cache is set up
+            self._pending = py_func
+
+        def __getattr__(self, name):
+            """Set numba's cache up on the first use of an attribute that its set-up defines."""
+            py_func = vars(self).get("_pending")
+            if py_func is None:
+                raise AttributeError(name)
+            self._pending = None
+            try:
+                super().__init__(py_func)
+            except BaseException:
+                self._pending = py_func
+                raise
+            return getattr(self, name)
+
         def load_overload(self, sig, target_context):
             with self._guard_against_spurious_io_errors():
                 return self._load_overload(sig, target_context)
