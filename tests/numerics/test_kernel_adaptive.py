@@ -306,9 +306,9 @@ def test_impact_time_of_a_dropped_ball(monkeypatch):
 BOUNCES = [(0.5, 0.02), (0.5, 0.05), (0.8, 0.02), (0.8, 0.05)]
 #: Bounces before the end of those runs (which end half-way through the next flight).
 N_BOUNCES = 5
-#: Rounding of a step's or an interpolant's position per unit of ``|z0| + |z1| + h |v0| + h |v1|``:
-#: the Hermite form's ``CUBIC_ROUNDOFF`` eps, doubled for DOPRI5's stage sum (its weights' magnitudes
-#: add up to 1.65 of the step's velocity).
+#: Rounding of a step's end position per unit of ``|r0| + |r1| + h |v0| + h |v1|``: the Hermite
+#: form's ``CUBIC_ROUNDOFF`` eps, doubled for DOPRI5's stage sum (its weights' magnitudes add up to
+#: 1.65 of the step's velocity).
 STEP_ROUNDING = 16 * EPS
 
 
@@ -346,8 +346,10 @@ def test_bounce_times_of_a_dropped_ball_without_a_step_bound(e, h0, monkeypatch)
     (the same steps and events), at its closed-form time within ``_bounce_time_bounds`` of what
     locating each may be off by: ``brentq``'s stop (``EVENT_XTOL`` of the step it was located in,
     recorded, plus ``EVENT_RTOL`` of the time) and the rounding of the gap over the approach speed
-    (``STEP_ROUNDING`` of every step so far, a bound of the rounding the state carries)."""
-    from viz3d.integrators.adaptive import EVENT_RTOL, EVENT_XTOL
+    (the interpolant's at the root, ``CUBIC_ROUNDOFF`` eps of its terms there, and what the state
+    carries: ``STEP_ROUNDING`` of every step over the length it took, positions at most the largest
+    at a step's start and speeds at most the first impact's up to the last bounce)."""
+    from viz3d.integrators.adaptive import CUBIC_ROUNDOFF, EVENT_RTOL, EVENT_XTOL
 
     impactor = tomllib.loads((SCENES / "bouncing_sphere.toml").read_text())["impactor"]
     accel = impactor["force"] / impactor["mass"]  # its weight as a load, no gravity field
@@ -361,17 +363,20 @@ def test_bounce_times_of_a_dropped_ball_without_a_step_bound(e, h0, monkeypatch)
         hit = locate(*args)
         t0, y0, f0, t1, y1, f1 = args[-7:-1]  # (..., t0, y0, f0, t1, y1, f1, fresh)
         h = t1 - t0
-        rounding = STEP_ROUNDING * float(np.max(np.abs(y0[:3]) + np.abs(y1[:3]) + h * (np.abs(f0[:3]) + np.abs(f1[:3]))))
-        steps.append((h, rounding, hit))
+        s = 1.0 if hit is None else (hit[1] - t0) / h  # where the interpolant's terms are taken
+        basis = np.array([(1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2 * h, s * s * (3 - 2 * s), s * s * (1 - s) * h])
+        terms = np.abs(np.stack([y0[:3], f0[:3], y1[:3], f1[:3]])) * basis[:, None]
+        steps.append((h, s * h, float(np.abs(y0[:3]).max()), CUBIC_ROUNDOFF * EPS * float(terms.sum(axis=0).max()), hit))
         return hit
 
     monkeypatch.setattr(simulate_module, "first_event", recorded)
     b = _run("bouncing_sphere", t_end, False, overrides, monkeypatch=monkeypatch)  # (undoes the recording)
     a = _run("bouncing_sphere", t_end, True, overrides, monkeypatch=monkeypatch)
     _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
-    rounding = sum(r for _, r, _ in steps)
-    hits = [(hit[1], h) for h, _, hit in steps if hit is not None]
-    located = [EVENT_XTOL * h + EVENT_RTOL * t + rounding / V for (t, h), (_, V) in zip(hits, bounces)]
+    V_1, r_max = bounces[0][1], max(r for _, _, r, _, _ in steps)
+    carried = sum(STEP_ROUNDING * (2 * r_max + 2 * taken * V_1) for _, taken, _, _, _ in steps)
+    hits = [(hit[1], h, at_root) for h, _, _, at_root, hit in steps if hit is not None]
+    located = [EVENT_XTOL * h + EVENT_RTOL * t + (at_root + carried) / V for (t, h, at_root), (_, V) in zip(hits, bounces)]
     bounds = _bounce_time_bounds(e, accel, located)
     for sim in (a[0], b[0]):
         times = [r.t_start for r in sim.contacts.records if r.t_start <= t_end]
