@@ -10,7 +10,9 @@ each contact was resolved.
 * **Events** (``ContactStepping.events``): onset (``alpha - crater`` rising through 0), separation
   (falling through 0; for kinematic contacts the multiplier falling through 0, i.e. tension),
   maximum indentation (``alpha_dot`` falling through 0, elastoplastic laws). The stepper locates
-  them on the step's cubic Hermite interpolant (``brentq``) and redoes the step to the event
+  them on the step's cubic Hermite interpolant (``brentq``), those on ``alpha`` also where it
+  crosses and comes back inside one step (its rate ``alpha_dot`` is ``Event.rate``: a ball's whole
+  flight in one step; ``viz3d.integrators.adaptive.hermite_extrema``), and redoes the step to the event
   (``viz3d.simulate``); the compiled adaptive driver does the same in the kernel
   (``viz3d.kernel.adaptive``, the event functions as data: ``event_rows``).
 * **Handlers** (``ContactStepping.handle``): law onset (memory, time scale of the contact), plastic
@@ -273,8 +275,9 @@ class ContactStepping:
                 out.append(Event(row.name, lambda t, y, k=k, i=i: self._probe(t, y, state, k, i), row.direction))
             else:
                 column = 0 if row.kind == "gap" else 1
+                rate = (lambda t, y, r=row: self._probe(t, y, state)[r.index, 1]) if row.kind == "gap" else None
                 out.append(Event(row.name, lambda t, y, r=row, c=column: self._probe(t, y, state)[r.index, c] - r.floor,
-                                 row.direction))
+                                 row.direction, rate))
         return out
 
     def event_rows(self, state: State) -> tuple["EventRow", ...]:

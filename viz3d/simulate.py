@@ -486,7 +486,8 @@ class Simulation:
         touched = self._fired.partition(":")[2] if self._fired else None      # "k:i" of the contact handled last
         fresh = tuple(ev.name for ev in events if ev.name.partition(":")[2] == touched)
         g0 = [0.0 if ev.name in fresh else ev.g(s.t, s.y) for ev in events]
-        hit = first_event(events, g0, s.t, s.y, f0, t1, res.y, f1, fresh)
+        r0 = [np.nan if ev.rate is None else ev.rate(s.t, s.y) for ev in events]
+        hit = first_event(events, g0, r0, s.t, s.y, f0, t1, res.y, f1, fresh)
         if hit is None:
             self._solver = solver
             self._span = self._rk_span(rhs, s, t1, h, res, f1) if self.controller is not None else None

@@ -11,6 +11,7 @@ Python path round differently.
 """
 
 import dataclasses
+import importlib
 import math
 import re
 import tomllib
@@ -299,6 +300,89 @@ def test_impact_time_of_a_dropped_ball(monkeypatch):
     assert abs(sim.contacts.records[0].t_start - t_hit) <= bound, f"{sim.contacts.records[0].t_start - t_hit:.2e} s"
     # the speed at the located time: off by the acceleration F / m times the time's error
     assert abs(sim.contacts.records[0].approach - v_hit) <= F / m * bound + 8 * EPS * v_hit
+
+
+#: Restitution coefficients and drop heights [m] of the bouncing ball without a step bound.
+BOUNCES = [(0.5, 0.02), (0.5, 0.05), (0.8, 0.02), (0.8, 0.05)]
+#: Bounces before the end of those runs (which end half-way through the next flight).
+N_BOUNCES = 5
+#: Rounding of a step's end position per unit of ``|r0| + |r1| + h |v0| + h |v1|``: the Hermite
+#: form's ``CUBIC_ROUNDOFF`` eps, doubled for DOPRI5's stage sum (its weights' magnitudes add up to
+#: 1.65 of the step's velocity).
+STEP_ROUNDING = 16 * EPS
+
+
+def _bounces(e: float, h0: float, a: float, n: int) -> list[tuple[float, float]]:
+    """(time [s], approach speed [m/s]) of the first ``n`` bounces of a ball dropped from rest through
+    ``h0`` under the acceleration ``a``, restitution ``e``: ``t_1 = sqrt(2 h0 / a)``, ``V_1 = a t_1``,
+    ``t_(k+1) = t_k + 2 e V_k / a``, ``V_(k+1) = e V_k``."""
+    t, V, out = math.sqrt(2 * h0 / a), math.sqrt(2 * a * h0), []
+    for _ in range(n):
+        out.append((t, V))
+        V *= e
+        t += 2 * V / a
+    return out
+
+
+def _bounce_time_bounds(e: float, a: float, located: list[float]) -> list[float]:
+    """Bound of each located bounce's time error from the errors ``located`` [s] of locating each
+    (first order). A bounce located late by ``d`` starts the next flight ``V d`` below the plate at
+    ``e (V + nu + a d)`` (``nu``: the approach speed's error), so the next bounce is late by
+    ``tau + 2 e nu / a + (1 + 2 e - 1/e) d`` and meets the plate at ``e nu + a (e - 1/e) d`` more
+    than ``e V`` (terms in ``a d^2`` are far below rounding)."""
+    tau, nu, out = 0.0, 0.0, []
+    for d in located:
+        out.append(tau + d)
+        tau, nu = tau + 2 * e * nu / a + abs(1 + 2 * e - 1 / e) * d, e * nu + a * abs(e - 1 / e) * d
+    return out
+
+
+@pytest.mark.parametrize("e, h0", BOUNCES)
+def test_bounce_times_of_a_dropped_ball_without_a_step_bound(e, h0, monkeypatch):
+    """Was: bouncing_sphere with restitution and no sim.max_step found 2 bounces of 5 in 0.4 s (both
+    paths). Free flight is exact for DOPRI5, so its steps grow until a whole flight (the gap
+    negative, then positive, then negative again) fits in one, whose ends showed nothing. Now each
+    bounce of ``_bounces`` before the end is found, by the Python loop and the compiled driver alike
+    (the same steps and events), at its closed-form time within ``_bounce_time_bounds`` of what
+    locating each may be off by: ``brentq``'s stop (``EVENT_XTOL`` of the step it was located in,
+    recorded, plus ``EVENT_RTOL`` of the time) and the rounding of the gap over the approach speed
+    (the interpolant's at the root, ``CUBIC_ROUNDOFF`` eps of its terms there, and what the state
+    carries: ``STEP_ROUNDING`` of every step over the length it took, positions at most the largest
+    at a step's start and speeds at most the first impact's up to the last bounce)."""
+    from viz3d.integrators.adaptive import CUBIC_ROUNDOFF, EVENT_RTOL, EVENT_XTOL
+
+    impactor = tomllib.loads((SCENES / "bouncing_sphere.toml").read_text())["impactor"]
+    accel = impactor["force"] / impactor["mass"]  # its weight as a load, no gravity field
+    bounces = _bounces(e, h0, accel, N_BOUNCES + 1)
+    t_end = (bounces[-2][0] + bounces[-1][0]) / 2
+    overrides = ("contact.law=restitution", f"contact.restitution={e}", f"impactor.gap={h0}")
+    simulate_module = importlib.import_module("viz3d.simulate")
+    locate, steps = simulate_module.first_event, []
+
+    def recorded(*args):
+        hit = locate(*args)
+        t0, y0, f0, t1, y1, f1 = args[-7:-1]  # (..., t0, y0, f0, t1, y1, f1, fresh)
+        h = t1 - t0
+        s = 1.0 if hit is None else (hit[1] - t0) / h  # where the interpolant's terms are taken
+        basis = np.array([(1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2 * h, s * s * (3 - 2 * s), s * s * (1 - s) * h])
+        terms = np.abs(np.stack([y0[:3], f0[:3], y1[:3], f1[:3]])) * basis[:, None]
+        steps.append((h, s * h, float(np.abs(y0[:3]).max()), CUBIC_ROUNDOFF * EPS * float(terms.sum(axis=0).max()), hit))
+        return hit
+
+    monkeypatch.setattr(simulate_module, "first_event", recorded)
+    b = _run("bouncing_sphere", t_end, False, overrides, monkeypatch=monkeypatch)  # (undoes the recording)
+    a = _run("bouncing_sphere", t_end, True, overrides, monkeypatch=monkeypatch)
+    _assert_same_run(a, b, STEPPED_ROUNDOFF if a[0].formulation.name == "projection" else SAMPLE_ROUNDOFF)
+    V_1, r_max = bounces[0][1], max(r for _, _, r, _, _ in steps)
+    carried = sum(STEP_ROUNDING * (2 * r_max + 2 * taken * V_1) for _, taken, _, _, _ in steps)
+    hits = [(hit[1], h, at_root) for h, _, _, at_root, hit in steps if hit is not None]
+    located = [EVENT_XTOL * h + EVENT_RTOL * t + (at_root + carried) / V for (t, h, at_root), (_, V) in zip(hits, bounces)]
+    bounds = _bounce_time_bounds(e, accel, located)
+    for sim in (a[0], b[0]):
+        times = [r.t_start for r in sim.contacts.records if r.t_start <= t_end]
+        assert len(times) == N_BOUNCES, f"{len(times)} bounces of {N_BOUNCES} before t = {t_end:.4g} s"
+        for k, (t, (t_k, _), bound) in enumerate(zip(times, bounces, bounds)):
+            assert abs(t - t_k) <= bound, f"bounce {k + 1}: {t - t_k:.3g} s off, bound {bound:.3g} s"
 
 
 def test_step_size_underflow_is_diagnosed_as_in_python(monkeypatch):

@@ -495,7 +495,7 @@ class KernelStepper:
         direction = np.array([e.direction for e in events], np.int64)
         z = np.empty
         scratch = (z(n), z(n), z(n), z(n), z((nf, 3, 3)), np.zeros(carry.switches.shape[0], np.int64),
-                   z((d.n_contacts, 11)), z(len(events)), z(len(events)), z(n))
+                   z((d.n_contacts, 11)), z((len(events), 2)), z((len(events), 2)), z(n))
         Ts, Y, charts = z(n_frames), z((n_frames, n)), z((n_frames, nf, 3, 3))
         record = records is not None
         records = records if record else StepRecords.empty(0, n, nf)
@@ -509,12 +509,13 @@ class KernelStepper:
 
 def _adaptive_method(tableau, controller) -> tuple:
     """The tableau and controller as the compiled adaptive driver takes them."""
-    from viz3d.integrators.adaptive import EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, SAFETY
+    from viz3d.integrators.adaptive import (CUBIC_ROUNDOFF, EPS, EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN,
+                                            SAFETY)
     from viz3d.integrators.explicit_rk import is_end_stage
 
     dense, c = tableau.dense, np.ascontiguousarray
     ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
-                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER], float)
+                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, CUBIC_ROUNDOFF * EPS], float)
     a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
     return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),

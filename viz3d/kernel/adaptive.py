@@ -6,7 +6,9 @@ between steps what ``viz3d.kernel.stepping.advance`` does (the ``projection`` fo
 projections, health checks, chart switches).
 
 A step over which an event function of the contacts changes sign is cut at the first event, as
-``Simulation._event_step`` cuts it: each crossing located on the step's cubic Hermite interpolant
+``Simulation._event_step`` cuts it: the signs looked at at the step's ends and at the extrema of
+the event function's cubic Hermite (``viz3d.integrators.adaptive.first_event``: a crossing and its
+return inside one step are found too), each crossing located on the step's cubic Hermite interpolant
 (``viz3d.integrators.adaptive.hermite``) by Brent's method with ``brentq``'s iteration and the
 Python loop's tolerances, the step redone to the earliest, its end settled and committed, the
 call ended (``EVENT``: ``flags[CUT]`` names the event row, Python applies the event's handler,
@@ -54,8 +56,9 @@ EVENT, UNDERFLOW, FULL, UNLOCATED = 6, 7, 8, 9
 T, H, T0, T1, SPAN_H = 0, 1, 2, 3, 4
 HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
 #: Indices of the event tolerances in ``ctrl`` (after the controller's eight): ``brentq``'s
-#: ``xtol`` relative to the step, its ``rtol`` and iteration limit.
-EV_XTOL, EV_RTOL, EV_MAXITER = 8, 9, 10
+#: ``xtol`` relative to the step, its ``rtol`` and iteration limit, the rounding of an event's cubic
+#: (``CUBIC_ROUNDOFF`` eps, ``viz3d.integrators.adaptive``).
+EV_XTOL, EV_RTOL, EV_MAXITER, EV_ROUNDING = 8, 9, 10, 11
 STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
 #: its ``alpha_dot``, a kinematic contact's multiplier.
@@ -150,9 +153,10 @@ def turn_limit(n_frames, n_rot, f, max_turn):
 
 @jit
 def event_values(t, y, chart, kind, index, floor, m, v, w, forces, rows, geometry, gap_out, ydot, out):
-    """The event functions at ``(t, y)`` into ``out`` (E,): ``GAP`` ``alpha - floor``, ``GAP_RATE``
-    ``alpha_dot`` of contact ``index``, ``MULTIPLIER`` the multiplier of row ``index``; returns the
-    status of the evaluation the multipliers need (``OK`` when none)."""
+    """The event functions at ``(t, y)`` and their rates (``Event.rate``) into ``out`` (E, 2): ``GAP``
+    ``alpha - floor`` and ``alpha_dot``, ``GAP_RATE`` ``alpha_dot``, ``MULTIPLIER`` the multiplier
+    of row ``index`` (these two without a rate: nan); returns the status of the evaluation the
+    multipliers need (``OK`` when none)."""
     n_ev = kind.shape[0]
     if n_ev == 0:
         return OK
@@ -160,23 +164,25 @@ def event_values(t, y, chart, kind, index, floor, m, v, w, forces, rows, geometr
     status = OK
     solved = False
     for e in range(n_ev):
+        out[e, 1] = math.nan
         if kind[e] == GAP:
-            out[e] = gap_out[index[e], 0] - floor[e]
+            out[e, 0] = gap_out[index[e], 0] - floor[e]
+            out[e, 1] = gap_out[index[e], 1]
         elif kind[e] == GAP_RATE:
-            out[e] = gap_out[index[e], 1]
+            out[e, 0] = gap_out[index[e], 1]
         else:
             if not solved:
                 status = evaluate(t, y, chart, m, v, w, forces, rows, ydot)
                 solved = True
                 if status != OK:
                     return status
-            out[e] = w.lam[index[e]]
+            out[e, 0] = w.lam[index[e]]
     return status
 
 
 @inline
 def crosses(direction, g0, g1):
-    """``viz3d.integrators.adaptive.Event.crosses``."""
+    """``viz3d.integrators.adaptive.crosses``."""
     rising = g0 < 0.0 <= g1
     falling = g0 > 0.0 >= g1
     if direction > 0:
@@ -184,6 +190,81 @@ def crosses(direction, g0, g1):
     if direction < 0:
         return falling
     return rising or falling
+
+
+@inline
+def armed(direction, g):
+    """``viz3d.integrators.adaptive.armed``."""
+    if direction > 0:
+        return g < 0.0
+    if direction < 0:
+        return g > 0.0
+    return g != 0.0
+
+
+@inline
+def _cubic(s, g0, m0, g1, m1):
+    """``viz3d.integrators.adaptive._cubic``: its operations in its order."""
+    u2 = (1.0 - s) * (1.0 - s)
+    h00, h10 = (1.0 + 2.0 * s) * u2, s * u2
+    h01, h11 = s * s * (3.0 - 2.0 * s), s * s * (s - 1.0)
+    return h00 * g0 + h10 * m0 + h01 * g1 + h11 * m1
+
+
+@jit
+def hermite_extrema(g0, m0, g1, m1, rounding):
+    """``viz3d.integrators.adaptive.hermite_extrema`` (its operations in its order, so the same
+    points; ``rounding`` its ``CUBIC_ROUNDOFF * EPS``): ``(s_lo, p_lo, s_hi, p_hi)``, -1 (and 0)
+    for none."""
+    tol = rounding * (abs(g0) + abs(m0) + abs(g1) + abs(m1))
+    s_lo, p_lo, s_hi, p_hi = -1.0, 0.0, -1.0, 0.0
+    a = 2.0 * (g0 - g1) + m0 + m1
+    b = 3.0 * (g1 - g0) - 2.0 * m0 - m1
+    disc = b * b - 3.0 * a * m0
+    if not disc >= 0.0:
+        return s_lo, p_lo, s_hi, p_hi
+    q = -(b + math.copysign(math.sqrt(disc), b))
+    if q == 0.0:
+        return s_lo, p_lo, s_hi, p_hi
+    r1 = m0 / q
+    r2 = q / (3.0 * a) if a != 0.0 else -1.0
+    for s in (min(r1, r2), max(r1, r2)):
+        p = _cubic(s, g0, m0, g1, m1) if 0.0 < s < 1.0 else 0.0
+        if abs(p) > tol:
+            if s_lo < 0.0:
+                s_lo, p_lo = s, p
+            else:
+                s_hi, p_hi = s, p
+    return s_lo, p_lo, s_hi, p_hi
+
+
+@inline
+def _bracket(direction, t0, g0, s_lo, t_lo, g_lo, s_hi, t_hi, g_hi, t1, g1):
+    """``viz3d.integrators.adaptive._bracket`` over the step's start, the cubic's extrema (``s < 0``
+    for none) and its end: (found, t_a, t_b, g_b)."""
+    found, t_a, g_a = armed(direction, g0), t0, g0
+    if s_lo >= 0.0:
+        if found and crosses(direction, g_a, g_lo):
+            return True, t_a, t_lo, g_lo
+        if armed(direction, g_lo):
+            found, t_a, g_a = True, t_lo, g_lo
+    if s_hi >= 0.0:
+        if found and crosses(direction, g_a, g_hi):
+            return True, t_a, t_hi, g_hi
+        if armed(direction, g_hi):
+            found, t_a, g_a = True, t_hi, g_hi
+    if found and crosses(direction, g_a, g1):
+        return True, t_a, t1, g1
+    return False, t_a, t1, g1
+
+
+@inline
+def _extrema_times(t, t1, g0, g1, rounding):
+    """The step's ``hermite_extrema`` from the event values and rates ``g0``, ``g1`` (2,) at its ends
+    ``t`` and ``t1``: (s_lo, t_lo, p_lo, s_hi, t_hi, p_hi), ``s = -1`` for none."""
+    hs = t1 - t
+    s_lo, p_lo, s_hi, p_hi = hermite_extrema(g0[0], hs * g0[1], g1[0], hs * g1[1], rounding)
+    return s_lo, t + s_lo * hs, p_lo, s_hi, t + s_hi * hs, p_hi
 
 
 @jit
@@ -294,22 +375,37 @@ def _brent_step(x_pre, x_cur, x_blk, g_pre, g_cur, g_blk, s_pre, s_cur, s_bis, d
 def _first_event(t, h, y, f, y1, f1, chart, ctrl, kind, index, floor, direction, g0, g1, m, v, w, forces, rows,
                  geometry, gap_out, ydot, yh):
     """``viz3d.integrators.adaptive.first_event`` over the step from ``(t, y)`` (field ``f``) to
-    ``(t + h, y1)`` (field ``f1``), the event values ``g0`` and ``g1`` at its ends, no event fresh
-    (``_locate``: the step's end when the interpolant does not change sign): (row, time, status) of
-    the earliest crossing, the first row of the earliest time."""
+    ``(t + h, y1)`` (field ``f1``), the event values and rates ``g0`` and ``g1`` (E, 2) at its ends,
+    no event fresh: (row, time, status) of the earliest crossing, the first row of the earliest
+    time; row -1 when the cubic's crossing is not on the interpolant (``_bracket`` finds none on it)."""
     t1 = t + h
     xtol = ctrl[EV_XTOL] * (t1 - t) + 1e-300
     best, t_best = -1, t1
     for e in range(kind.shape[0]):
-        if not crosses(direction[e], g0[e], g1[e]):
+        s_lo, t_lo, p_lo, s_hi, t_hi, p_hi = _extrema_times(t, t1, g0[e], g1[e], ctrl[EV_ROUNDING])
+        found, t_a, t_b, g_b = _bracket(direction[e], t, g0[e, 0], s_lo, t_lo, p_lo, s_hi, t_hi, p_hi, t1, g1[e, 0])
+        if not found:
             continue
-        g_lo, status = _on_interpolant(e, t, t, t1, y, f, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
+        if s_lo >= 0.0:  # the event function on the interpolant at the cubic's extrema
+            p_lo, status = _on_interpolant(e, t_lo, t, t1, y, f, y1, f1, chart, kind, index, floor, m, v, w, forces,
+                                           rows, geometry, gap_out, ydot, yh)
+            if status != OK:
+                return best, t_best, status
+        if s_hi >= 0.0:
+            p_hi, status = _on_interpolant(e, t_hi, t, t1, y, f, y1, f1, chart, kind, index, floor, m, v, w, forces,
+                                           rows, geometry, gap_out, ydot, yh)
+            if status != OK:
+                return best, t_best, status
+        found, t_a, t_b, g_b = _bracket(direction[e], t, g0[e, 0], s_lo, t_lo, p_lo, s_hi, t_hi, p_hi, t1, g1[e, 0])
+        if not found:
+            continue
+        g_lo, status = _on_interpolant(e, t_a, t, t1, y, f, y1, f1, chart, kind, index, floor, m, v, w, forces, rows,
                                        geometry, gap_out, ydot, yh)
         if status != OK:
             return best, t_best, status
-        t_e = t1
-        if g1[e] != 0.0 and _sign(g_lo) != _sign(g1[e]):
-            t_e, status = _brent(e, t, t1, xtol, ctrl[EV_RTOL], int(ctrl[EV_MAXITER]), t, t1, y, f, y1, f1, chart,
+        t_e = t_b
+        if g_b != 0.0 and _sign(g_lo) != _sign(g_b):
+            t_e, status = _brent(e, t_a, t_b, xtol, ctrl[EV_RTOL], int(ctrl[EV_MAXITER]), t, t1, y, f, y1, f1, chart,
                                  kind, index, floor, m, v, w, forces, rows, geometry, gap_out, ydot, yh)
             if status != OK:
                 return best, t_best, status
@@ -515,13 +611,13 @@ def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, 
         if status != OK:
             return status
     if contact_mode:
-        status = _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows,
-                                geometry, gap_out, yi, g0, g1)
-        if status == EVENT:
-            return _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
-                                 ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times,
-                                 flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw,
-                                 gap_out, g0, g1, yh)
+        status = _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, ctrl[EV_ROUNDING], m, v, w,
+                                forces, rows, geometry, gap_out, yi, g0, g1)
+        if status == EVENT:  # cut and committed (EVENT), a failure, or no crossing on the interpolant (OK)
+            status = _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
+                                   ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times,
+                                   flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw,
+                                   gap_out, g0, g1, yh)
         if status != OK:
             return status
     status = _settled(t + h, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
@@ -541,11 +637,12 @@ def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te
     as ``Simulation._event_step`` cuts it: the first event located (``_first_event``), the step
     redone from ``(t, y)`` to it (its own error estimate into ``err``, its end field into ``f1``),
     settled and committed with ``flags[CUT]`` (the next step as the controller proposed it, no turn
-    limit, no field kept: the event's handler changes the state). Returns ``EVENT``, or the status
-    of what failed (nothing committed)."""
+    limit, no field kept: the event's handler changes the state). Returns ``EVENT``, ``OK`` when no
+    crossing is on the interpolant after all (nothing committed, the step stands), or the status of
+    what failed (nothing committed)."""
     e, t_ev, status = _first_event(t, h, y, f, y1, f1, chart, ctrl, ev_kind, ev_index, ev_floor, ev_dir, g0, g1, m, v,
                                    w, forces, rows, geometry, gap_out, yi, yh)
-    if status != OK:
+    if status != OK or e < 0:
         return status
     s = tb.shape[0]
     h_ev = t_ev - t
@@ -570,11 +667,12 @@ def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te
 
 
 @jit
-def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, gap_out,
-                   scratch, g0, g1):
-    """``EVENT`` when an event function changes sign (``crosses``) between ``(t, y)`` and
-    ``(t + h, y1)``, both in the step's ``chart`` (as ``Simulation._event_step`` evaluates them);
-    else ``OK``, or the status of a failed evaluation."""
+def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, rounding, m, v, w, forces, rows, geometry,
+                   gap_out, scratch, g0, g1):
+    """``EVENT`` when an event function may cross between ``(t, y)`` and ``(t + h, y1)``, both in the
+    step's ``chart`` (as ``Simulation._event_step`` evaluates them): its signs at the ends and at its
+    cubic's extrema show a crossing (``_bracket``); else ``OK``, or the status of a failed
+    evaluation. The values and rates at the ends go to ``g0``, ``g1`` (E, 2)."""
     if ev_kind.shape[0] == 0:
         return OK
     status = event_values(t, y, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out, scratch,
@@ -586,7 +684,8 @@ def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, m, v
     if status != OK:
         return status
     for e in range(ev_kind.shape[0]):
-        if crosses(ev_dir[e], g0[e], g1[e]):
+        s_lo, t_lo, p_lo, s_hi, t_hi, p_hi = _extrema_times(t, t + h, g0[e], g1[e], rounding)
+        if _bracket(ev_dir[e], t, g0[e, 0], s_lo, t_lo, p_lo, s_hi, t_hi, p_hi, t + h, g1[e, 0])[0]:
             return EVENT
     return OK
 
