@@ -2,7 +2,8 @@
 
     pip install -e '.[peers]'   # MuJoCo, Exudyn, Pinocchio; a peer that is not installed is skipped with a message
     python benchmarks/bench_peers.py [--problems heavy_top,torque_free,top_through_vertical,chain]
-        [--chains 2,10,50,100,200] [--tol 1e-6] [--max-run 20] [--out docs/bench_peers.png]
+        [--chains 2,10,50,100,200] [--simulators viz3d,MuJoCo,Exudyn,Pinocchio] [--tol 1e-6]
+        [--max-run 20] [--out docs/bench_peers.png]
 
 Problems (the shipped scenes, one model for all simulators, ``peers.rigid_tree``): the heavy top on
 a ball joint over 10 s, the torque-free asymmetric T-handle (Dzhanibekov flips, no gravity) over
@@ -26,10 +27,19 @@ algorithm ``aba``, or its mass matrix ``crba`` and a Cholesky solve, stepped by 
 as a user steps it: Pinocchio has no integrator; see ``peers.pinocchio_run`` for why both)
 are independent formulations of the same model: the
 error they reach at small steps also bounds how well the models agree. Wall time: the whole run
-with its frames at 100 Hz: ``viz3d.simulate`` (build, run, frames, trajectory); MuJoCo stepping and
-reading the poses at every frame; Exudyn's ``SolveDynamic`` with its sensors (peer models are
-built before the clock starts); best of ``--repeat`` for runs under a second, the simulators
-interleaved at each step. Writes the table to ``docs/bench_peers.md`` and a work-precision chart.
+with its frames at 100 Hz, each simulator's clock started once its model is built: for viz3d
+``viz3d.simulate.simulate_built`` after ``viz3d.scene.build.build`` (the scene's ``System`` and
+projected initial ``State``; the simulation, packing for the kernel, stepping, frames and the
+``Trajectory`` are timed), for MuJoCo stepping and reading the poses at every frame after its
+``MjModel``, for Exudyn ``SolveDynamic`` with its sensors after ``Assemble``, for Pinocchio its RK4
+loop after its model and data (``peers``); best of ``--repeat`` for runs under a second, the
+simulators interleaved at each step. Tables generated before 2026-11-27 10:35 UTC timed viz3d's
+``simulate(scene)``, its build included.
+
+Writes the table to ``docs/bench_peers.md`` and a work-precision chart beside it (``--out``). A run
+on part of the default problems, chains or simulators, without ``--out``, merges its rows into that
+table: they replace the rows of the same problem and simulator, the others are kept, the chart is
+redrawn from all of them and the header names the rows re-run, when and at what load.
 """
 
 from __future__ import annotations
@@ -37,6 +47,7 @@ from __future__ import annotations
 import argparse
 import functools
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,10 +56,13 @@ import numpy as np
 from peers import PINOCCHIO_DYNAMICS, exudyn_run, exudyn_solver, markers, mujoco_run, pinocchio_run, rigid_tree
 
 from viz3d.bench import ATOL_FACTOR, reference_run
-from viz3d.scene.load import load_scene
-from viz3d.simulate import simulate
+from viz3d.scene.build import build
+from viz3d.scene.load import load_scene, with_sim
+from viz3d.simulate import simulate_built
 
 ROOT = Path(__file__).resolve().parents[1]
+#: Where the table (``.md``) and the chart go unless ``--out`` says otherwise.
+DOC = ROOT / "docs" / "bench_peers.png"
 OUTPUT_DT = 0.01
 #: name -> (scene file, overrides, simulated time [s])
 PROBLEMS = {
@@ -128,9 +142,10 @@ def viz3d_run(p: Problem, level: int, config: str) -> tuple[np.ndarray | None, f
         dt = OUTPUT_DT / DIVISIONS[level]
         over = over + [f"sim.dt={dt!r}"]
         setting = f"dt {dt:.3g}"
-    scene = load_scene(p.path, p.overrides + over + [f"sim.output_dt={OUTPUT_DT!r}"])
+    scene = with_sim(load_scene(p.path, p.overrides + over + [f"sim.output_dt={OUTPUT_DT!r}"]), t_end=p.t_end)
+    system, state = build(scene)  # the model, as the peers' are built before their clocks start
     t0 = time.perf_counter()
-    traj = simulate(scene, t_end=p.t_end)
+    traj = simulate_built(scene, system, state)
     wall = time.perf_counter() - t0
     return (markers(traj.position, traj.rotation) if traj.ok else None), wall, traj.n_steps, f"{config} {setting}"
 
@@ -278,6 +293,33 @@ def all_runs(rows: list[Run]) -> str:
     return "\n".join(lines)
 
 
+def read_runs(md: Path) -> tuple[str, list[Run]]:
+    """The header (the text before the first table) and the "All runs" rows of a table this script wrote."""
+    text = md.read_text()
+    head = text[: text.index("| problem |")]
+    rows = []
+    for line in text[text.index("All runs:"):].splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 6 and cells[0] not in ("problem", "---"):
+            prob, sim, setting, steps, error, wall = cells
+            rows.append(Run(prob, sim, setting, float(error), float(wall), int(steps)))
+    return head, rows
+
+
+def merged(old: list[Run], new: list[Run]) -> list[Run]:
+    """``old`` with the rows of each (problem, simulator) in ``new`` replaced by ``new``'s, problems
+    in their first order (``old``'s, then new ones); each problem's rows keep their order."""
+    fresh = {(r.problem, r.simulator) for r in new}
+    rows = [r for r in old if (r.problem, r.simulator) not in fresh] + new
+    order = list(dict.fromkeys(r.problem for r in old + new))
+    return sorted(rows, key=lambda r: order.index(r.problem))
+
+
+def load() -> str:
+    """``uptime``'s load averages over 1, 5 and 15 minutes, as text."""
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
 def chart(rows: list[Run], tol: float, path: Path) -> None:
     import matplotlib
 
@@ -319,24 +361,43 @@ def main(argv=None) -> None:
     ap.add_argument("--max-run", type=float, default=20.0, help="longest run tried [s]")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--ref-rtol", type=float, default=1e-12)
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_peers.png")
+    ap.add_argument("--out", type=Path, default=None,
+                    help=f"chart path, the table beside it (.md); default {DOC.relative_to(ROOT)}, into whose table a run "
+                         "on part of the problems, chains or simulators merges its rows")
     args = ap.parse_args(argv)
+    defaults = {a.dest: a.default for a in ap._actions}
+    subset = any(getattr(args, k) != defaults[k] for k in ("problems", "chains", "simulators"))
+    merge = args.out is None and subset and DOC.with_suffix(".md").exists()
+    if merge and any(getattr(args, k) != defaults[k] for k in ("tol", "ref_rtol")):
+        ap.error("a run at another --tol or --ref-rtol cannot merge into the default table: give --out")
+    out = args.out or DOC
     runners = simulators(args.simulators.split(","))
     probs = problems(args.problems.split(","), [int(n) for n in args.chains.split(",")], args.ref_rtol)
     for p in probs:  # untimed warm-up: the kernel from numba's cache, first calls of each library
         for run in runners.values():
             one(Problem(p.name, p.path, p.overrides, 2 * OUTPUT_DT, p.reference[:3], p.tree), "", run, 4, 1)
+    start, load0 = time.strftime("%Y-%m-%d %H:%M", time.gmtime()), load()
     rows = [r for p in probs for r in measure(p, runners, args.tol, args.max_run, args.repeat)]
-    sims = list(runners)
-    head = (f"Generated by `python benchmarks/bench_peers.py` ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores; "
-            f"cheapest whole run, frames at 100 Hz, whose largest marker error is at most {args.tol:g} m; "
-            f"reference: viz3d dop853 at rtol {args.ref_rtol:g}).\n\n")
+    when = (f"{start}-{time.strftime('%H:%M', time.gmtime())} UTC, {os.cpu_count()} cores, load average "
+            f"(1/5/15 min) {load0} at the start and {load()} at the end")
+    print("\n" + summary(rows, args.tol, list(runners)))
+    if merge:
+        head, old = read_runs(DOC.with_suffix(".md"))
+        rows = merged(old, rows)
+        command = " ".join(sys.argv[1:] if argv is None else argv)
+        head = (head.rstrip("\n") + f"\n\nRows of {', '.join(p.name for p in probs)} ({args.simulators}) re-run on "
+                f"{when} (`python benchmarks/bench_peers.py {command}`); the other rows are from the runs above.\n\n")
+    else:
+        head = (f"Generated by `python benchmarks/bench_peers.py` ({when}; cheapest whole run, frames at 100 Hz, whose "
+                f"largest marker error is at most {args.tol:g} m; reference: viz3d dop853 at rtol {args.ref_rtol:g}; "
+                "each clock starts once its model is built: viz3d's after `viz3d.scene.build.build` (scene to System "
+                "and initial State), MuJoCo's after its `MjModel`, Exudyn's after `Assemble`).\n\n")
+    sims = list(dict.fromkeys(r.simulator for r in rows))
     text = (head + summary(rows, args.tol, sims) + "\n\nviz3d's configurations (cheapest run of each):\n\n"
             + configurations(rows, args.tol, sims) + "\n\nAll runs:\n\n" + all_runs(rows) + "\n")
-    print("\n" + summary(rows, args.tol, sims))
-    chart(rows, args.tol, args.out)
-    args.out.with_suffix(".md").write_text(text)
-    print(f"\nwrote {args.out} and {args.out.with_suffix('.md')}")
+    chart(rows, args.tol, out)
+    out.with_suffix(".md").write_text(text)
+    print(f"\nwrote {out} and {out.with_suffix('.md')}" + (" (rows merged into the earlier table)" if merge else ""))
 
 
 if __name__ == "__main__":

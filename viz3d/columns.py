@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from contextlib import nullcontext
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -193,7 +193,7 @@ class StateLog:
         instants not handed on yet pending (before the check) or drops them (after it)."""
         if not self.kept and not self.notes:
             return
-        states = States.join(self.pieces) if self.pieces else None
+        states = States.join(self._sampled_pieces()) if self.pieces else None
         outputs = np.concatenate(self.outputs) if self.outputs else np.zeros(0, bool)
         cols, frame_at = self._columns(states) if states is not None else (None, None)
         out = np.flatnonzero(outputs)
@@ -219,6 +219,22 @@ class StateLog:
                 self.parts.append(part.head(int(np.searchsorted(out, self.handed))))
         if failure is not None:
             raise failure
+
+    def _sampled_pieces(self) -> list[States]:
+        """The pieces kept, those without the kernel's samples (the run's first state, instants
+        stepped in Python) sampled here when another piece has them: joined, the chunk keeps its
+        samples instead of being sampled again whole (``chunk_frames``). Unchanged when the kernel
+        does not sample or fails to (the chunk then takes the NumPy path there)."""
+        pieces = self.pieces
+        if all(p.samples is not None for p in pieces) or not any(p.samples is not None for p in pieces):
+            return pieces
+        stepper = self.sim.kernel_sampler()
+        if stepper is None:
+            return pieces
+        try:
+            return [p if p.samples is not None else replace(p, samples=kernel_samples(stepper, p)) for p in pieces]
+        except np.linalg.LinAlgError:
+            return pieces
 
     def _hand_on(self, notes: list, frame_at, outputs: np.ndarray, limit: int) -> None:
         """Emit the first ``limit`` of the chunk's instants (``outputs``: which are output instants)
@@ -294,16 +310,23 @@ def _groups(memory: tuple, elements: tuple) -> list[tuple[int, int]]:
     return out
 
 
+def kernel_samples(stepper, states: States):
+    """The kernel's samples of ``states`` (``KernelStepper.sample``, one call per run of states sharing
+    their memories); raises ``LinAlgError`` where an evaluation fails."""
+    ts, Y, charts = states.t, states.Y, states.chart  # charts (N, nf, 3, 3), nf may be 0
+    samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states.memory[a], states.element_memory[a])
+               for a, b in _groups(states.memory, states.element_memory)]
+    return samples[0] if len(samples) == 1 else type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
+
+
 def _sampled(sim, stepper, states: States) -> tuple[FrameColumns, object]:
     """Columns of ``states`` from the kernel's samples (see the module docstring), and the samples."""
     system = sim.system
     nb = system.n_bodies
-    ts, Y, charts = states.t, states.Y, states.chart  # charts (N, nf, 3, 3), nf may be 0
+    ts = states.t
     s = states.samples  # (taken with the states by the kernel's batched stepping)
     if s is None:
-        samples = [stepper.sample(ts[a:b], Y[a:b], charts[a:b], states.memory[a], states.element_memory[a])
-                   for a, b in _groups(states.memory, states.element_memory)]
-        s = type(samples[0])(*(np.concatenate(x) for x in zip(*samples)))
+        s = kernel_samples(stepper, states)
     W_G, W_v = _centres_of_mass(system, stepper.data, s)
     T, strain = s.T.copy(), np.zeros(len(states))
     measured = [e for e in system.forces if hasattr(e, "scalars")]  # (shape contacts: counts, depth, force)

@@ -900,11 +900,17 @@ def simulate(scene: Scene | str | Path, overrides=None, *, t_end: float | None =
     elif overrides:
         raise ValueError("overrides apply when loading: use load_scene(path, overrides)")
     scene = with_sim(scene, t_end=t_end, dt=dt)
-    system, state = build(scene)
+    return simulate_built(scene, *build(scene), progress=progress, sinks=sinks)
+
+
+def simulate_built(scene: Scene, system: System, state: State, progress: bool = False,
+                   sinks: Sequence[Sink] = ()) -> Trajectory:
+    """``simulate`` of ``scene`` once it is built (``system, state = build(scene)``): the simulation,
+    its run, frames and ``Trajectory`` (what ``benchmarks/bench_peers.py`` times, as the peers' clocks
+    start once their models are built)."""
     sim_cfg = scene.data["sim"]
-    formulation = make_formulation(sim_cfg)
     try:
-        sim = Simulation(system, state, make_integrator_from(sim_cfg), formulation, sim_cfg["dt"],
+        sim = Simulation(system, state, make_integrator_from(sim_cfg), make_formulation(sim_cfg), sim_cfg["dt"],
                          sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"])
     except MethodError as exc:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None

@@ -201,3 +201,29 @@ def test_an_interrupt_during_a_chunks_check_leaves_its_states_to_the_last_flush(
             log.flush()
         cols = log.columns(check=False)
     np.testing.assert_array_equal(cols.t, [s.t for s in states[:10]])
+
+
+def test_a_chunk_keeps_the_samples_its_batch_was_stepped_with(monkeypatch):
+    """A run's first chunk joins its first state (recorded before any step, without the kernel's
+    samples) to frames the kernel sampled as it stepped them: only that state is sampled again (one
+    ``KernelStepper.sample`` of one state), not the whole chunk, and the trajectory is the one of
+    the whole chunk sampled again, bit for bit."""
+    from viz3d.kernel import KernelStepper
+
+    scene = viz3d.load_scene(SCENES / "chain.toml", ["chain.n=3", "sim.t_end=0.5"])
+    sampled = []
+    sample = KernelStepper.sample
+
+    def counted(self, ts, *args):
+        sampled.append(len(ts))
+        return sample(self, ts, *args)
+
+    monkeypatch.setattr(KernelStepper, "sample", counted)
+    kept = viz3d.simulate(scene)
+    assert sampled == [1], sampled
+    monkeypatch.setattr(StateLog, "_sampled_pieces", lambda self: self.pieces)
+    again = viz3d.simulate(scene)
+    assert sampled[1:] == [len(again.t)], sampled
+    for name in ("t", "position", "rotation", "velocity", "omega", "energy_kinetic", "energy_potential",
+                 "constraint_violation", "reaction_force"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(again, name), err_msg=name)

@@ -85,16 +85,6 @@ def _z(*shape, dtype=float) -> np.ndarray:
     return np.zeros(shape, dtype)
 
 
-def _empty_table() -> narrowphase.ShapeTable:
-    """The narrow phase's table of no shapes."""
-    return narrowphase.pack_shapes((), 0)
-
-
-def _empty_laws() -> tuple:
-    """One empty ``Items`` per registered normal-law class."""
-    return tuple(cls(_z(0, 0, dtype=np.int64), _z(0, 0)) for cls in registered(normal_force))
-
-
 class _CollisionFields(NamedTuple):
     """A ``Collisions`` element packed (shapes: S shapes, P listed pairs, M support points against
     planes, L pair laws, G groups, R raw and T contact capacity, A = T anchor capacity).
@@ -123,58 +113,61 @@ class _CollisionFields(NamedTuple):
 
     i: np.ndarray
     f: np.ndarray
-    opts: np.ndarray = _z(3, dtype=np.int64)
-    merge: np.ndarray = _z(1)
-    pair_law: np.ndarray = _z(0, 0, dtype=np.int64)
-    pairs: np.ndarray = _z(0, 3, dtype=np.int64)
-    box: np.ndarray = _z(0, 2, 3)
-    sup_i: np.ndarray = _z(0, 2, dtype=np.int64)
-    sup: np.ndarray = _z(0, 4)
-    law_slot: np.ndarray = _z(0, 2, dtype=np.int64)
-    law_f: np.ndarray = _z(0, 4 + FRICTION_PARAMS)
-    laws: tuple = _empty_laws()            # (an absent element packs as items(CollisionItems): the same
-    table: narrowphase.ShapeTable = _empty_table()  # argument types as a present one, so one compiled kernel)
-    sr: np.ndarray = _z(0, 3)              # shape origins, world [m]
-    sR: np.ndarray = _z(0, 3, 3)           # shape rotations
-    last_sr: np.ndarray = _z(0, 3)         # the poses of the last detection
-    last_sR: np.ndarray = _z(0, 3, 3)
-    raw_key: np.ndarray = _z(0, 2, dtype=np.int64)
-    raw_p: np.ndarray = _z(0, 3)
-    raw_n: np.ndarray = _z(0, 3)
-    raw_d: np.ndarray = _z(0)
-    order: np.ndarray = _z(0, dtype=np.int64)
-    flag: np.ndarray = _z(0, dtype=np.int64)
-    np_p: np.ndarray = _z(MESH_CONTACTS, 3)
-    np_n: np.ndarray = _z(MESH_CONTACTS, 3)
-    np_d: np.ndarray = _z(MESH_CONTACTS)
-    t_shape: np.ndarray = _z(0, 2, dtype=np.int64)
-    t_law: np.ndarray = _z(0, dtype=np.int64)
-    t_p: np.ndarray = _z(0, 3)
-    t_n: np.ndarray = _z(0, 3)
-    t_d: np.ndarray = _z(0)
-    t_F: np.ndarray = _z(0)
-    t_Fel: np.ndarray = _z(0)
-    t_ad: np.ndarray = _z(0)
-    t_vt: np.ndarray = _z(0, 3)
-    t_match: np.ndarray = _z(0, dtype=np.int64)
-    cand: np.ndarray = _z(0, 2, dtype=np.int64)
-    cand_d: np.ndarray = _z(0)
-    taken: np.ndarray = _z(0, dtype=np.int64)
-    count: np.ndarray = _z(3, dtype=np.int64)
-    a_shape: np.ndarray = _z(0, 2, dtype=np.int64)   # stick anchors (StickAnchors), a_n[0] of them
-    a_anchor: np.ndarray = _z(0, 3)
-    a_mark: np.ndarray = _z(0, 2, 3)
-    a_n: np.ndarray = _z(1, dtype=np.int64)
-    b_shape: np.ndarray = _z(0, 2, dtype=np.int64)   # the renewed ones, before they replace them
-    b_anchor: np.ndarray = _z(0, 3)
-    b_mark: np.ndarray = _z(0, 2, 3)
-    v3: np.ndarray = _z(12, 3)             # scratch 3-vectors
+    opts: np.ndarray
+    merge: np.ndarray
+    pair_law: np.ndarray
+    pairs: np.ndarray
+    box: np.ndarray
+    sup_i: np.ndarray
+    sup: np.ndarray
+    law_slot: np.ndarray
+    law_f: np.ndarray
+    laws: tuple
+    table: narrowphase.ShapeTable
+    sr: np.ndarray  # shape origins, world [m]
+    sR: np.ndarray  # shape rotations
+    last_sr: np.ndarray  # the poses of the last detection
+    last_sR: np.ndarray
+    raw_key: np.ndarray
+    raw_p: np.ndarray
+    raw_n: np.ndarray
+    raw_d: np.ndarray
+    order: np.ndarray
+    flag: np.ndarray
+    np_p: np.ndarray
+    np_n: np.ndarray
+    np_d: np.ndarray
+    t_shape: np.ndarray
+    t_law: np.ndarray
+    t_p: np.ndarray
+    t_n: np.ndarray
+    t_d: np.ndarray
+    t_F: np.ndarray
+    t_Fel: np.ndarray
+    t_ad: np.ndarray
+    t_vt: np.ndarray
+    t_match: np.ndarray
+    cand: np.ndarray
+    cand_d: np.ndarray
+    taken: np.ndarray
+    count: np.ndarray
+    a_shape: np.ndarray  # stick anchors (StickAnchors), a_n[0] of them
+    a_anchor: np.ndarray
+    a_mark: np.ndarray
+    a_n: np.ndarray
+    b_shape: np.ndarray  # the renewed ones, before they replace them
+    b_anchor: np.ndarray
+    b_mark: np.ndarray
+    v3: np.ndarray  # scratch 3-vectors
 
 
 class CollisionItems(_CollisionFields, Items):
-    """``_CollisionFields`` as a compiled piece's data (``viz3d.compiled.Items``: ``i``, ``f`` first)."""
+    """``_CollisionFields`` as a compiled piece's data (``viz3d.compiled.Items``: ``i``, ``f`` first),
+    in the kernel's tuples only for systems with shape contacts (``present_only``: its 75 arrays,
+    passed at every evaluation, would cost systems without them more than their own steps)."""
 
     __slots__ = ()
+    present_only = True
 
 
 # ---------------------------------------------------------------------------- packing (Python)

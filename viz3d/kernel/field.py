@@ -416,7 +416,7 @@ def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
     kinematics(m, v, w)
     clear(m, v, w)
     for d in literal_unroll(forces):
-        if d.i.shape[0] > 0:  # every registered type is passed (one compiled signature); most are empty
+        if d.i.shape[0] > 0:  # every registered type is passed (but present_only ones); most are empty
             force_piece(d, t, v, w.aux)
     generalized_forces(m, v, w)
     if not free_accelerations(m, v, w):

@@ -170,7 +170,7 @@ class KernelData:
     contact_slices: tuple     # each contact set's slice of the contacts (global contact indices)
     energies: tuple           # the force elements' data per registered energy piece
     energy_gap: str | None    # why output frames cannot take their energies from the kernel (None: they can)
-    memories: tuple           # the force elements' data per registered after-step piece (their memory)
+    memories: tuple | None    # the force elements' data per registered after-step piece (their memory; None: none)
     anchors: tuple            # (index in System.forces, CollisionItems) of shape contacts with stick anchors
 
 
@@ -283,6 +283,7 @@ def pack(system, formulation) -> KernelData:
         raise Unsupported("more than one shape-contact element")
     forces, rows, geometry, energies, memories = (_by_class(target, parts) for target in (
         force_piece, row_piece, gap_piece, energy_piece, after_step_piece))
+    memories = memories or None  # (numba unrolls no empty tuple; the kernel skips None)
     pt_i, pt_s, pt_N, pt_P = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
     return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, pt_P, row_je,
@@ -366,8 +367,9 @@ def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
 
 def _by_class(target, found: dict[type, list]) -> tuple:
     """One ``Items`` per registered data class of ``target``, in canonical order (empty where the
-    system has none)."""
-    return tuple(concat(cls, found[cls]) if cls in found else items(cls) for cls in registered(target))
+    system has none), except classes with ``present_only`` where the system has none."""
+    return tuple(concat(cls, found[cls]) if cls in found else items(cls) for cls in registered(target)
+                 if cls in found or not cls.present_only)
 
 
 def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:

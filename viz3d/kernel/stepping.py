@@ -71,12 +71,13 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
 @jit
 def renew(t, m, v, w, y, chart, memories):
     """The force elements' memory after an accepted step ending at ``(t, y)`` (``after_step_piece``;
-    ``viz3d.dynamics.element_memory``)."""
-    frames(m, v, w, y, chart)
-    kinematics(m, v, w)
-    for d in literal_unroll(memories):
-        if d.i.shape[0] > 0:
-            after_step_piece(d, t, v)
+    ``viz3d.dynamics.element_memory``); nothing for ``memories`` None (a branch numba prunes)."""
+    if memories is not None:
+        frames(m, v, w, y, chart)
+        kinematics(m, v, w)
+        for d in literal_unroll(memories):
+            if d.i.shape[0] > 0:
+                after_step_piece(d, t, v)
 
 
 @entry
