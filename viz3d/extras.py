@@ -68,7 +68,7 @@ def joint_fields(system, frames) -> dict:
         out.update({"joint_coordinate_names": np.array(names, dtype=str),
                     "joint_coordinates": _series(frames, [f"joint/{n}" for n in names]),
                     "joint_coordinate_rates": _series(frames, [f"joint/{n}_rate" for n in names])})
-    drives = [n for js in system.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
+    drives = system.drive_names
     if drives:
         out.update({"drive_names": np.array(drives, dtype=str),
                     "drive_effort": _series(frames, [f"drive/{n}/effort" for n in drives])})

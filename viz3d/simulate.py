@@ -923,13 +923,15 @@ def check_methods(scene: Scene) -> None:
 
 def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
     """The checks of a run's output frames, ``check(cols, states)`` (``cols``: their
-    ``FrameColumns``): constraint violation, energy growth of a conservative run, drives over their
-    capacity (``SimulationFailure``), and the goal of a ``[stowage]`` table with ``settle_time``
-    (``RunComplete``); and whether there is such a goal. The live viewer applies the same checks."""
+    ``FrameColumns``): constraint violation, energy growth of a conservative run, rigid drives over
+    their capacity (``SimulationFailure``), limited drives stalled at it and the goal of a ``[stowage]``
+    table with ``settle_time`` (``RunComplete``); and whether the run may end so. The live viewer
+    applies the same checks."""
     cfg = scene.data["sim"]
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
-    capacity = CapacityWatch({d["name"]: (d["capacity"], d["capacity_time"]) for d in scene.data["drives"]
-                              if "capacity" in d})
+    limits = {d["name"]: (d["capacity"], d["capacity_time"], "servo_gain" in d) for d in scene.data["drives"]
+              if "capacity" in d}
+    capacity = CapacityWatch(limits)
     goal = seated_stop(scene.data["stowage"], sim.system.bodies.names) if "stowage" in scene.data else None
 
     def check(cols, states):
@@ -939,7 +941,7 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
         if goal is not None:
             goal(cols, states)
 
-    return check, goal is not None
+    return check, goal is not None or any(limited for _, _, limited in limits.values())
 
 
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:

@@ -4,8 +4,10 @@ hauled bodies reach their stowed poses?
 * **seated**: at the end of the run every body is within ``tolerance`` [m] of its stowed centre of
   mass and ``angle_tolerance`` [deg] of its stowed orientation (the angle of ``R_stowed^T R``); the
   time given is when they entered that tolerance for good;
-* **jammed**: the drive needed more than its capacity for its ``capacity_time`` (the run stops there
-  with a diagnosis; ``viz3d.diagnosis.held_effort``), or
+* **jammed**: the drive was at its limit (``|effort| >= capacity``) for its ``capacity_time``
+  (``viz3d.diagnosis.held_effort``, ``CapacityWatch``): a limited drive (``servo_gain``) stalled
+  there, the run ending cleanly; a rigid drive needed more than it can give, the run stopping with
+  a diagnosis (or failing sooner while over it: ``stopped``), or
   the bodies moved less than ``stall_distance`` over the last ``stall_time`` of a run that ended
   short of seated while the drive was still hauling;
 * **not reached**: anything else (the haul ended short of the stowed pose, still moving).
@@ -85,9 +87,11 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
     """The ``Verdict`` of a run from its frames: times ``t`` (n_t,), body positions (n_t, nb, 3) and
     rotations (n_t, nb, 3, 3), the drive's effort (n_t,) [N], its capacity [N] (None: unlimited)
     held for ``capacity_time`` [s], and whether it hauls at each frame (n_t,) (its prescribed speed
-    is not zero). ``stopped``: the run failed after its last frame (diverged): a drive over its
-    capacity at that frame jammed (a rigid drive pulling a wedged body drives the contact force up
-    until the step cannot follow, sooner than ``capacity_time``)."""
+    is not zero). One rule for rigid and limited drives: at its limit is ``|effort| >= capacity`` (a
+    limited drive's effort is exactly its capacity there, stalled). ``stopped``: the run failed after
+    its last frame (diverged): a drive at its capacity at that frame jammed (a rigid drive pulling a
+    wedged body drives the contact force up until the step cannot follow, sooner than
+    ``capacity_time``)."""
     names = list(body_names)
     index = [names.index(b) for b in spec["bodies"]]
     dist, angle = pose_errors(spec, position, rotation, index)
@@ -96,16 +100,15 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
     peak = float(np.nanmax(held)) if spanned else float(np.max(np.abs(effort), initial=0.0))
     args = (peak, float(dist[-1]), float(angle[-1]))
     extra = {"peak_transient": float(np.max(np.abs(effort), initial=0.0))}
-    if capacity is not None and spanned and peak > capacity:
-        i = int(np.argmax(held > capacity))
+    if capacity is not None and spanned and peak >= capacity:
+        i = int(np.argmax(held >= capacity))
         since = overload_start(effort, capacity, i)
         held_text = f" for {t[i] - t[since]:.3g} s" if capacity_time > 0.0 else ""
-        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
-                       f"capacity {capacity / 1e3:.1f} kN{held_text}", **extra)
-    if capacity is not None and stopped and effort.size and abs(effort[-1]) > capacity:
+        return Verdict("jammed", float(t[since]), *args, f"{_at_limit(effort[i], capacity)}{held_text}", **extra)
+    if capacity is not None and stopped and effort.size and abs(effort[-1]) >= capacity:
         since = overload_start(effort, capacity, len(effort) - 1)
-        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[-1]) / 1e3:.1f} kN, over its "
-                       f"capacity {capacity / 1e3:.1f} kN since t = {t[since]:.6g} s when the run failed", **extra)
+        return Verdict("jammed", float(t[since]), *args, f"{_at_limit(effort[-1], capacity)} since t = {t[since]:.6g} s "
+                       "when the run failed", **extra)
     inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
     if inside[-1]:
         since = len(inside) - int(np.argmin(inside[::-1])) if not inside.all() else 0
@@ -118,6 +121,13 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
             return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
                            f"{spec['stall_time']:g} s while the drive hauled", **extra)
     return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose", **extra)
+
+
+def _at_limit(effort: float, capacity: float) -> str:
+    """What a drive at its limit did: stalled at its capacity (a limited drive), or needed more [N]."""
+    if abs(effort) <= capacity:
+        return f"the drive stalled at its capacity {capacity / 1e3:.1f} kN"
+    return f"the drive needs {abs(effort) / 1e3:.1f} kN, over its capacity {capacity / 1e3:.1f} kN"
 
 
 def seated_stop(spec: dict, body_names):
