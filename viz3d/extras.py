@@ -61,7 +61,8 @@ def joint_fields(system, frames) -> dict:
     """The joints' relative coordinates and the drives' efforts as trajectory fields (none when no
     joint has one): ``joint_coordinate_names`` (m,) ``<joint>/<coordinate>``, ``joint_coordinates`` and
     ``joint_coordinate_rates`` (n, m) [rad, m; rad/s, m/s] (``viz3d.joints.relative_coordinates``);
-    ``drive_names`` (d,), ``drive_effort`` (n, d) [N m or N] (``viz3d.joints.drive_efforts``)."""
+    ``drive_names`` (d,), ``drive_effort`` (n, d) [N m or N] (``viz3d.joints.drive_efforts``; limited drives:
+    ``viz3d.forces.DriveServo.scalars``)."""
     out = {}
     names = [f"{n}/{c}" for js in system.joints.joints for n in js.names for c in getattr(js, "coordinate_names", ())]
     if names:

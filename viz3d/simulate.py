@@ -44,7 +44,7 @@ from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
-from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
+from viz3d.stowage import drive_coordinate, run_events, run_verdict, seated_stop, verdict_fields
 from viz3d.system import State, States, System
 from viz3d.trajectory import Trajectory
 
@@ -932,7 +932,11 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
     limits = {d["name"]: (d["capacity"], d["capacity_time"], "servo_gain" in d) for d in scene.data["drives"]
               if "capacity" in d}
     capacity = CapacityWatch(limits)
-    goal = seated_stop(scene.data["stowage"], sim.system.bodies.names) if "stowage" in scene.data else None
+    goal = None
+    if "stowage" in scene.data:
+        keys = [f"joint/{n}/{c}" for js in sim.system.joints.joints for n in js.names
+                for c in getattr(js, "coordinate_names", ())]
+        goal = seated_stop(scene.data["stowage"], sim.system.bodies.names, drive_coordinate(scene.data, keys))
 
     def check(cols, states):
         check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])

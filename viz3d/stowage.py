@@ -120,7 +120,8 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
         if moved < spec["stall_distance"]:
             return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
                            f"{spec['stall_time']:g} s while the drive hauled", **extra)
-    return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose", **extra)
+    return Verdict("not reached", float(t[-1]), *args, "the haul ended (sim.t_end or haul_limit) short of the stowed "
+                   "pose", **extra)
 
 
 def _at_limit(effort: float, capacity: float) -> str:
@@ -130,11 +131,14 @@ def _at_limit(effort: float, capacity: float) -> str:
     return f"the drive needs {abs(effort) / 1e3:.1f} kN, over its capacity {capacity / 1e3:.1f} kN"
 
 
-def seated_stop(spec: dict, body_names):
+def seated_stop(spec: dict, body_names, coordinate: str | None = None):
     """The run's frame check that stops the windlass once the ``[stowage]`` bodies have stayed seated
-    (``tolerance``, ``angle_tolerance``) for ``settle_time`` [s]: ``check(cols, states)`` raises
-    ``RunComplete`` at that frame; None when the spec has no ``settle_time`` (the haul runs to t_end)."""
-    if spec.get("settle_time") is None:
+    (``tolerance``, ``angle_tolerance``) for ``settle_time`` [s], or once its ``coordinate`` (the
+    frame scalar of the drive's joint coordinate) has moved ``haul_limit`` from 0: ``check(cols,
+    states)`` raises ``RunComplete`` at that frame; None when the spec has neither (the haul runs to
+    t_end)."""
+    settle, limit = spec.get("settle_time"), spec.get("haul_limit")
+    if settle is None and limit is None:
         return None
     index = [list(body_names).index(b) for b in spec["bodies"]]
     since = [None]  # when the bodies last came within tolerance (over chunks)
@@ -142,12 +146,25 @@ def seated_stop(spec: dict, body_names):
     def check(cols, states):
         dist, angle = pose_errors(spec, cols.W_r, cols.R_WB, index)
         inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
+        hauled = np.abs(np.asarray(cols.scalars[coordinate], float)) if limit is not None else np.zeros(len(cols.t))
         for i, (t, ok) in enumerate(zip(cols.t, inside)):
             since[0] = (since[0] if since[0] is not None else t) if ok else None
-            if ok and t - since[0] >= spec["settle_time"] - 1e-9:
+            if settle is not None and ok and t - since[0] >= settle - 1e-9:
                 raise RunComplete(f"seated since t = {since[0]:.6g} s: the windlass stopped at t = {t:.6g} s", i)
+            if limit is not None and hauled[i] >= limit:
+                raise RunComplete(f"the windlass hauled its limit {limit:.6g} (haul_limit): it stopped at t = {t:.6g} s",
+                                  i)
 
     return check
+
+
+def drive_coordinate(data: dict, keys) -> str | None:
+    """The frame scalar among ``keys`` of the coordinate the ``[stowage]`` drive of the scene ``data``
+    moves (``joint/<joint>/<coordinate>``), None if there is none."""
+    drive = next(d for d in data["drives"] if d["name"] == data["stowage"]["drive"])
+    prefix, coordinate = f"joint/{drive['joint']}/", drive.get("coordinate")
+    return next((k for k in keys if k.startswith(prefix) and not k.endswith("_rate")
+                 and (coordinate is None or k == prefix + coordinate)), None)
 
 
 def run_verdict(data: dict, cols, body_names, stopped: bool = False) -> Verdict | None:
@@ -157,11 +174,8 @@ def run_verdict(data: dict, cols, body_names, stopped: bool = False) -> Verdict 
     if spec is None or not len(cols):
         return None
     drive = next(d for d in data["drives"] if d["name"] == spec["drive"])
-    coordinate = drive.get("coordinate")
-    joint = next(j for j in data["joints"] if j["name"] == drive["joint"])
-    rate_key = next((k for k in cols.scalars if k.startswith(f"joint/{joint['name']}/") and k.endswith("_rate")
-                     and (coordinate is None or k == f"joint/{joint['name']}/{coordinate}_rate")), None)
-    hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
+    key = drive_coordinate(data, cols.scalars)
+    hauling = np.abs(cols.scalars[f"{key}_rate"]) > 1e-9 if key else np.ones(len(cols), bool)
     effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
     v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling,
                 drive.get("capacity_time", 0.0), stopped)

@@ -89,6 +89,26 @@ def test_the_windlass_stops_once_the_anchor_has_stayed_seated_for_settle_time(ch
     assert T[done.value.frame] == pytest.approx(8.2)               # 6.7 s + 1.5 s
 
 
+@pytest.mark.parametrize("chunk", [1, 7, 101])
+def test_the_windlass_stops_once_it_has_hauled_its_limit(chunk):
+    """seated_stop with ``haul_limit`` 4 m on a windlass coordinate hauled at 0.5 m/s (a body that never
+    seats): the run ends at the frame of t = 8 s, the first at the limit, in chunks of any length."""
+    from types import SimpleNamespace
+
+    from viz3d.diagnosis import RunComplete
+    from viz3d.stowage import seated_stop
+
+    P, R = _approach(20.0)
+    x = 0.5 * T
+    check = seated_stop({**SPEC, "haul_limit": 4.0}, ["anchor"], "joint/guide/distance")
+    with pytest.raises(RunComplete) as done:
+        for a in range(0, T.size, chunk):
+            check(SimpleNamespace(t=T[a:a + chunk], W_r=P[a:a + chunk], R_WB=R[a:a + chunk],
+                                  scalars={"joint/guide/distance": x[a:a + chunk]}), None)
+    assert T[a + done.value.frame] == pytest.approx(8.0)
+    assert "hauled its limit 4" in str(done.value)
+
+
 @pytest.mark.parametrize("depth0", [0.0, 0.011])
 def test_a_jam_from_a_starting_overlap_says_so(depth0):
     """run_verdict: a drive over its capacity is a jam either way; when the shapes already overlapped at

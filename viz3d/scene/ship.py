@@ -84,7 +84,8 @@ SHIP = Table({
     "hauling_speed": Field(positive, 0.15, "windlass nominal speed [m/s] (9 m/min, IACS UR A3)"),
     "ramp_time": Field(positive, 2.0, "time to reach the hauling speed [s]"),
     "overhaul": Field(nonnegative, 0.5, "the windlass may haul this much beyond the haul of the level ship to the "
-                      "stowed pose (heel and trim change the path) before the run ends [m]"),
+                      "stowed pose (heel and trim change the path) before it stops and the run ends [m] "
+                      "(stowage.haul_limit)"),
     "settle_time": Field(positive, 0.5, "the windlass stops once the anchor has stayed seated this long [s]"),
     "capacity": Field(positive, OPTIONAL, "windlass capacity [N] (default 1.5 x 42.5 d^2 N, d in mm): it stalls there"),
     "droop": Field(positive, 0.10, "the windlass's speed falls this fraction of hauling_speed under the hanging "
@@ -201,7 +202,11 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     capacity = p.get("capacity", 1.5 * 42.5 * (p["chain_diameter"] * 1e3) ** 2)
     travel = _haul_length(T, crown_stowed + eye * a + shackle_len * a, chain_len)
     v, t_r = p["hauling_speed"], p["ramp_time"]
-    t_end = t_r / 2 + (travel + p["overhaul"]) / (v * (1.0 - p["droop"]))   # (the speed under the hanging weight)
+    # the windlass stops after hauling travel + overhaul (stowage.haul_limit: its speed depends on the
+    # load); t_end, a backstop, is that haul at the least speed it keeps below its capacity
+    gain = G_STANDARD * hanging / (p["droop"] * v)
+    # (a tenth of the ramp's speed at least: a capacity above gain v is reached only when backdriven)
+    t_end = t_r / 2 + (travel + p["overhaul"]) / max(v - capacity / gain, 0.1 * v) + p["overload_time"]
 
     def body(name, mesh, R, origin, centre, color, density):
         return {"name": name, "shape": {"type": "mesh", "generator": mesh, "params": {"mass": p["anchor_mass"]}},
@@ -234,7 +239,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     out["drives"] = list(raw.get("drives", [])) + [
         {"name": "windlass", "joint": "windlass_guide", "mode": "velocity", "kind": "ramp", "amplitude": v,
          "start": 0.0, "duration": t_r, "capacity": capacity, "capacity_time": p["overload_time"],
-         "servo_gain": G_STANDARD * hanging / (p["droop"] * v)},
+         "servo_gain": gain},
     ]
     out["forces"] = list(raw.get("forces", [])) + [
         # the joint's angle is 0 where the flukes start, on their outer stop: phi = phi0 + angle
@@ -272,6 +277,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
         "axes": [R_shank_stowed.tolist(), R_flukes_stowed.tolist()],
         "tolerance": p["position_tolerance"], "angle_tolerance": p["angle_tolerance"],
         "stall_time": p["stall_time"], "stall_distance": p["stall_distance"], "settle_time": p["settle_time"],
+        "haul_limit": travel + p["overhaul"],
         "report": {"simulated_links": n_links, "real_links_each": k, "pitch": pitch, "real_link_mass": link_mass,
                    "haul": travel, "flukes_joint": "crown", "flukes_angle0": phi0},
     }

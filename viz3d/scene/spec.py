@@ -531,6 +531,9 @@ STOWAGE = Table({
     "stall_distance": Field(positive, 0.02, "[m]"),
     "settle_time": Field(nonnegative, OPTIONAL, "the windlass stops once the bodies have stayed seated this long [s] "
                          "(the run ends there); absent: it hauls until sim.t_end"),
+    "haul_limit": Field(positive, OPTIONAL, "the windlass stops once its coordinate has moved this far from 0 [m or "
+                        "rad] (the run ends there: a limited drive's speed depends on its load, so a haul of given "
+                        "length has no given duration); absent: it hauls until sim.t_end"),
     "hawse": Field(vec3, OPTIONAL, "where the chain enters the hull, world [m]: the chain's tension there is saved "
                    "(stowage_hawse_tension)"),
     "chain": Field(string, "link", "the chain's body-name prefix (its joints are <prefix>_j<i>)"),
