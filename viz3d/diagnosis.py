@@ -109,9 +109,9 @@ def held_effort(t: np.ndarray, effort: np.ndarray, window: float) -> np.ndarray:
 
 
 def overload_start(effort: np.ndarray, limit: float, i: int) -> int:
-    """First index of the run of consecutive frames over ``limit`` (|effort| > limit) that ends at
-    frame ``i``: where the overload of frame ``i`` began. ``effort`` (n,) [N or N m]."""
-    over = np.abs(np.asarray(effort[:i + 1], float)) > limit
+    """First index of the run of consecutive frames at or over ``limit`` (|effort| >= limit) that ends
+    at frame ``i``: where the overload of frame ``i`` began. ``effort`` (n,) [N or N m]."""
+    over = np.abs(np.asarray(effort[:i + 1], float)) >= limit
     return 0 if over.all() else i + 1 - int(np.argmin(over[::-1]))
 
 
@@ -121,37 +121,46 @@ def _window_start(t: np.ndarray, window: float) -> np.ndarray:
 
 
 class CapacityWatch:
-    """Stops a run whose drive has needed more than its capacity for its ``capacity_time``.
+    """Ends a run whose drive has been at its capacity for its ``capacity_time``.
 
     A drive's frame scalar ``drive/<name>/effort`` is held against ``capacity`` [N or N m] over the
-    last ``capacity_time`` [s] of frames (``held_effort``), across the chunks of frames a run checks:
-    ``SimulationFailure`` at the first frame whose held effort exceeds it, saying since when the
-    drive has been over. ``capacity_time = 0``: the first frame over it. Rigid bodies on a velocity
-    drive pass a contact's impact to the drive within a step; a capacity held over a time longer
-    than the impact (a few ms for steel on steel) and shorter than a stall is what jams a windlass.
+    last ``capacity_time`` [s] of frames (``held_effort``), across the chunks of frames a run checks;
+    one rule for both kinds of drive: **at its limit** is ``|effort| >= capacity``, held that long it
+    jams. A rigid drive (a constraint) then needs more than it can give, so its run stops with
+    ``SimulationFailure`` (its model no longer holds); a limited drive (``servo_gain``,
+    ``viz3d.forces.DriveServo``) gives exactly its capacity there and its servo law puts its speed at
+    least ``capacity / servo_gain`` below its profile: it has stalled, its model still holds, and the
+    run ends with ``RunComplete`` (status ok; the verdict says jammed). Either says since when.
+    ``capacity_time = 0``: the first frame at it. Rigid bodies on a rigid velocity drive pass a
+    contact's impact to the drive within a step; a capacity held over a time longer than the impact
+    (a few ms for steel on steel) and shorter than a stall is what jams a windlass.
 
     Parameters
     ----------
     limits : dict
-        ``name -> (capacity, capacity_time)`` of the drives that have a capacity.
+        ``name -> (capacity, capacity_time, limited)`` of the drives that have a capacity
+        (``limited``: a limited drive).
     """
 
-    def __init__(self, limits: dict[str, tuple[float, float]]):
+    def __init__(self, limits: dict[str, tuple[float, float, bool]]):
         self.limits = limits
         self._tail = {name: (np.zeros(0), np.zeros(0)) for name in limits}  # the last window's frames
 
     def check(self, t: np.ndarray, scalars: dict) -> None:
         """Check the next frames: times ``t`` (n,) [s] and their ``scalars`` (frame columns)."""
         t = np.asarray(t, float)
-        for name, (limit, window) in self.limits.items():
+        for name, (limit, window, limited) in self.limits.items():
             effort = np.abs(np.asarray(scalars.get(f"drive/{name}/effort", np.zeros(t.size)), float))
             t_all, e_all = (np.concatenate(x) for x in zip(self._tail[name], (t, effort)))
             held = held_effort(t_all, e_all, window)[-t.size:] if t.size else np.zeros(0)
-            bad = np.flatnonzero(held > limit)
+            bad = np.flatnonzero(held >= limit)
             if bad.size:
                 i = int(bad[0])
                 since = overload_start(e_all, limit, len(t_all) - t.size + i)
                 held_text = f" since t = {t_all[since]:.6g} s" if window > 0.0 else ""
+                if limited:
+                    raise RunComplete(f"t = {t[i]:.6g} s: drive {name!r} stalled at its capacity {limit:.4g} (N or N m)"
+                                      f"{held_text}: the mechanism jams or the drive is too small", i)
                 raise SimulationFailure(f"t = {t[i]:.6g} s: drive {name!r} needs {effort[i]:.4g} (N or N m), over its "
                                         f"capacity {limit:.4g}{held_text}: the mechanism jams or the drive is too "
                                         "small", frame=i)

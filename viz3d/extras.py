@@ -61,14 +61,15 @@ def joint_fields(system, frames) -> dict:
     """The joints' relative coordinates and the drives' efforts as trajectory fields (none when no
     joint has one): ``joint_coordinate_names`` (m,) ``<joint>/<coordinate>``, ``joint_coordinates`` and
     ``joint_coordinate_rates`` (n, m) [rad, m; rad/s, m/s] (``viz3d.joints.relative_coordinates``);
-    ``drive_names`` (d,), ``drive_effort`` (n, d) [N m or N] (``viz3d.joints.drive_efforts``)."""
+    ``drive_names`` (d,), ``drive_effort`` (n, d) [N m or N] (``viz3d.joints.drive_efforts``; limited drives:
+    ``viz3d.forces.DriveServo.scalars``)."""
     out = {}
     names = [f"{n}/{c}" for js in system.joints.joints for n in js.names for c in getattr(js, "coordinate_names", ())]
     if names:
         out.update({"joint_coordinate_names": np.array(names, dtype=str),
                     "joint_coordinates": _series(frames, [f"joint/{n}" for n in names]),
                     "joint_coordinate_rates": _series(frames, [f"joint/{n}_rate" for n in names])})
-    drives = [n for js in system.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
+    drives = system.drive_names
     if drives:
         out.update({"drive_names": np.array(drives, dtype=str),
                     "drive_effort": _series(frames, [f"drive/{n}/effort" for n in drives])})

@@ -27,8 +27,8 @@ from viz3d.timefunctions import TimeFunctions, value
 #: Spring lengths below this [m] are treated as zero (direction undefined, force from k * d).
 MIN_LENGTH = 1e-12
 
-__all__ = ["FORCES", "AppliedForce", "AppliedTorque", "ForceElement", "Gravity", "JointMotor", "JointStop",
-           "SpringDamper", "scatter"]
+__all__ = ["FORCES", "AppliedForce", "AppliedTorque", "DriveServo", "ForceElement", "Gravity", "JointMotor",
+           "JointStop", "SpringDamper", "scatter"]
 
 
 class ForceElement(ABC):
@@ -630,6 +630,72 @@ def _joint_motor(d, t, v, power):
         q, q_dot = coordinate_of(v, row, d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
         value(d.i[k, 3], row[21:31], t, ref)
         force = min(max(row[18] * (ref[0] - q) - row[19] * q_dot, -row[20]), row[20])
+        _coordinate_force(v, d, k, force, u, v.v3[25])
+        power[power.shape[0] - 1] += force * q_dot
+
+
+@dataclass(frozen=True)
+class DriveServo(JointCoordinateForce):
+    """Limited drives (scene ``[[drives]]`` with a ``servo_gain``): velocity servos with a force range,
+    ``f = clip(g (r(t) - q_dot), -F_max, F_max)`` [N or N m] on a joint coordinate ``q``, ``r`` the
+    drive's velocity profile (a time function, first component), ``g`` the gain [N s/m or N m s/rad]
+    and ``F_max`` the drive's capacity. MuJoCo's velocity actuator with ``forcerange``.
+
+    Why a servo and not a rigid drive (``viz3d.joints.JointDrive``) whose multiplier is bounded: a
+    force element needs no change of any formulation (index-1, projection, ALI3-P, the kernel's
+    Schur solve), keeps no state (no integral of the speed error: after a stall the drive resumes
+    its profile's speed, it does not catch up the distance it lost, as a speed-controlled windlass
+    does) and is a stiff term only below its range: on the coordinate's effective mass ``m``
+    (the bodies the drive moves through the joints) its pole is ``-g / m``, so an explicit
+    method's step ``h`` needs ``g h / m`` inside its real stability interval (RK4: 2.785). Below
+    the range it tracks the profile with the speed error ``F / g`` at load ``F`` (a motor's droop);
+    at the range it gives ``+-F_max`` and the coordinate follows the net force, so a jammed
+    mechanism stalls instead of being pulled through. Its power ``f q_dot`` is the ledger's work in.
+    Its effort is the frame scalar ``drive/<name>/effort`` (as a rigid drive's).
+
+    Attributes (beyond ``JointCoordinateForce``)
+    ----------
+    profile : TimeFunctions
+        ``r``, the velocity profile, in the first component [m/s or rad/s].
+    gain, capacity : ndarray, shape (k,)
+        ``g`` [N s/m or N m s/rad] and ``F_max`` [N or N m].
+    """
+
+    type_name = "drive_servo"
+    is_drive: ClassVar[bool] = True  # (``System.drive_names``)
+    profile: TimeFunctions = field(default=None)
+    gain: FloatArray = field(default=None)
+    capacity: FloatArray = field(default=None)
+
+    def effort(self, t, q, q_dot):
+        f = np.clip(self.gain * (self.profile(t)[:, 0] - q_dot), -self.capacity, self.capacity)
+        return f, np.zeros_like(f)
+
+    def scalars(self, cfg: Configuration) -> dict[str, float]:
+        """``drive/<name>/effort`` [N or N m] at ``cfg``."""
+        q, q_dot = self.coordinates(cfg)
+        f, _ = self.effort(cfg.t, q, q_dot)
+        return {f"drive/{n}/effort": float(x) for n, x in zip(self.names, f)}
+
+    def compiled(self, pack) -> Items:
+        kind, table = self.profile.table()
+        return self._pack(pack, DriveServoItems, kind[:, None], np.column_stack([self.gain, self.capacity, table]))
+
+
+class DriveServoItems(Items):
+    """i: [point 1, point 2, coordinate code, time-function kind]; f: [A1, A2 (18), gain, capacity,
+    ``TimeFunctions.table`` row (10)]."""
+
+
+@compiled_piece(force_piece, DriveServoItems)
+def _drive_servo(d, t, v, power):
+    u, ref = v.v3[24], v.v3[26]
+    for k in range(d.i.shape[0]):
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        row = d.f[k]
+        q, q_dot = coordinate_of(v, row, d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
+        value(d.i[k, 3], row[20:30], t, ref)
+        force = min(max(row[18] * (ref[0] - q_dot), -row[19]), row[19])
         _coordinate_force(v, d, k, force, u, v.v3[25])
         power[power.shape[0] - 1] += force * q_dot
 

@@ -197,7 +197,7 @@ def plot_series(system) -> tuple[tuple, tuple]:
         ledger = ("strain", "dissipated", "work_in")
         plots.append(("Energy ledger [J]", ledger))
         series += [lambda f, k=k: f.scalars[f"energy/{k}"] for k in ledger]
-    drives = [n for js in system.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
+    drives = system.drive_names
     if drives:  # the windlass's hauling force, a crank's torque
         plots.append(("Drive effort [N or N m]", tuple(drives)))
         series += [lambda f, n=n: f.scalars[f"drive/{n}/effort"] for n in drives]

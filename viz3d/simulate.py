@@ -44,7 +44,7 @@ from viz3d.scene.load import Scene, load_scene, with_sim
 from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
-from viz3d.stowage import run_events, run_verdict, seated_stop, verdict_fields
+from viz3d.stowage import drive_coordinate, run_events, run_verdict, seated_stop, verdict_fields
 from viz3d.system import State, States, System
 from viz3d.trajectory import Trajectory
 
@@ -930,14 +930,20 @@ def check_methods(scene: Scene) -> None:
 
 def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
     """The checks of a run's output frames, ``check(cols, states)`` (``cols``: their
-    ``FrameColumns``): constraint violation, energy growth of a conservative run, drives over their
-    capacity (``SimulationFailure``), and the goal of a ``[stowage]`` table with ``settle_time``
-    (``RunComplete``); and whether there is such a goal. The live viewer applies the same checks."""
+    ``FrameColumns``): constraint violation, energy growth of a conservative run, rigid drives over
+    their capacity (``SimulationFailure``), limited drives stalled at it and the goal of a ``[stowage]``
+    table with ``settle_time`` (``RunComplete``); and whether the run may end so. The live viewer
+    applies the same checks."""
     cfg = scene.data["sim"]
     energy = EnergyWatch(sim.system, cfg["blowup_energy"], sim.system.conservative)
-    capacity = CapacityWatch({d["name"]: (d["capacity"], d["capacity_time"]) for d in scene.data["drives"]
-                              if "capacity" in d})
-    goal = seated_stop(scene.data["stowage"], sim.system.bodies.names) if "stowage" in scene.data else None
+    limits = {d["name"]: (d["capacity"], d["capacity_time"], "servo_gain" in d) for d in scene.data["drives"]
+              if "capacity" in d}
+    capacity = CapacityWatch(limits)
+    goal = None
+    if "stowage" in scene.data:
+        keys = [f"joint/{n}/{c}" for js in sim.system.joints.joints for n in js.names
+                for c in getattr(js, "coordinate_names", ())]
+        goal = seated_stop(scene.data["stowage"], sim.system.bodies.names, drive_coordinate(scene.data, keys))
 
     def check(cols, states):
         check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
@@ -946,7 +952,7 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
         if goal is not None:
             goal(cols, states)
 
-    return check, goal is not None
+    return check, goal is not None or any(limited for _, _, limited in limits.values())
 
 
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:

@@ -4,8 +4,10 @@ hauled bodies reach their stowed poses?
 * **seated**: at the end of the run every body is within ``tolerance`` [m] of its stowed centre of
   mass and ``angle_tolerance`` [deg] of its stowed orientation (the angle of ``R_stowed^T R``); the
   time given is when they entered that tolerance for good;
-* **jammed**: the drive needed more than its capacity for its ``capacity_time`` (the run stops there
-  with a diagnosis; ``viz3d.diagnosis.held_effort``), or
+* **jammed**: the drive was at its limit (``|effort| >= capacity``) for its ``capacity_time``
+  (``viz3d.diagnosis.held_effort``, ``CapacityWatch``): a limited drive (``servo_gain``) stalled
+  there, the run ending cleanly; a rigid drive needed more than it can give, the run stopping with
+  a diagnosis (or failing sooner while over it: ``stopped``), or
   the bodies moved less than ``stall_distance`` over the last ``stall_time`` of a run that ended
   short of seated while the drive was still hauling;
 * **not reached**: anything else (the haul ended short of the stowed pose, still moving).
@@ -85,9 +87,11 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
     """The ``Verdict`` of a run from its frames: times ``t`` (n_t,), body positions (n_t, nb, 3) and
     rotations (n_t, nb, 3, 3), the drive's effort (n_t,) [N], its capacity [N] (None: unlimited)
     held for ``capacity_time`` [s], and whether it hauls at each frame (n_t,) (its prescribed speed
-    is not zero). ``stopped``: the run failed after its last frame (diverged): a drive over its
-    capacity at that frame jammed (a rigid drive pulling a wedged body drives the contact force up
-    until the step cannot follow, sooner than ``capacity_time``)."""
+    is not zero). One rule for rigid and limited drives: at its limit is ``|effort| >= capacity`` (a
+    limited drive's effort is exactly its capacity there, stalled). ``stopped``: the run failed after
+    its last frame (diverged): a drive at its capacity at that frame jammed (a rigid drive pulling a
+    wedged body drives the contact force up until the step cannot follow, sooner than
+    ``capacity_time``)."""
     names = list(body_names)
     index = [names.index(b) for b in spec["bodies"]]
     dist, angle = pose_errors(spec, position, rotation, index)
@@ -96,16 +100,15 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
     peak = float(np.nanmax(held)) if spanned else float(np.max(np.abs(effort), initial=0.0))
     args = (peak, float(dist[-1]), float(angle[-1]))
     extra = {"peak_transient": float(np.max(np.abs(effort), initial=0.0))}
-    if capacity is not None and spanned and peak > capacity:
-        i = int(np.argmax(held > capacity))
+    if capacity is not None and spanned and peak >= capacity:
+        i = int(np.argmax(held >= capacity))
         since = overload_start(effort, capacity, i)
         held_text = f" for {t[i] - t[since]:.3g} s" if capacity_time > 0.0 else ""
-        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[i]) / 1e3:.1f} kN, over its "
-                       f"capacity {capacity / 1e3:.1f} kN{held_text}", **extra)
-    if capacity is not None and stopped and effort.size and abs(effort[-1]) > capacity:
+        return Verdict("jammed", float(t[since]), *args, f"{_at_limit(effort[i], capacity)}{held_text}", **extra)
+    if capacity is not None and stopped and effort.size and abs(effort[-1]) >= capacity:
         since = overload_start(effort, capacity, len(effort) - 1)
-        return Verdict("jammed", float(t[since]), *args, f"the drive needs {abs(effort[-1]) / 1e3:.1f} kN, over its "
-                       f"capacity {capacity / 1e3:.1f} kN since t = {t[since]:.6g} s when the run failed", **extra)
+        return Verdict("jammed", float(t[since]), *args, f"{_at_limit(effort[-1], capacity)} since t = {t[since]:.6g} s "
+                       "when the run failed", **extra)
     inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
     if inside[-1]:
         since = len(inside) - int(np.argmin(inside[::-1])) if not inside.all() else 0
@@ -117,14 +120,25 @@ def verdict(spec: dict, t: np.ndarray, position: np.ndarray, rotation: np.ndarra
         if moved < spec["stall_distance"]:
             return Verdict("jammed", float(t[window][0]), *args, f"moved {moved:.3f} m in the last "
                            f"{spec['stall_time']:g} s while the drive hauled", **extra)
-    return Verdict("not reached", float(t[-1]), *args, "the run ended (sim.t_end) short of the stowed pose", **extra)
+    return Verdict("not reached", float(t[-1]), *args, "the haul ended (sim.t_end or haul_limit) short of the stowed "
+                   "pose", **extra)
 
 
-def seated_stop(spec: dict, body_names):
+def _at_limit(effort: float, capacity: float) -> str:
+    """What a drive at its limit did: stalled at its capacity (a limited drive), or needed more [N]."""
+    if abs(effort) <= capacity:
+        return f"the drive stalled at its capacity {capacity / 1e3:.1f} kN"
+    return f"the drive needs {abs(effort) / 1e3:.1f} kN, over its capacity {capacity / 1e3:.1f} kN"
+
+
+def seated_stop(spec: dict, body_names, coordinate: str | None = None):
     """The run's frame check that stops the windlass once the ``[stowage]`` bodies have stayed seated
-    (``tolerance``, ``angle_tolerance``) for ``settle_time`` [s]: ``check(cols, states)`` raises
-    ``RunComplete`` at that frame; None when the spec has no ``settle_time`` (the haul runs to t_end)."""
-    if spec.get("settle_time") is None:
+    (``tolerance``, ``angle_tolerance``) for ``settle_time`` [s], or once its ``coordinate`` (the
+    frame scalar of the drive's joint coordinate) has moved ``haul_limit`` from 0: ``check(cols,
+    states)`` raises ``RunComplete`` at that frame; None when the spec has neither (the haul runs to
+    t_end)."""
+    settle, limit = spec.get("settle_time"), spec.get("haul_limit")
+    if settle is None and limit is None:
         return None
     index = [list(body_names).index(b) for b in spec["bodies"]]
     since = [None]  # when the bodies last came within tolerance (over chunks)
@@ -132,12 +146,25 @@ def seated_stop(spec: dict, body_names):
     def check(cols, states):
         dist, angle = pose_errors(spec, cols.W_r, cols.R_WB, index)
         inside = (dist <= spec["tolerance"]) & (angle <= spec["angle_tolerance"])
+        hauled = np.abs(np.asarray(cols.scalars[coordinate], float)) if limit is not None else np.zeros(len(cols.t))
         for i, (t, ok) in enumerate(zip(cols.t, inside)):
             since[0] = (since[0] if since[0] is not None else t) if ok else None
-            if ok and t - since[0] >= spec["settle_time"] - 1e-9:
+            if settle is not None and ok and t - since[0] >= settle - 1e-9:
                 raise RunComplete(f"seated since t = {since[0]:.6g} s: the windlass stopped at t = {t:.6g} s", i)
+            if limit is not None and hauled[i] >= limit:
+                raise RunComplete(f"the windlass hauled its limit {limit:.6g} (haul_limit): it stopped at t = {t:.6g} s",
+                                  i)
 
     return check
+
+
+def drive_coordinate(data: dict, keys) -> str | None:
+    """The frame scalar among ``keys`` of the coordinate the ``[stowage]`` drive of the scene ``data``
+    moves (``joint/<joint>/<coordinate>``), None if there is none."""
+    drive = next(d for d in data["drives"] if d["name"] == data["stowage"]["drive"])
+    prefix, coordinate = f"joint/{drive['joint']}/", drive.get("coordinate")
+    return next((k for k in keys if k.startswith(prefix) and not k.endswith("_rate")
+                 and (coordinate is None or k == prefix + coordinate)), None)
 
 
 def run_verdict(data: dict, cols, body_names, stopped: bool = False) -> Verdict | None:
@@ -147,11 +174,8 @@ def run_verdict(data: dict, cols, body_names, stopped: bool = False) -> Verdict 
     if spec is None or not len(cols):
         return None
     drive = next(d for d in data["drives"] if d["name"] == spec["drive"])
-    coordinate = drive.get("coordinate")
-    joint = next(j for j in data["joints"] if j["name"] == drive["joint"])
-    rate_key = next((k for k in cols.scalars if k.startswith(f"joint/{joint['name']}/") and k.endswith("_rate")
-                     and (coordinate is None or k == f"joint/{joint['name']}/{coordinate}_rate")), None)
-    hauling = np.abs(cols.scalars[rate_key]) > 1e-9 if rate_key else np.ones(len(cols), bool)
+    key = drive_coordinate(data, cols.scalars)
+    hauling = np.abs(cols.scalars[f"{key}_rate"]) > 1e-9 if key else np.ones(len(cols), bool)
     effort = np.asarray(cols.scalars.get(f"drive/{spec['drive']}/effort", np.zeros(len(cols))), float)
     v = verdict(spec, cols.t, cols.W_r, cols.R_WB, body_names, effort, drive.get("capacity"), hauling,
                 drive.get("capacity_time", 0.0), stopped)

@@ -121,14 +121,23 @@ class System:
     @property
     def conservative(self) -> bool:
         """True when the total energy is a constant of the motion: every force element and contact
-        conservative and no drive (a rheonomic constraint works on the bodies)."""
+        conservative and no drive (it works on the bodies)."""
         return (all(e.conservative for e in self.forces) and all(c.conservative for c in self.contacts)
                 and not self.driven)
 
     @property
     def driven(self) -> bool:
-        """True when some joint is a drive (a rheonomic constraint that works on the bodies)."""
-        return any(getattr(js, "rheonomic", False) for js in self.joints.joints)
+        """True when the scene has a drive (a rheonomic constraint or a limited drive: they work on the
+        bodies)."""
+        return bool(self.drive_names)
+
+    @property
+    def drive_names(self) -> tuple[str, ...]:
+        """The drives, each with the frame scalar ``drive/<name>/effort``: the rigid ones (rheonomic row
+        providers, ``viz3d.joints.JointDrive``), then the limited ones (force elements that are drives,
+        ``viz3d.forces.DriveServo``)."""
+        rigid = [n for js in self.joints.joints if getattr(js, "rheonomic", False) for n in js.names]
+        return tuple(rigid + [n for e in self.forces if getattr(e, "is_drive", False) for n in e.names])
 
     @property
     def has_ledger(self) -> bool:

@@ -26,7 +26,7 @@ from viz3d.contact.contacts import ContactPhase, ContactRows, ContactSet
 from viz3d.contact.friction import Bristle, RegularizedCoulomb, Stribeck
 from viz3d.contact.laws import NORMAL_LAWS, Hertz, HuntCrossley, Linear
 from viz3d.dynamics import VectorField, body_state, flexible_kinetic
-from viz3d.forces import AppliedForce, AppliedTorque, ForceElement, JointMotor, JointStop, SpringDamper
+from viz3d.forces import AppliedForce, AppliedTorque, DriveServo, ForceElement, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.joints import JOINTS, FramedJoint
 from viz3d.kernel.model import FORMULATIONS
@@ -115,6 +115,14 @@ def _joint_motors(rng, base, state):
                       rng.uniform(0.1, 1.0, k), np.where(np.arange(k) % 3 == 2, rng.uniform(0.05, 0.2, k), np.inf))
 
 
+def _drive_servos(rng, base, state):
+    """Limited drives: every third at its capacity at ``state`` (a capacity below the servo's demand)."""
+    sets, index, free = _joint_coordinates(base)
+    k = len(sets)
+    return DriveServo(tuple(f"servo{i}" for i in range(k)), sets, index, free, _time_functions(rng, k),
+                      rng.uniform(5, 50, k), np.where(np.arange(k) % 3 == 2, rng.uniform(1e-3, 1e-2, k), np.inf))
+
+
 #: Force elements beyond the gravity and springs of ``random_system``: one builder per element type,
 #: from a random generator, the base system and the state the tests evaluate.
 def _random_rotation(rng) -> np.ndarray:
@@ -165,6 +173,7 @@ ELEMENT_BUILDERS = {
     "torques (every time function, world and body axes)": lambda rng, base, state: _loads(AppliedTorque, rng, base.bodies),
     "stops on every kind of joint coordinate": _joint_stops,
     "motors on every kind of joint coordinate (saturated or not)": _joint_motors,
+    "limited drives on every kind of joint coordinate (stalled or not)": _drive_servos,
 }
 
 

@@ -1,6 +1,6 @@
 """The haul's verdict (viz3d/stowage.py) on synthetic frames whose answer is known by construction:
-a body that approaches its stowed pose and stays (seated, and when), a drive over its capacity
-(jammed, and when), a body that stops moving while the drive hauls (jammed), and one still on
+a body that approaches its stowed pose and stays (seated, and when), a drive at or over its
+capacity (jammed, and when), a body that stops moving while the drive hauls (jammed), and one still on
 its way (not reached); pose errors against scipy's rotation angles."""
 
 from __future__ import annotations
@@ -89,6 +89,26 @@ def test_the_windlass_stops_once_the_anchor_has_stayed_seated_for_settle_time(ch
     assert T[done.value.frame] == pytest.approx(8.2)               # 6.7 s + 1.5 s
 
 
+@pytest.mark.parametrize("chunk", [1, 7, 101])
+def test_the_windlass_stops_once_it_has_hauled_its_limit(chunk):
+    """seated_stop with ``haul_limit`` 4 m on a windlass coordinate hauled at 0.5 m/s (a body that never
+    seats): the run ends at the frame of t = 8 s, the first at the limit, in chunks of any length."""
+    from types import SimpleNamespace
+
+    from viz3d.diagnosis import RunComplete
+    from viz3d.stowage import seated_stop
+
+    P, R = _approach(20.0)
+    x = 0.5 * T
+    check = seated_stop({**SPEC, "haul_limit": 4.0}, ["anchor"], "joint/guide/distance")
+    with pytest.raises(RunComplete) as done:
+        for a in range(0, T.size, chunk):
+            check(SimpleNamespace(t=T[a:a + chunk], W_r=P[a:a + chunk], R_WB=R[a:a + chunk],
+                                  scalars={"joint/guide/distance": x[a:a + chunk]}), None)
+    assert T[a + done.value.frame] == pytest.approx(8.0)
+    assert "hauled its limit 4" in str(done.value)
+
+
 @pytest.mark.parametrize("depth0", [0.0, 0.011])
 def test_a_jam_from_a_starting_overlap_says_so(depth0):
     """run_verdict: a drive over its capacity is a jam either way; when the shapes already overlapped at
@@ -146,12 +166,43 @@ def test_the_capacity_watch_stops_a_run_once_the_overload_is_held_in_chunks_of_a
 
     effort = np.where(T >= 3.0, 5e5, 2e5)
     effort[10] = 9e5                                                # a spike at t = 1 s
-    watch = CapacityWatch({"windlass": (4.5e5, 0.25)})
+    watch = CapacityWatch({"windlass": (4.5e5, 0.25, False)})
     with pytest.raises(SimulationFailure) as failed:
         for a in range(0, T.size, chunk):
             watch.check(T[a:a + chunk], {"drive/windlass/effort": effort[a:a + chunk]})
     assert T[a + failed.value.frame] == pytest.approx(3.3)
     assert "since t = 3 s" in str(failed.value) and "'windlass'" in str(failed.value)
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 101])
+def test_a_limited_drive_held_at_its_capacity_ends_the_run_as_stalled(chunk):
+    """The same rule for a limited drive (servo_gain), whose effort is exactly its capacity when it
+    stalls: a spike to the capacity passes; at the capacity from t = 3 s the run ends at the frame of
+    3.3 s with ``RunComplete`` (status ok: the model still holds), saying it stalled and since when;
+    just under the capacity it goes on."""
+    from viz3d.diagnosis import CapacityWatch, RunComplete
+
+    effort = np.where(T >= 3.0, 4.5e5, 2e5)
+    effort[10] = 4.5e5
+    watch = CapacityWatch({"windlass": (4.5e5, 0.25, True)})
+    with pytest.raises(RunComplete) as done:
+        for a in range(0, T.size, chunk):
+            watch.check(T[a:a + chunk], {"drive/windlass/effort": effort[a:a + chunk]})
+    assert T[a + done.value.frame] == pytest.approx(3.3)
+    assert "stalled at its capacity" in str(done.value) and "since t = 3 s" in str(done.value)
+    watch = CapacityWatch({"windlass": (4.5e5, 0.25, True)})
+    watch.check(T, {"drive/windlass/effort": np.minimum(effort, np.nextafter(4.5e5, 0.0))})
+
+
+def test_a_drive_held_at_exactly_its_capacity_is_a_jam():
+    """A limited drive's effort at a stall is its capacity itself (the servo's clip): held for
+    capacity_time it is a jam, from when it reached it; a hair under, it is not."""
+    P, R = _approach(6.0, stop_short=0.5)
+    at = np.where(T >= 3.0, 4.5e5, 2e5)
+    v = verdict(SPEC, T, P, R, ["anchor"], at, 4.5e5, T < 3.4, capacity_time=0.25)
+    assert v.outcome == "jammed" and v.time == pytest.approx(3.0) and v.peak_force == 4.5e5
+    under = np.minimum(at, np.nextafter(4.5e5, 0.0))
+    assert verdict(SPEC, T, P, R, ["anchor"], under, 4.5e5, T < 3.4, capacity_time=0.25).outcome == "not reached"
 
 
 def test_a_run_that_fails_while_its_drive_is_over_capacity_jammed():

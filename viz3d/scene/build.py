@@ -20,7 +20,7 @@ from viz3d.contact.contacts import ContactRows, ContactSet
 from viz3d.coordinates import ROTATIONS
 from viz3d.diagnosis import redundant_joints
 from viz3d.dynamics import body_state
-from viz3d.forces import AppliedForce, AppliedTorque, Gravity, JointMotor, JointStop, SpringDamper
+from viz3d.forces import AppliedForce, AppliedTorque, DriveServo, Gravity, JointMotor, JointStop, SpringDamper
 from viz3d.formulation import ALI3P, Baumgarte, Index1, Penalty, Projection
 from viz3d.geometry import MeshError, primitive_properties, shape_mesh, shape_mesh_properties
 from viz3d.integrators import GeneralizedAlpha, Integrator, make_integrator
@@ -80,7 +80,7 @@ def build(scene: Scene) -> tuple[System, State]:
     rows = joints + drives + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
-    forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_collisions(
+    forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_servos(scene, joints) + build_collisions(
         scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies)) + build_water(scene, bodies)
     outputs = build_gauges(scene, bodies) + build_stowage_outputs(scene, bodies, joints, W_r0)
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, outputs)
@@ -447,23 +447,55 @@ def _joint_coordinates(entries: list[dict], paths: list[str], joints: tuple, sou
 
 
 def build_drives(scene: Scene, joints: tuple) -> tuple:
-    """The scene's drives as one ``JointDrive`` set (none without ``[[drives]]``)."""
-    entries = scene.data["drives"]
+    """The scene's rigid drives (those without ``servo_gain``) as one ``JointDrive`` set (none
+    without such ``[[drives]]``)."""
+    entries, paths = _drive_entries(scene, limited=False)
     if not entries:
         return ()
-    source = scene.source()
-    paths = [f"drives[{i}]" for i in range(len(entries))]
-    sets, index, free = _joint_coordinates(entries, paths, joints, source)
-    for entry, path in zip(entries, paths):
-        if entry["kind"] not in PROFILE_KINDS[entry["mode"]]:
-            raise SceneError(source, f"{path}.kind", f"one of {list(PROFILE_KINDS[entry['mode']])} for a {entry['mode']} "
-                             "profile (its derivative must stay bounded)", entry["kind"])
-    funcs = TimeFunctions.from_entries([{**f, "offset": [f["value"], 0.0, 0.0], "amplitude": [f["amplitude"], 0.0, 0.0]}
-                                        for f in entries])
-    kind, table = funcs.table()
+    sets, index, free = _joint_coordinates(entries, paths, joints, scene.source())
+    kind, table = _profiles(entries).table()
     body = np.array([js.body[j] for js, j in zip(sets, index)], int).reshape(-1, 2)
     return (JointDrive(tuple(f["name"] for f in entries), body, sets, index, free, kind,
                        np.array([f["mode"] == "velocity" for f in entries], np.int64), table),)
+
+
+def build_servos(scene: Scene, joints: tuple) -> tuple:
+    """The scene's limited drives (``servo_gain``) as one ``DriveServo`` element (none without)."""
+    entries, paths = _drive_entries(scene, limited=True)
+    if not entries:
+        return ()
+    source = scene.source()
+    for entry, path in zip(entries, paths):
+        if entry["mode"] != "velocity":
+            raise SceneError(source, f"{path}.mode", "'velocity' for a limited drive (servo_gain: a velocity servo)",
+                             entry["mode"])
+        if "capacity" not in entry:
+            raise SceneError(source, f"{path}.capacity", "a capacity for a limited drive (servo_gain: its force range)")
+    sets, index, free = _joint_coordinates(entries, paths, joints, source)
+    for js, entry, path in zip(sets, entries, paths):
+        if js.on_flexible:
+            raise SceneError(source, f"{path}.joint", "a joint between rigid bodies or ground for a limited drive (it "
+                             "acts through the frames' axes)", entry["joint"])
+    return (DriveServo(tuple(f["name"] for f in entries), sets, index, free, _profiles(entries),
+                       np.array([f["servo_gain"] for f in entries], float),
+                       np.array([f["capacity"] for f in entries], float)),)
+
+
+def _drive_entries(scene: Scene, limited: bool) -> tuple[list[dict], list[str]]:
+    """The ``[[drives]]`` entries that are limited (``servo_gain``) or rigid, and their paths; their
+    profile kinds checked."""
+    chosen = [(f, f"drives[{i}]") for i, f in enumerate(scene.data["drives"]) if ("servo_gain" in f) == limited]
+    for entry, path in chosen:
+        if entry["kind"] not in PROFILE_KINDS[entry["mode"]]:
+            raise SceneError(scene.source(), f"{path}.kind", f"one of {list(PROFILE_KINDS[entry['mode']])} for a "
+                             f"{entry['mode']} profile (its derivative must stay bounded)", entry["kind"])
+    return [f for f, _ in chosen], [p for _, p in chosen]
+
+
+def _profiles(entries: list[dict]) -> TimeFunctions:
+    """The drives' profiles ``value + amplitude f(t)`` in the first component."""
+    return TimeFunctions.from_entries([{**f, "offset": [f["value"], 0.0, 0.0], "amplitude": [f["amplitude"], 0.0, 0.0]}
+                                       for f in entries])
 
 
 def _joint_forces(kind: str, entries: list[dict], paths: list[str], joints: tuple, source: str):

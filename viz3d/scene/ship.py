@@ -16,12 +16,26 @@ Sources of the numbers:
 * stud link proportions: pitch (inside length) 4 d, width 3.6 d; mass 0.0219 d^2 kg/m (d in mm),
   the usual stud-link chain tables;
 * hauling speed 9 m/min, the least mean speed IACS UR A3 asks of a windlass hoisting its anchor;
-  capacity 1.5 x the continuous duty pull 42.5 d^2 N of grade 2 (IACS UR A3's overload pull);
+  capacity 1.5 x the continuous duty pull 42.5 d^2 N of grade 2 (IACS UR A3's overload pull), where
+  the windlass stalls (a limited drive, below; its speed droop under load is ours);
 * contact: Flores' law, K = 4/3 E* sqrt(R) of a steel sphere of the link's bar radius d/2 on a steel
   plane (eqs. 3.37-3.39), and bristle stick-slip friction (eqs. 3.40-3.49; the coefficients and the
   bristles' stiffness are ours, documented in ``SHIP``);
 * the hull geometry (flare, pipe angle and size, pocket) and the anchor's proportions are generic
   design values of ours, documented in ``SHIP`` (the seed's CAD models are not published).
+
+The windlass is a limited drive (``viz3d.forces.DriveServo``; ``ship.droop``, ``capacity``): a
+velocity servo that tracks its ramp to ``hauling_speed`` and stalls at its ``capacity``, where a
+rigid drive would pull a wedged anchor into the hull at the hauling speed (the run then diverges).
+Its gain ``g`` trades the speed it loses under load (``droop``: ``F / g`` at the load ``F``) against
+the stability of its pole ``-g / m`` under RK4 (``g dt / m <= 2.785``), ``m`` the effective mass it
+drives along its guide (the windlass head, chain, shackle and anchor through the joints:
+``1 / (e^T P e)``, ``P`` the inverse mass matrix projected onto the other joints' constraints).
+Along the default haul, computed at every 0.25 s frame, m runs from 2180 kg (t = 27.25 s, the anchor
+turning at the hull) to 9530 kg, 2760 kg at t = 0. ``droop = 0.10`` gives g = 6.9e6 N s/m and
+g dt / m <= 1.6 at dt = 5e-4 s (a margin of 1.8 for a lower mass between frames or on a heeled or
+trimmed ship); 0.05 would give 3.2, unstable. At its capacity the servo's speed is at least
+capacity / g = 0.065 m/s (43 %) below the ramp's: a windlass at its capacity has stalled.
 """
 
 from __future__ import annotations
@@ -38,6 +52,7 @@ from viz3d.scene.schema import (OPTIONAL, Field, SceneError, Table, boolean, non
                                 validate)
 
 STEEL_E, STEEL_NU, STEEL_RHO = 2.1e11, 0.3, 7850.0
+G_STANDARD = 9.80665
 #: The chain starts this fraction of a link's radius clear of the pocket's rim (no overlap at t = 0).
 RIM_CLEARANCE = 1e-3
 
@@ -69,9 +84,13 @@ SHIP = Table({
     "hauling_speed": Field(positive, 0.15, "windlass nominal speed [m/s] (9 m/min, IACS UR A3)"),
     "ramp_time": Field(positive, 2.0, "time to reach the hauling speed [s]"),
     "overhaul": Field(nonnegative, 0.5, "the windlass may haul this much beyond the haul of the level ship to the "
-                      "stowed pose (heel and trim change the path) before the run ends [m]"),
+                      "stowed pose (heel and trim change the path) before it stops and the run ends [m] "
+                      "(stowage.haul_limit)"),
     "settle_time": Field(positive, 0.5, "the windlass stops once the anchor has stayed seated this long [s]"),
-    "capacity": Field(positive, OPTIONAL, "windlass capacity [N] (default 1.5 x 42.5 d^2 N, d in mm)"),
+    "capacity": Field(positive, OPTIONAL, "windlass capacity [N] (default 1.5 x 42.5 d^2 N, d in mm): it stalls there"),
+    "droop": Field(positive, 0.10, "the windlass's speed falls this fraction of hauling_speed under the hanging "
+                   "weight (anchor, shackle and chain): its servo gain is that weight / (droop hauling_speed); RK4's "
+                   "stability of the servo pole bounds it (viz3d/scene/ship.py)"),
     "mu": Field(nonnegative, 0.25, "steel on steel: sliding friction coefficient (bristle law, eqs. 3.40-3.49)"),
     "mu_static": Field(nonnegative, 0.30, "steel on steel: static friction coefficient"),
     "stick_stiffness": Field(positive, 1e7, "bristles' k_stick [N/m]: 0.5 mm of stick under the rim's 15 kN"),
@@ -87,7 +106,7 @@ SHIP = Table({
     "stall_time": Field(positive, 2.0, "jammed: the anchor moves less than stall_distance in this time while the "
                         "windlass hauls [s]"),
     "stall_distance": Field(positive, 0.02, "[m]"),
-    "overload_time": Field(nonnegative, 0.25, "jammed: the windlass needed more than its capacity for this long [s] "
+    "overload_time": Field(nonnegative, 0.25, "jammed: the windlass was at its capacity (stalled) for this long [s] "
                            "(an impact of the anchor on the hull lasts about 10 ms, Hertz; a jam holds it)"),
     "sections": Field(positive_int, 32, "points round the pipe's section in the meshes"),
 }, "generator: a ship's anchor hoisted by its windlass into the hawse pipe and pocket (seed 004)")
@@ -174,6 +193,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     V_flukes, c_flukes = _mesh_volume("anchor_flukes", p["anchor_mass"])
     V_shackle, c_shackle = _mesh_volume("anchor_shackle", p["anchor_mass"])
     rho_anchor = p["anchor_mass"] / (V_shank + V_flukes)
+    hanging = p["anchor_mass"] + STEEL_RHO * V_shackle + n_links * link_mass * k   # the windlass's load [kg]
     # stowed: shank along a with the crown on the pipe's axis line, flukes flat on the floor
     h = 0.5 * anchoring.FLUKE_THICKNESS[0] * s
     crown_stowed = -h / math.tan(gamma) * u + h * n
@@ -182,7 +202,11 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     capacity = p.get("capacity", 1.5 * 42.5 * (p["chain_diameter"] * 1e3) ** 2)
     travel = _haul_length(T, crown_stowed + eye * a + shackle_len * a, chain_len)
     v, t_r = p["hauling_speed"], p["ramp_time"]
-    t_end = t_r / 2 + (travel + p["overhaul"]) / v
+    # the windlass stops after hauling travel + overhaul (stowage.haul_limit: its speed depends on the
+    # load); t_end, a backstop, is that haul at the least speed it keeps below its capacity
+    gain = G_STANDARD * hanging / (p["droop"] * v)
+    # (a tenth of the ramp's speed at least: a capacity above gain v is reached only when backdriven)
+    t_end = t_r / 2 + (travel + p["overhaul"]) / max(v - capacity / gain, 0.1 * v) + p["overload_time"]
 
     def body(name, mesh, R, origin, centre, color, density):
         return {"name": name, "shape": {"type": "mesh", "generator": mesh, "params": {"mass": p["anchor_mass"]}},
@@ -214,8 +238,8 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
     ]
     out["drives"] = list(raw.get("drives", [])) + [
         {"name": "windlass", "joint": "windlass_guide", "mode": "velocity", "kind": "ramp", "amplitude": v,
-         "start": 0.0, "duration": t_r, "capacity": capacity,
-         "capacity_time": p["overload_time"]},
+         "start": 0.0, "duration": t_r, "capacity": capacity, "capacity_time": p["overload_time"],
+         "servo_gain": gain},
     ]
     out["forces"] = list(raw.get("forces", [])) + [
         # the joint's angle is 0 where the flukes start, on their outer stop: phi = phi0 + angle
@@ -253,6 +277,7 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
         "axes": [R_shank_stowed.tolist(), R_flukes_stowed.tolist()],
         "tolerance": p["position_tolerance"], "angle_tolerance": p["angle_tolerance"],
         "stall_time": p["stall_time"], "stall_distance": p["stall_distance"], "settle_time": p["settle_time"],
+        "haul_limit": travel + p["overhaul"],
         "report": {"simulated_links": n_links, "real_links_each": k, "pitch": pitch, "real_link_mass": link_mass,
                    "haul": travel, "flukes_joint": "crown", "flukes_angle0": phi0},
     }
@@ -273,6 +298,9 @@ def _payout(p: dict, r_link: float, source: str) -> float:
 
 def _check(p: dict, source: str) -> None:
     """Geometry a haul can end in: flukes that can lie flat, a pocket that holds the pipe's opening."""
+    if p["droop"] >= 1.0:
+        raise SceneError(source, "ship.droop", "below 1 (the fraction of hauling_speed the windlass loses under the "
+                         "hanging weight)", p["droop"])
     if p["pipe_angle"] >= 90.0 or p["pipe_angle"] > p["stop_angle"]:
         raise SceneError(source, "ship.pipe_angle", f"below 90 and at most ship.stop_angle = {p['stop_angle']:g} deg (the "
                          "stowed flukes lie on the floor turned pipe_angle from the shank)", p["pipe_angle"])

@@ -507,10 +507,16 @@ DRIVE = Table({
     "start": Field(number, 0.0, "[s] (ramp, smooth_ramp)"),
     "duration": Field(nonnegative, 0.0, "[s] (ramp, smooth_ramp)"),
     "capacity": Field(positive, OPTIONAL, "largest |effort| the drive can give [N or N m] (a windlass's): the run "
-                      "stops with a diagnosis once it has needed more for capacity_time"),
-    "capacity_time": Field(nonnegative, 0.0, "[s] how long the drive may need more than its capacity (judged on "
-                           "the output frames: the least |effort| over this time); 0: not at all"),
-}, "a drive: a rheonomic constraint prescribing a joint coordinate; reports the effort it takes")
+                      "ends once it has been at it for capacity_time (a rigid drive needing more: with a diagnosis; a "
+                      "limited drive: stalled, status ok)"),
+    "capacity_time": Field(nonnegative, 0.0, "[s] how long the drive may be at its capacity (judged on the output "
+                           "frames: the least |effort| over this time); 0: not at all"),
+    "servo_gain": Field(positive, OPTIONAL, "[N s/m or N m s/rad] a limited drive: a velocity servo with the force "
+                        "range +-capacity (viz3d.forces.DriveServo: effort clip(gain (profile - rate)), tracking with "
+                        "the speed error effort / gain, stalling at its capacity) instead of a rigid constraint; needs "
+                        "mode = 'velocity' and a capacity"),
+}, "a drive: a rheonomic constraint prescribing a joint coordinate, or a limited drive (servo_gain); reports the "
+   "effort it takes")
 
 STOWAGE = Table({
     "bodies": Field(names, doc="the bodies that must reach their stowed poses (the anchor's shank and flukes)"),
@@ -525,6 +531,9 @@ STOWAGE = Table({
     "stall_distance": Field(positive, 0.02, "[m]"),
     "settle_time": Field(nonnegative, OPTIONAL, "the windlass stops once the bodies have stayed seated this long [s] "
                          "(the run ends there); absent: it hauls until sim.t_end"),
+    "haul_limit": Field(positive, OPTIONAL, "the windlass stops once its coordinate has moved this far from 0 [m or "
+                        "rad] (the run ends there: a limited drive's speed depends on its load, so a haul of given "
+                        "length has no given duration); absent: it hauls until sim.t_end"),
     "hawse": Field(vec3, OPTIONAL, "where the chain enters the hull, world [m]: the chain's tension there is saved "
                    "(stowage_hawse_tension)"),
     "chain": Field(string, "link", "the chain's body-name prefix (its joints are <prefix>_j<i>)"),
