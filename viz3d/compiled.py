@@ -50,6 +50,7 @@ cache directory is located when a function is first loaded or compiled, not as i
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import inspect
@@ -102,14 +103,73 @@ def entry(fn):
 
 
 def _njit(fn, options: dict):
-    """``numba.njit(**options)(fn)``, cached on disk by a ``LoadingCache`` (``options["cache"]``)."""
+    """``numba.njit(**options)(fn)``, cached on disk by a ``LoadingCache`` (``options["cache"]``);
+    an entry (callable from Python) compiles each signature under a lock (``_lock_compiles``)."""
     dispatcher = numba.njit(**dict(options, cache=False))(fn)
     if options.get("cache") and hasattr(dispatcher, "enable_caching"):  # not with NUMBA_DISABLE_JIT
         if LoadingCache is None:  # pragma: no cover - another numba
             dispatcher.enable_caching()
         else:
             dispatcher._cache = LoadingCache(dispatcher.py_func)  # what enable_caching does, our class
+        if not options.get("no_cpython_wrapper"):
+            _lock_compiles(dispatcher)
     return dispatcher
+
+
+def _lock_compiles(dispatcher) -> None:
+    """Make ``dispatcher`` compile each signature under a lock file in its cache directory.
+
+    Processes that start together on a cold cache (a study's or the test suite's workers) would each
+    compile the kernel, minutes of CPU apiece; with the lock one compiles a signature and saves it,
+    and the others, waiting, then load it from the cache (numba's ``compile`` looks there first).
+    The lock is taken inside numba's compiler lock (re-entrant), so the order of the two is the same
+    in every thread; entries compiled inside another's compilation take their own lock. Where no
+    lock file can be made (no ``fcntl``, a cache directory that cannot be written) compiling goes on
+    unlocked, as numba's own does."""
+    compile_ = dispatcher.compile
+
+    def compile(sig):
+        from numba.core import sigutils
+        from numba.core.compiler_lock import global_compiler_lock
+
+        args, _ = sigutils.normalize_signature(sig)
+        if tuple(args) in dispatcher.overloads:
+            return compile_(sig)
+        with global_compiler_lock, _file_lock(_lock_path(dispatcher, args)):
+            return compile_(sig)
+
+    dispatcher.compile = compile
+
+
+def _lock_path(dispatcher, args) -> Path | None:
+    """The lock file of ``dispatcher``'s signature ``args`` in its cache directory, or None."""
+    try:
+        directory = Path(dispatcher._cache._cache_path)
+        directory.mkdir(parents=True, exist_ok=True)
+    except (AttributeError, OSError):  # pragma: no cover - another numba, a read-only cache
+        return None
+    key = hashlib.sha1(repr(tuple(args)).encode()).hexdigest()[:16]
+    return directory / f"{dispatcher.py_func.__qualname__}-{key}.lock"
+
+
+@contextlib.contextmanager
+def _file_lock(path: Path | None):
+    """An exclusive ``flock`` on ``path`` while the block runs (nothing when ``path`` is None, or the
+    platform has no ``fcntl``)."""
+    try:
+        import fcntl
+        handle = None if path is None else open(path, "a")
+    except (ImportError, OSError):  # pragma: no cover - Windows, a read-only cache
+        handle = None
+    if handle is None:
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 class Items(NamedTuple):

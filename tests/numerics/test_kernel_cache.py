@@ -6,6 +6,7 @@ does only what a call from Python needs."""
 import os
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -56,6 +57,7 @@ def total(a):
 #: the cache hits, whether ``total``'s module for linking was parsed after the call, and after the link.
 LINK_LATER = """
 import sys
+import time
 sys.path.insert(0, {folder!r})
 import numba
 import numpy as np
@@ -96,3 +98,38 @@ def test_decorating_sets_no_cache_up(tmp_path):
     code = "import viz3d.kernel, viz3d.kernel.collisions\nassert viz3d.kernel.stepping.advance_frames._cache is not None"
     subprocess.run([sys.executable, "-c", code], env=env, check=True)
     assert not cache.exists()
+
+
+#: Waits until the file ``go`` exists (after writing ``ready``), then calls ``total``; prints its cache
+#: hits and misses.
+RACE = """
+import os, sys, time
+sys.path.insert(0, {folder!r})
+import numpy as np
+import linked
+open({ready!r}, "w").close()
+while not os.path.exists({go!r}):
+    time.sleep(0.001)
+assert linked.total(np.arange(4.0)) == 12.0
+print(sum(linked.total.stats.cache_hits.values()), sum(linked.total.stats.cache_misses.values()))
+"""
+
+
+def test_processes_starting_together_compile_an_entry_once(tmp_path):
+    """Two processes that call a new entry at the same moment on a cold cache (a study's workers, the
+    suite's) compile it once: one compiles under the signature's lock, the other waits and loads it
+    from the cache (``viz3d.compiled._lock_compiles``). Unlocked, both miss the cache and compile (the
+    calls start within milliseconds of each other; compiling takes a tenth of a second and more)."""
+    (tmp_path / "linked.py").write_text(LINKED, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    go = tmp_path / "go"
+    ready = [tmp_path / f"ready{k}" for k in range(2)]
+    procs = [subprocess.Popen([sys.executable, "-c", RACE.format(folder=str(tmp_path), ready=str(r), go=str(go))],
+                              env=env, stdout=subprocess.PIPE, text=True) for r in ready]
+    deadline = time.monotonic() + 120.0
+    while not all(r.exists() for r in ready) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    go.touch()
+    outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
+    assert all(p.returncode == 0 for p in procs)
+    assert outs == [["0", "1"], ["1", "0"]], "one process compiles (a miss), the other loads (a hit)"
