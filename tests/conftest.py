@@ -37,7 +37,7 @@ def scene_files(kind: str = "multibody") -> list[Path]:
 #: the two workers they cost one compilation's wall time, and a worker that needs the other's waits on
 #: its lock (``viz3d.compiled._lock_compiles``) and loads it from the cache instead of compiling it
 #: again. On a warm cache this is a short run of each scene.
-WARM_UP = {"gw0": ("torque_free.toml", 0.01), "gw1": ("anchor_hoist.toml", 0.002)}
+WARM_UP = {"gw0": ("torque_free.toml", 0.01), "gw1": ("anchor_hoist.toml", 0.05)}
 
 
 @pytest.fixture(scope="session", autouse=True)
