@@ -419,7 +419,9 @@ def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
     """``ExplicitRK.step`` on a kernel field runs the whole step compiled (``CompiledField.rk_step``).
     Against the same tableau stepped from Python over the same compiled right-hand side (the NumPy
     one is compared above): the stage arguments are summed in the same order, so stages and state
-    agree exactly; the error estimate (a dot product in another order) to round-off of its terms."""
+    agree exactly; the error estimate (a dot product in another order) to round-off of its terms.
+    rk4 on Euler parameters takes the group (Munthe-Kaas) step, in Python over either field: the
+    stepwise field keeps the hooks (``retract``, ``dexpinv``) so that both take it."""
     from viz3d.integrators import make_integrator
 
     system, state = setup
@@ -428,7 +430,7 @@ def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
     compiled_field = K.CompiledField(field, K.KernelStepper(K.kernel_for(system, Index1()), None))
     t, h = TIMES[1], 1e-4
     f0 = compiled_field(t, state.y)
-    ref = integrator.step(lambda t, y: compiled_field(t, y), t, state.y, h, f0=f0)  # stage by stage
+    ref = integrator.step(_Stepwise(compiled_field), t, state.y, h, f0=f0)  # stage by stage
     out = integrator.step(compiled_field, t, state.y, h, f0=f0)
     np.testing.assert_array_equal(out.stages, ref.stages)
     np.testing.assert_array_equal(out.y, ref.y)
@@ -484,3 +486,14 @@ def make_rk4():
     from viz3d.integrators.tableaus import RK4
 
     return RK4
+
+
+class _Stepwise:
+    """``field``'s evaluations and hooks without its compiled step (``rk_step``)."""
+
+    def __init__(self, field):
+        self.field, self.n_q, self.n_v = field, field.n_q, field.n_v
+        self.retract, self.dexpinv = field.retract, field.dexpinv
+
+    def __call__(self, t, y):
+        return self.field(t, y)
