@@ -17,6 +17,7 @@ import dataclasses
 import numpy as np
 import pytest
 from contact.law_examples import EXAMPLES
+from kernel_runs import ROUNDOFF_FACTOR, step_roundoff
 
 from viz3d import compiled
 from viz3d import kernel as K
@@ -420,8 +421,11 @@ def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
     Against the same tableau stepped from Python over the same compiled right-hand side (the NumPy
     one is compared above): the stage arguments are summed in the same order, so stages and state
     agree exactly; the error estimate (a dot product in another order) to round-off of its terms.
-    rk4 on Euler parameters takes the group (Munthe-Kaas) step, in Python over either field: the
-    stepwise field keeps the hooks (``retract``, ``dexpinv``) so that both take it."""
+    rk4 on Euler parameters takes the group (Munthe-Kaas) step, compiled too; the stepwise field keeps
+    the hooks (``retract``, ``dexpinv``) so that both take it, and there the stages' Euler parameters
+    ``p0 (x) exp(u)`` are formed in another order (``turn_quaternion``, ``Quaternion.advance``): the end
+    state agrees to the round-off of a step (``kernel_runs.step_roundoff`` times ``ROUNDOFF_FACTOR``),
+    the first stage (``f0``, given) exactly."""
     from viz3d.integrators import make_integrator
 
     system, state = setup
@@ -432,8 +436,13 @@ def test_compiled_runge_kutta_step_equals_the_stepwise_one(setup, method):
     f0 = compiled_field(t, state.y)
     ref = integrator.step(_Stepwise(compiled_field), t, state.y, h, f0=f0)  # stage by stage
     out = integrator.step(compiled_field, t, state.y, h, f0=f0)
-    np.testing.assert_array_equal(out.stages, ref.stages)
-    np.testing.assert_array_equal(out.y, ref.y)
+    if compiled_field.dexpinv is not None and not integrator.tableau.embedded:
+        np.testing.assert_array_equal(out.stages[0], ref.stages[0])
+        bound = ROUNDOFF_FACTOR * step_roundoff(system, state, Index1(), h, method)
+        assert np.abs(out.y - ref.y).max() <= bound, (np.abs(out.y - ref.y).max(), bound)
+    else:
+        np.testing.assert_array_equal(out.stages, ref.stages)
+        np.testing.assert_array_equal(out.y, ref.y)
     assert (out.error is None) == (ref.error is None) and (out.f1 is None) == (ref.f1 is None)
     if ref.error is not None:
         tab = integrator.tableau

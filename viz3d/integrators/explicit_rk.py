@@ -43,14 +43,14 @@ class ExplicitRK(Integrator):
 
     def step(self, rhs, t, y, h, f0=None, state=None):
         tab = self.tableau
-        if not tab.embedded and getattr(rhs, "dexpinv", None) is not None:
-            return self._group_step(rhs, t, y, h, f0)
-        compiled = getattr(rhs, "rk_step", None)  # a field that steps in compiled code (viz3d.kernel)
-        if compiled is not None:
+        compiled = getattr(rhs, "rk_step", None)  # a field that steps in compiled code (viz3d.kernel), group
+        if compiled is not None:                  # steps included
             done = compiled(tab, t, y, h, f0)
             if done is not None:
                 y_new, error, stages = done
                 return StepResult(y_new, error, f0=stages[0], f1=stages[-1] if tab.fsal else None, stages=stages)
+        if not tab.embedded and getattr(rhs, "dexpinv", None) is not None:
+            return self._group_step(rhs, t, y, h, f0)
         k = []
         for i, ci in enumerate(tab.c):
             if i == 0 and f0 is not None:

@@ -133,8 +133,8 @@ class CompiledField:
         use_f0 = f0 is not None
         d = st.data
         status = st._call(rk_step, t, h, y, _c(self.chart), f0 if use_f0 else y, use_f0, tableau.a, tableau.b,
-                          tableau.error_weights, tableau.c, d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1,
-                          err)
+                          tableau.error_weights, tableau.c, int(not tableau.embedded), d.model, self.v, st.ws[1], d.forces,
+                          d.rows, k, st._yi, y1, err)
         self.field.n_evals += s - use_f0
         if status != OK:
             return None

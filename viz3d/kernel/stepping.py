@@ -46,7 +46,7 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
         if turns:
-            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, m, v, w, forces, rows, k, yi)
+            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
         else:
             status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
         if status != OK:
@@ -185,12 +185,13 @@ def _increment(coef, s, h, k, i0):
 
 
 @inline
-def _group_stages(t, h, y, chart, ta, tc, m, v, w, forces, rows, k, yi):
+def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
     """The stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``) into ``k``:
     each frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
     (``turn_quaternion``), the rest of ``yi`` as in ``_stages``; after the evaluation, the frame's
     ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
-    and 0. The status of the first failed evaluation, ``OK`` when none."""
+    and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
+    the first failed evaluation, ``OK`` when none."""
     n, nf = y.shape[0], m.frame_body.shape[0]
     for i in range(ta.shape[0]):
         for j in range(n):
@@ -205,9 +206,10 @@ def _group_stages(t, h, y, chart, ta, tc, m, v, w, forces, rows, k, yi):
             for c in range(4):
                 yi[i0 + c] = y[i0 + c]
             turn_quaternion(yi, i0, u1, u2, u3)
-        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-        if status != OK:
-            return status
+        if i >= first:
+            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+            if status != OK:
+                return status
         for f in range(nf):
             i0, o = 7 * f + 3, m.n_q + 6 * f + 3
             u1, u2, u3 = _increment(ta[i], i, h, k, i0)
@@ -271,19 +273,35 @@ def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, char
 
 
 @entry
-def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err):
+def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
     """One step of the tableau ``(ta, tb, tc)`` from ``y`` (what ``viz3d.integrators.explicit_rk``
-    does, for adaptive runs): the stages into ``k`` (stages, n), with ``f0`` as the first one when
-    ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i`` (``te = b - b_hat``). Returns
-    the status of the first failed evaluation (``OK`` when none)."""
+    does, for adaptive runs and steps taken one at a time): the stages into ``k`` (stages, n), with
+    ``f0`` as the first one when ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i``
+    (``te = b - b_hat``). With ``group`` 1 Euler parameters advance on the group as in ``advance``, and
+    ``k`` holds the stages' rates ``p_dot`` again at the end (``_stage_rates``). Returns the status of
+    the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
+    turns = group == 1 and m.n_rot == 4
+    n_turned = 7 * m.frame_body.shape[0] if turns else 0
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    if turns:
+        status = _group_stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    else:
+        status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
+    for f in range(n_turned // 7):
+        i0 = 7 * f + 3
+        u1, u2, u3 = _increment(tb, tb.shape[0], h, k, i0)
+        for c in range(4):
+            y1[i0 + c] = y[i0 + c]
+        turn_quaternion(y1, i0, u1, u2, u3)
     for j in range(n):
+        if j < n_turned and j % 7 >= 3:
+            err[j] = 0.0
+            continue
         acc = y[j]
         e = 0.0
         for i in range(tb.shape[0]):
@@ -293,7 +311,33 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
                 e += te[i] * k[i, j]
         y1[j] = acc
         err[j] = h * e
+    if turns:
+        _stage_rates(h, y, ta, m, k, yi)
     return OK
+
+
+@inline
+def _stage_rates(h, y, ta, m, k, yi):
+    """``k``'s Euler-parameter entries of a group step back from ``K`` to the stages' ``p_dot``, as
+    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``_group_stages`` built them,
+    last stage first (stage ``i``'s ``p`` needs the ``K`` of the stages before it)."""
+    nf = m.frame_body.shape[0]
+    for i in range(ta.shape[0] - 1, -1, -1):
+        for f in range(nf):
+            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
+            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            for c in range(4):
+                yi[i0 + c] = y[i0 + c]
+            turn_quaternion(yi, i0, u1, u2, u3)
+            for c in range(3):
+                acc = y[o + c]
+                for l in range(i):
+                    if ta[i, l] != 0.0:
+                        acc += h * ta[i, l] * k[l, o + c]
+                yi[o + c] = acc
+            d = coordinate_rates(4, yi, i0, yi[o], yi[o + 1], yi[o + 2])
+            for c in range(4):
+                k[i, i0 + c] = d[c]
 
 
 @entry
