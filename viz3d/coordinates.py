@@ -58,6 +58,10 @@ class RotationCoordinates(ABC):
 
     name: ClassVar[str]
     n_q: ClassVar[int]  # stored coordinates per body
+    #: True when explicit Runge-Kutta methods without an error estimate advance these coordinates on
+    #: the group (Munthe-Kaas stages through ``advance``; ``viz3d.integrators.explicit_rk``) rather
+    #: than as a vector.
+    group_stages: ClassVar[bool] = False
 
     @abstractmethod
     def matrix(self, theta: FloatArray, chart: FloatArray) -> FloatArray:
@@ -171,11 +175,14 @@ class Quaternion(RotationCoordinates):
     flow keeps ``|p|`` constant but a discrete step does not exactly: ``matrix`` normalises, so
     the orientation never depends on ``|p|``, and ``normalize`` (``p / |p|``) projects the
     coordinates back onto ``|p| = 1`` between steps. ``advance`` and ``correct`` multiply by the
-    unit quaternion of the rotation vector, which keeps ``|p|``.
+    unit quaternion of the rotation vector, which keeps ``|p|``. Fixed-step explicit Runge-Kutta
+    methods advance them on the group (``group_stages``: Runge-Kutta-Munthe-Kaas), exact for a
+    constant spin, which RK on ``p_dot`` is not.
     """
 
     name = "quaternion"
     n_q = 4
+    group_stages = True
 
     def matrix(self, theta, chart):
         return chart @ matrix_from_quat(theta)

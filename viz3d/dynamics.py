@@ -233,6 +233,22 @@ def retract(system: System, q: FloatArray, w: FloatArray, chart: FloatArray) -> 
     return system.join_q(W_r + dW_r, system.rotation.advance(theta, chart, B_dphi), eta)
 
 
+def dexpinv(system: System, u: FloatArray, v: FloatArray) -> FloatArray:
+    """The rate ``u_dot`` (n_v,) of the velocity-space increment ``u`` (n_v,) for which ``retract(q,
+    u)`` moves at the velocities ``v`` (n_v,).
+
+    Per floating frame ``B_omega + 1/2 B_u x B_omega + 1/12 B_u x (B_u x B_omega)`` [rad/s]: the
+    inverse differential of ``R exp(skew(B_u))`` for body angular velocities (``dexp^-1`` at ``-B_u``),
+    truncated after the terms a fourth-order Munthe-Kaas method needs (the next is O(|B_u|^4));
+    translations and elastic coordinates move on vector spaces: their ``v`` as is.
+    """
+    out = np.array(v[: system.n_v], dtype=float)
+    B_u, B_omega = system.split_v(u)[1], system.split_v(v)[1]
+    c = cross(B_u, B_omega)
+    system.split_v(out)[1][:] = B_omega + 0.5 * c + cross(B_u, c) / 12.0
+    return out
+
+
 def aux_rates(system: System, cfg: Configuration, memory: tuple, elements: tuple = (),
               drives: float = 0.0) -> FloatArray:
     """Rates of the work integrals ``w`` of the energy ledger (``System.n_aux``, ``viz3d.events``): per
@@ -281,7 +297,9 @@ class VectorField:
     """``y_dot = f(t, y)`` with ``y = [q, v, w]``, for a fixed chart, contact phases and force elements'
     memory; what integrators see (``w``: the ledger's work integrals, present with contacts).
 
-    Besides ``__call__`` it offers the ``retract`` hook of ``viz3d.integrators.base.Rhs``.
+    Besides ``__call__`` it offers the ``retract`` hook of ``viz3d.integrators.base.Rhs``, and its
+    ``dexpinv`` hook when the rotation coordinates advance on the group in explicit Runge-Kutta steps
+    (``RotationCoordinates.group_stages``; None otherwise).
 
     Attributes
     ----------
@@ -296,6 +314,7 @@ class VectorField:
         self.elements = elements
         self.n_q, self.n_v = system.n_q, system.n_v
         self.n_evals = 0
+        self.dexpinv = self._dexpinv if system.rotation.group_stages else None
 
     def __call__(self, t: float, y: FloatArray) -> FloatArray:
         self.n_evals += 1
@@ -310,6 +329,10 @@ class VectorField:
         """``q`` moved by the velocity-space increment ``w`` (n_v,) [m, rad] (see ``retract``;
         entries beyond n_v, the work integrals' increments, do not move positions)."""
         return retract(self.system, q, w[: self.n_v], self.chart)
+
+    def _dexpinv(self, u: FloatArray, v: FloatArray) -> FloatArray:
+        """``u_dot`` (n_v,) of the increment ``u`` (n_v,) at the velocities ``v`` (n_v,) (``dexpinv``)."""
+        return dexpinv(self.system, u, v)
 
 
 def energies(system: System, state: State, cfg: Configuration | None = None, gaps: tuple = ()) -> tuple[float, float]:

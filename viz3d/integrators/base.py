@@ -7,6 +7,10 @@ What an integrator may use of the vector field ``rhs`` (all documented on ``Rhs`
 * ``rhs.retract(q, w)``, optional: the positions reached from ``q`` by the velocity-space
   increment ``w`` (shape ``(n_y - n_q,)``), for methods that advance positions on a Lie group
   (``GeneralizedAlpha``). Without it such methods require ``q_dot = v`` and use ``q + w``.
+* ``rhs.dexpinv(u, v)`` and ``rhs.n_v``, optional (None: absent): the rate ``u_dot`` (n_v,) of the
+  velocity-space increment ``u`` (n_v,) for which ``retract(q, u)`` moves at the velocities ``v =
+  y[n_q:n_q + n_v]``. With it, explicit Runge-Kutta methods without an error estimate take
+  Munthe-Kaas steps (``ExplicitRK``: positions ``retract(q0, u)``, never a sum of position rates).
 
 Methods with history between steps (the pseudo-accelerations of the generalized-alpha method, a
 reused Newton matrix) keep it in a *solver state*, a value returned by ``init`` and by every
@@ -28,7 +32,8 @@ from viz3d._typing import FloatArray
 class Rhs(Protocol):
     """``y_dot = rhs(t, y)``; ``n_q`` is where partitioned methods split ``y = [q, v]``.
 
-    Optional hook: ``retract(q, w) -> q_new`` (see the module docstring).
+    Optional hooks: ``retract(q, w) -> q_new``; ``dexpinv(u, v) -> u_dot`` with ``n_v`` (see the
+    module docstring).
     """
 
     n_q: int

@@ -19,6 +19,14 @@ class ExplicitRK(Integrator):
     FSAL when ``f0`` is passed). Explicit, not symplectic. Error estimate when the tableau has an
     embedded solution (``b_hat``). Dense output: the tableau's continuous extension if it has one
     (``interpolant``), else cubic Hermite. No solver state. Zero coefficients are skipped.
+
+    Positions on a group: when ``rhs`` has a ``dexpinv`` hook (``viz3d.integrators.base``) and the
+    tableau has no error estimate (the fixed-step methods), the step is the tableau's
+    Runge-Kutta-Munthe-Kaas method: stage positions ``retract(q0, u_i)``, ``u_i = h sum_j a_ij K_j``,
+    ``K_j = dexpinv(u_j, v_j)``, end positions ``retract(q0, h sum_j b_j K_j)``, the rest of ``y`` as
+    usual. Same order (the hook's truncation suffices up to order 4), exact for motions of constant
+    velocity, and positions stay on the group. Methods with an error estimate keep linear stages
+    (their error estimate and continuous extension combine the stages linearly).
     """
 
     def __init__(self, tableau: ButcherTableau):
@@ -35,12 +43,14 @@ class ExplicitRK(Integrator):
 
     def step(self, rhs, t, y, h, f0=None, state=None):
         tab = self.tableau
-        compiled = getattr(rhs, "rk_step", None)  # a field that steps in compiled code (viz3d.kernel)
-        if compiled is not None:
+        compiled = getattr(rhs, "rk_step", None)  # a field that steps in compiled code (viz3d.kernel), group
+        if compiled is not None:                  # steps included
             done = compiled(tab, t, y, h, f0)
             if done is not None:
                 y_new, error, stages = done
                 return StepResult(y_new, error, f0=stages[0], f1=stages[-1] if tab.fsal else None, stages=stages)
+        if not tab.embedded and getattr(rhs, "dexpinv", None) is not None:
+            return self._group_step(rhs, t, y, h, f0)
         k = []
         for i, ci in enumerate(tab.c):
             if i == 0 and f0 is not None:
@@ -56,6 +66,26 @@ class ExplicitRK(Integrator):
         stages = np.asarray(k)
         error = h * np.tensordot(tab.error_weights, stages, axes=1) if tab.embedded else None
         return StepResult(y_new, error, f0=k[0], f1=k[-1] if tab.fsal else None, stages=stages)
+
+    def _group_step(self, rhs, t, y, h, f0):
+        """The Munthe-Kaas step (class docstring); ``stages`` are the rates ``rhs`` gave (s, n_y)."""
+        n_q, n_v = rhs.n_q, rhs.n_v
+        q0 = y[:n_q]
+        k, K = [], []
+        for i, ci in enumerate(self.tableau.c):
+            u, yi = np.zeros(n_v), y
+            for j, a in self._a[i]:
+                u = u + (h * a) * K[j]
+                yi = yi + (h * a) * k[j]
+            yi = np.concatenate([rhs.retract(q0, u), yi[n_q:]])
+            k.append(f0 if i == 0 and f0 is not None else rhs(t + ci * h, yi))
+            K.append(rhs.dexpinv(u, yi[n_q:n_q + n_v]))
+        u, y_new = np.zeros(n_v), y.copy()
+        for j, b in self._b:
+            u += (h * b) * K[j]
+            y_new += (h * b) * k[j]
+        y_new[:n_q] = rhs.retract(q0, u)
+        return StepResult(y_new, None, f0=k[0], f1=None, stages=np.asarray(k))
 
     def interpolant(self, rhs, t: float, y: FloatArray, h: float, res: StepResult,
                     f1: FloatArray) -> Callable[[float], FloatArray]:

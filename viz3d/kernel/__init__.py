@@ -106,7 +106,7 @@ class CompiledField:
 
     def __init__(self, field, stepper: "KernelStepper"):
         self.field, self.stepper = field, stepper
-        self.n_q, self.chart = field.n_q, field.chart
+        self.n_q, self.n_v, self.chart, self.dexpinv = field.n_q, field.n_v, field.chart, field.dexpinv
         self.v = stepper.view(field.memory)
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
@@ -133,8 +133,8 @@ class CompiledField:
         use_f0 = f0 is not None
         d = st.data
         status = st._call(rk_step, t, h, y, _c(self.chart), f0 if use_f0 else y, use_f0, tableau.a, tableau.b,
-                          tableau.error_weights, tableau.c, d.model, self.v, st.ws[1], d.forces, d.rows, k, st._yi, y1,
-                          err)
+                          tableau.error_weights, tableau.c, int(not tableau.embedded), d.model, self.v, st.ws[1], d.forces,
+                          d.rows, k, st._yi, y1, err)
         self.field.n_evals += s - use_f0
         if status != OK:
             return None
@@ -432,8 +432,8 @@ class KernelStepper:
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
         self._fresh(elements)
-        return self._call(advance, n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, max_speed, d.model, v, w,
-                          d.forces, d.rows, d.memories, self._k, self._yi)
+        return self._call(advance, n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, int(not tab.embedded),
+                          max_speed, d.model, v, w, d.forces, d.rows, d.memories, self._k, self._yi)
 
     def _fresh(self, elements: tuple) -> None:
         """``elements`` loaded for steps that renew it in place (the packed data's memory is then
@@ -470,7 +470,8 @@ class KernelStepper:
         d, tab = self.data, self.tableau
         ta, tb, tc = (_c(tab.a), _c(tab.b), _c(tab.c)) if tab is not None else (np.zeros((0, 0)), np.zeros(0),
                                                                                np.zeros(0))
-        return self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed,
+        group = int(tab is not None and not tab.embedded)
+        return self._call(advance_frames, n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, group, max_speed,
                           d.model, v, self.ws[1], d.forces, d.rows, d.memories, self._k, self._yi, Y, charts, ts, sampled,
                           d.geometry, d.energies, np.empty(self._yi.shape[0]), *out)
 

@@ -469,7 +469,7 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
     safety, fac_min, fac_max = ctrl[5], ctrl[6], ctrl[7]
     n_rejected = 0
     while True:
-        status = rk_step(t, h, y, chart, f, True, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
+        status = rk_step(t, h, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
         if status != OK:
             return h, h, n_rejected, status
         norm = error_norm(err, y, y1, rtol, atol, yi)
@@ -646,7 +646,7 @@ def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te
         return status
     s = tb.shape[0]
     h_ev = t_ev - t
-    status = rk_step(t, h_ev, y, chart, f, True, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
+    status = rk_step(t, h_ev, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
     if status != OK:
         return status
     n_evals += s - 1

@@ -11,7 +11,8 @@ import math
 from viz3d.compiled import after_step_piece, entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation
+from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation,
+                                turn_quaternion)
 from viz3d.kernel.projection import project
 from viz3d.kernel.sampling import sample_state
 from viz3d.points import kinematics
@@ -24,9 +25,11 @@ except ImportError:  # pragma: no cover
 
 
 @entry
-def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, memories, k, yi):
+def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
-    ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). Between steps, Euler parameters
+    ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). With ``group`` 1 (a tableau
+    without an error estimate) Euler parameters advance on the group (``_group_stages``, the
+    Munthe-Kaas step of ``viz3d.integrators.explicit_rk.ExplicitRK``). Between steps, Euler parameters
     are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
     counted in ``switches`` (per body); the run
     stops at the first failed evaluation, non-finite state, frame speed above ``max_speed``, or
@@ -39,11 +42,21 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, 
     their memory at each step's end (``renew``) after all that."""
     n = y.shape[0]
     s = tb.shape[0]
+    turns = group == 1 and m.n_rot == 4
+    n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
-        status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        if turns:
+            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        else:
+            status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
         if status != OK:
             return step, status
+        for f in range(n_turned // 7):
+            u1, u2, u3 = _increment(tb, s, h, k, 7 * f + 3)
+            turn_quaternion(y, 7 * f + 3, u1, u2, u3)
         for j in range(n):
+            if j < n_turned and j % 7 >= 3:
+                continue
             acc = y[j]
             for i in range(s):
                 if tb[i] != 0.0:
@@ -81,14 +94,14 @@ def renew(t, m, v, w, y, chart, memories):
 
 
 @entry
-def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w, forces, rows, memories,
-                   k, yi, Y, charts, ts, sampled, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap,
+def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows,
+                   memories, k, yi, Y, charts, ts, sampled, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap,
                    T, V):
     """A run's output frames in one call, free of the per-frame Python overhead: its one compiled
     entry for stepping and sampling (each entry loaded from numba's cache costs a run's start tens
     of milliseconds).
 
-    ``every`` > 0: up to ``n_frames`` calls of ``advance`` of ``every`` steps each, the first from
+    ``every`` > 0: up to ``n_frames`` calls of ``advance`` (``group`` as there) of ``every`` steps each, the first from
     step ``n0`` of a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the
     time the run's own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and
     ``charts[f]``, its time into ``ts[f]`` and, while ``sampled[0]`` (given as 1) is not cleared,
@@ -114,8 +127,8 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, m
                 return f, 0, SINGULAR
         return n_frames, 0, OK
     for f in range(n_frames):
-        done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, max_speed, m, v, w,
-                               forces, rows, memories, k, yi)
+        done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
+                               v, w, forces, rows, memories, k, yi)
         if status != OK:
             return f, done, status
         for j in range(y.shape[0]):
@@ -155,6 +168,57 @@ def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
         status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
         if status != OK:
             return status
+    return OK
+
+
+@inline
+def _increment(coef, s, h, k, i0):
+    """``h sum_l coef[l] K_l`` over the first ``s`` stages, ``K_l = k[l, i0:i0 + 3]``: a frame's
+    body-frame rotation increment [rad] (``_group_stages`` keeps its ``K`` there)."""
+    u1 = u2 = u3 = 0.0
+    for l in range(s):
+        if coef[l] != 0.0:
+            u1 += h * coef[l] * k[l, i0]
+            u2 += h * coef[l] * k[l, i0 + 1]
+            u3 += h * coef[l] * k[l, i0 + 2]
+    return u1, u2, u3
+
+
+@inline
+def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
+    """The stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``) into ``k``:
+    each frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
+    (``turn_quaternion``), the rest of ``yi`` as in ``_stages``; after the evaluation, the frame's
+    ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
+    and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
+    the first failed evaluation, ``OK`` when none."""
+    n, nf = y.shape[0], m.frame_body.shape[0]
+    for i in range(ta.shape[0]):
+        for j in range(n):
+            acc = y[j]
+            for l in range(i):
+                if ta[i, l] != 0.0:
+                    acc += h * ta[i, l] * k[l, j]
+            yi[j] = acc
+        for f in range(nf):
+            i0 = 7 * f + 3
+            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            for c in range(4):
+                yi[i0 + c] = y[i0 + c]
+            turn_quaternion(yi, i0, u1, u2, u3)
+        if i >= first:
+            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+            if status != OK:
+                return status
+        for f in range(nf):
+            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
+            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            w1, w2, w3 = yi[o], yi[o + 1], yi[o + 2]
+            c1, c2, c3 = u2 * w3 - u3 * w2, u3 * w1 - u1 * w3, u1 * w2 - u2 * w1
+            k[i, i0] = w1 + 0.5 * c1 + (u2 * c3 - u3 * c2) / 12.0
+            k[i, i0 + 1] = w2 + 0.5 * c2 + (u3 * c1 - u1 * c3) / 12.0
+            k[i, i0 + 2] = w3 + 0.5 * c3 + (u1 * c2 - u2 * c1) / 12.0
+            k[i, i0 + 3] = 0.0
     return OK
 
 
@@ -209,19 +273,35 @@ def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, char
 
 
 @entry
-def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err):
+def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
     """One step of the tableau ``(ta, tb, tc)`` from ``y`` (what ``viz3d.integrators.explicit_rk``
-    does, for adaptive runs): the stages into ``k`` (stages, n), with ``f0`` as the first one when
-    ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i`` (``te = b - b_hat``). Returns
-    the status of the first failed evaluation (``OK`` when none)."""
+    does, for adaptive runs and steps taken one at a time): the stages into ``k`` (stages, n), with
+    ``f0`` as the first one when ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i``
+    (``te = b - b_hat``). With ``group`` 1 Euler parameters advance on the group as in ``advance``, and
+    ``k`` holds the stages' rates ``p_dot`` again at the end (``_stage_rates``). Returns the status of
+    the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
+    turns = group == 1 and m.n_rot == 4
+    n_turned = 7 * m.frame_body.shape[0] if turns else 0
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    if turns:
+        status = _group_stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    else:
+        status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
+    for f in range(n_turned // 7):
+        i0 = 7 * f + 3
+        u1, u2, u3 = _increment(tb, tb.shape[0], h, k, i0)
+        for c in range(4):
+            y1[i0 + c] = y[i0 + c]
+        turn_quaternion(y1, i0, u1, u2, u3)
     for j in range(n):
+        if j < n_turned and j % 7 >= 3:
+            err[j] = 0.0
+            continue
         acc = y[j]
         e = 0.0
         for i in range(tb.shape[0]):
@@ -231,7 +311,33 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, m, v, w, forces, rows, k
                 e += te[i] * k[i, j]
         y1[j] = acc
         err[j] = h * e
+    if turns:
+        _stage_rates(h, y, ta, m, k, yi)
     return OK
+
+
+@inline
+def _stage_rates(h, y, ta, m, k, yi):
+    """``k``'s Euler-parameter entries of a group step back from ``K`` to the stages' ``p_dot``, as
+    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``_group_stages`` built them,
+    last stage first (stage ``i``'s ``p`` needs the ``K`` of the stages before it)."""
+    nf = m.frame_body.shape[0]
+    for i in range(ta.shape[0] - 1, -1, -1):
+        for f in range(nf):
+            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
+            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            for c in range(4):
+                yi[i0 + c] = y[i0 + c]
+            turn_quaternion(yi, i0, u1, u2, u3)
+            for c in range(3):
+                acc = y[o + c]
+                for l in range(i):
+                    if ta[i, l] != 0.0:
+                        acc += h * ta[i, l] * k[l, o + c]
+                yi[o + c] = acc
+            d = coordinate_rates(4, yi, i0, yi[o], yi[o + 1], yi[o + 2])
+            for c in range(4):
+                k[i, i0 + c] = d[c]
 
 
 @entry
