@@ -55,7 +55,7 @@ from viz3d.contact.resolution import (
     restitution_diagnosis,
 )
 from viz3d.diagnosis import SimulationFailure
-from viz3d.dynamics import (accelerations, body_state, centres_of_mass, flat_velocity, flexible_kinetics, split_velocity,
+from viz3d.dynamics import (accelerations, body_state, flat_velocity, flexible_kinetics, split_velocity,
                             system_mass)
 from viz3d.forces import AppliedForce, Gravity
 from viz3d.integrators.adaptive import Event

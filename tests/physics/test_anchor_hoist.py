@@ -108,7 +108,7 @@ def test_the_chain_tension_at_the_hawse_is_the_windlass_force_less_the_chain_abo
     the windlass's force by the weight of the links above that joint and of the windlass head, along
     the pipe (the same one-second means and 3 per cent of the force as the haul)."""
     traj, d = early, early.scene["scene"]
-    names, joints = list(traj.body_names), list(traj.joint_names)
+    names = list(traj.body_names)
     m = dict(zip(names, traj.mass))
     tension, effort = traj.extras["stowage_hawse_tension"], traj.extras["drive_effort"][:, 0]
     w = np.flatnonzero((traj.t >= 0.5) & (traj.t <= 1.5))

@@ -21,8 +21,6 @@ saturated motion is a quadratic, which RK4 integrates exactly (round-off: 1e-12 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 

@@ -237,7 +237,7 @@ def _bracket(direction: int, points) -> tuple[float, tuple[float, float]] | None
     """``(t_a, (t_b, g_b))``: the first pair of (time, value) ``points`` (in time order) across which
     an event of ``direction`` crosses, from the last point before ``t_b`` on a side it crosses from;
     None when there is none."""
-    last = None
+    last = t_a = None
     for t, g in points:
         if last is not None and crosses(direction, last, g):
             return t_a, (t, g)
