@@ -154,17 +154,22 @@ def _finite(y):
 
 
 @inline
+def _stage_point(h, y, ta, i, k, yi):
+    """``yi = y + h sum_l a_il k_l`` over the stages before ``i`` (zero coefficients skipped)."""
+    for j in range(y.shape[0]):
+        acc = y[j]
+        for l in range(i):
+            if ta[i, l] != 0.0:
+                acc += h * ta[i, l] * k[l, j]
+        yi[j] = acc
+
+
+@inline
 def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
     """Stages ``first`` to the last of a step from ``(t, y)`` into ``k`` (the rows before ``first``
     given); the status of the first failed evaluation, ``OK`` when none."""
-    n = y.shape[0]
     for i in range(first, ta.shape[0]):
-        for j in range(n):
-            acc = y[j]
-            for l in range(i):
-                if ta[i, l] != 0.0:
-                    acc += h * ta[i, l] * k[l, j]
-            yi[j] = acc
+        _stage_point(h, y, ta, i, k, yi)
         status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
         if status != OK:
             return status
@@ -192,14 +197,9 @@ def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
     ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
     and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
     the first failed evaluation, ``OK`` when none."""
-    n, nf = y.shape[0], m.frame_body.shape[0]
+    nf = m.frame_body.shape[0]
     for i in range(ta.shape[0]):
-        for j in range(n):
-            acc = y[j]
-            for l in range(i):
-                if ta[i, l] != 0.0:
-                    acc += h * ta[i, l] * k[l, j]
-            yi[j] = acc
+        _stage_point(h, y, ta, i, k, yi)
         for f in range(nf):
             i0 = 7 * f + 3
             u1, u2, u3 = _increment(ta[i], i, h, k, i0)
