@@ -168,42 +168,84 @@ class CapacityWatch:
             self._tail[name] = (t_all[first:], e_all[first:])
 
 
-class EnergyWatch:
-    """Stops a conservative run whose total energy grows: a step beyond the method's stability
-    limit on a stiff force (a hard contact, a stiff spring) pumps energy into the motion long
-    before anything becomes non-finite, and a one-sided contact may even return the body intact
-    with the energy it gained.
+class EnergyFailure(SimulationFailure):
+    """A run whose energy is not accounted for: it grew in a conservative scene, or the energy
+    ledger no longer balances. Its numbers are wrong from the failing frame on, so no verdict is
+    drawn from it (``viz3d.stowage.run_verdict``)."""
 
-    ``check(frames)`` raises ``SimulationFailure`` at the first frame where ``E - E0`` exceeds
-    ``limit`` times the largest kinetic energy seen so far (``sim.blowup_energy``); non-conservative
-    scenes are not watched (their energy may legitimately grow)."""
+
+#: A ledger balance error below this fraction of the largest energy term is rounding, whatever it
+#: is relative to the energy that moved: sqrt(eps), the rounding of the potential's datum summed
+#: over up to 1e16 steps, far above what any run accumulates (eps |E| per step).
+LEDGER_ROUNDOFF = float(np.sqrt(np.finfo(float).eps))
+
+
+class EnergyWatch:
+    """Stops a run whose energy is not accounted for (``EnergyFailure``): a step beyond the method's
+    stability limit on a stiff force (a hard contact, a stiff spring, a servo's gain) pumps energy
+    into the motion long before anything becomes non-finite, and a one-sided contact may even
+    return the body intact with the energy it gained.
+
+    ``check(frames)`` raises at the first frame where, in a conservative scene, ``E - E0`` exceeds
+    ``limit`` times the largest kinetic energy seen so far; or where, in a scene with an energy
+    ledger (contacts or drives: ``energy/balance_error`` among the frame scalars), the ledger's
+    |balance error| exceeds ``limit`` times the energy that has moved so far (the largest of the
+    kinetic energy, |E - E0|, |work in| and the energy dissipated; ``sim.blowup_energy``). Healthy
+    runs balance to their integrator's error, orders of magnitude below (the scenes' checks:
+    3e-9 to 2e-3 of it). Non-conservative scenes without a ledger are not watched (their energy may
+    legitimately grow)."""
 
     def __init__(self, system: System, limit: float, conservative: bool):
-        self.system, self.limit, self.active = system, float(limit), conservative
+        self.system, self.limit, self.conservative = system, float(limit), conservative
         self.E0: float | None = None
         self.T_max = 0.0
+        self.moved = 0.0
 
     def check(self, frames) -> None:
         """Watch the next frames of the run, in order (``viz3d.columns.FrameColumns``: arrays over
-        instants of ``t``, ``energy_kinetic``, ``energy_potential``, ``R_WB``, ``W_v``, ``W_omega``)."""
-        if not self.active or not len(frames.t):
+        instants of ``t``, ``energy_kinetic``, ``energy_potential``, ``R_WB``, ``W_v``, ``W_omega`` and
+        ``scalars``)."""
+        ledger = "energy/balance_error" in frames.scalars
+        if not (self.conservative or ledger) or not len(frames.t):
             return
         T = frames.energy_kinetic
         E = T + frames.energy_potential
         self.E0 = float(E[0]) if self.E0 is None else self.E0
         T_max = np.maximum.accumulate(np.maximum(T, self.T_max))
-        growth = E - self.E0
-        bad = np.flatnonzero((T_max > 0.0) & (growth > self.limit * T_max))
-        if not bad.size:
+        bad = [np.inf, np.inf]
+        if self.conservative:
+            growth = E - self.E0
+            bad[0] = _first(((T_max > 0.0) & (growth > self.limit * T_max)))
+        if ledger:
+            s = frames.scalars
+            moved = np.maximum.accumulate(np.maximum.reduce([
+                np.full(T.shape, self.moved), T_max, np.abs(E - self.E0), np.abs(s["energy/work_in"]),
+                np.abs(s["energy/dissipated"])]))
+            balance = np.abs(s["energy/balance_error"])
+            floor = LEDGER_ROUNDOFF * np.maximum(np.abs(E), abs(self.E0))
+            bad[1] = _first(~(balance <= np.maximum(self.limit * moved, floor)))  # (NaN fails)
+        if min(bad) == np.inf:
             self.T_max = float(T_max[-1])
+            self.moved = float(moved[-1]) if ledger else 0.0
             return
-        i = int(bad[0])
+        i = int(min(bad))
         self.T_max = float(T_max[i])
-        raise SimulationFailure(
-            f"t = {frames.t[i]:.6g} s: total energy grew by {growth[i]:.3g} J = {growth[i] / self.T_max:.3g} of the "
-            f"largest kinetic energy (> sim.blowup_energy = {self.limit:g}) in a conservative scene: diverged, the step "
-            f"is beyond the method's stability limit; body {self._most_energetic(frames, i)!r} carries the most kinetic "
-            f"energy; try a smaller sim.dt or an implicit integrator", frame=i)
+        body = self._most_energetic(frames, i)
+        if bad[0] <= bad[1]:
+            growth_i = float(E[i] - self.E0)
+            raise EnergyFailure(
+                f"t = {frames.t[i]:.6g} s: total energy grew by {growth_i:.3g} J = {growth_i / self.T_max:.3g} of the "
+                f"largest kinetic energy (> sim.blowup_energy = {self.limit:g}) in a conservative scene: diverged, the "
+                f"step is beyond the method's stability limit; body {body!r} carries the most kinetic energy; try a "
+                "smaller sim.dt or an implicit integrator", frame=i)
+        s = frames.scalars
+        raise EnergyFailure(
+            f"t = {frames.t[i]:.6g} s: the energy ledger does not balance: error {s['energy/balance_error'][i]:.3g} J "
+            f"= {abs(s['energy/balance_error'][i]) / moved[i]:.3g} of the energy that moved ({moved[i]:.4g} J: work in "
+            f"{s['energy/work_in'][i]:.4g} J, dissipated {s['energy/dissipated'][i]:.4g} J, kinetic up to "
+            f"{self.T_max:.4g} J; > sim.blowup_energy = {self.limit:g}): the step does not resolve a stiff force (a "
+            f"contact, a spring, a drive's servo gain) or is beyond its stability limit; body {body!r} carries the most "
+            "kinetic energy; try a smaller sim.dt", frame=i)
 
     def _most_energetic(self, frames, i: int) -> str:
         b = self.system.bodies
@@ -211,6 +253,12 @@ class EnergyWatch:
         W_v = frames.W_v[i]
         T = 0.5 * b.mass * np.sum(W_v**2, axis=1) + 0.5 * np.einsum("ni,nij,nj->n", B_omega, b.inertia, B_omega)
         return b.names[int(np.argmax(T))]
+
+
+def _first(mask: np.ndarray) -> float:
+    """Index of the first True of ``mask`` (inf when none)."""
+    hit = np.flatnonzero(mask)
+    return float(hit[0]) if hit.size else np.inf
 
 
 def _nonfinite(system: System, state: State) -> str:

@@ -21,6 +21,7 @@ from viz3d.columns import CHUNK, FrameColumns, StateLog
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
     CapacityWatch,
+    EnergyFailure,
     EnergyWatch,
     RunComplete,
     SimulationFailure,
@@ -965,7 +966,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
     bar = ProgressBar(n_steps) if progress else None
-    status, wall0, internal = "ok", time.perf_counter(), None
+    status, wall0, internal, failure = "ok", time.perf_counter(), None, None
     check, has_goal = run_checks(sim, scene)
     with InterruptGuard() as guard:
         emitter = _Emitter(sim, sinks, guard)
@@ -998,7 +999,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             emitter.events(last=True)
             log.flush()
         except SimulationFailure as exc:
-            status = _earliest_failure(log, exc)
+            failure = _earliest_failure(log, exc)
+            status = str(failure)
         except RunComplete as done:  # the goal reached: frames up to it kept, status ok
             emitter.announce([(log.parts[-1].t[-1], str(done))])
         except KeyboardInterrupt:
@@ -1021,8 +1023,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                     status = f"interrupted at t = {t_stop:.6g} s"
                 elif internal is not None:
                     status = f"stopped by an internal error at t = {t_stop:.6g} s: {internal}"
-                failed = status not in ("ok",) and internal is None and not status.startswith("interrupted")
-                verdict = run_verdict(scene.data, cols, sim.system.bodies.names, failed)
+                verdict = _verdict(scene, cols, sim.system.bodies.names, failure)
                 emitter.announce(run_events(scene.data, cols)
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
                 emitter.close(status, t_stop)  # (events after the last returned state are not on the trajectory)
@@ -1037,15 +1038,25 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)
 
 
-def _earliest_failure(log: StateLog, exc: SimulationFailure) -> str:
-    """The diagnosis of the earliest failure: a step that failed (``exc.frame`` None) may follow
-    frames, not yet checked, whose check fails first."""
+def _verdict(scene: Scene, cols, body_names, failure: SimulationFailure | None):
+    """The run's ``viz3d.stowage.Verdict`` (None without a ``[stowage]`` table). A run that failed has
+    one only if its drive jammed before it failed (``stopped``): it neither seated nor fell short; and
+    none at all if it failed on its energy (``EnergyFailure``: its frames' numbers are wrong)."""
+    if isinstance(failure, EnergyFailure):
+        return None
+    verdict = run_verdict(scene.data, cols, body_names, failure is not None)
+    return verdict if failure is None or verdict is None or verdict.outcome == "jammed" else None
+
+
+def _earliest_failure(log: StateLog, exc: SimulationFailure) -> SimulationFailure:
+    """The earliest failure (its diagnosis is ``str``): a step that failed (``exc.frame`` None) may
+    follow frames, not yet checked, whose check fails first."""
     if exc.frame is None:
         try:
             log.flush()
         except SimulationFailure as earlier:
-            return str(earlier)
-    return str(exc)
+            return earlier
+    return exc
 
 
 class _Emitter:

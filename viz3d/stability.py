@@ -108,8 +108,8 @@ def _dt_text(row: StabilityRow) -> str:
 
 
 def reason_of(traj) -> tuple[str, str]:
-    """(reason, detail) of a finished run (energy growth in conservative scenes stops the run
-    itself: ``sim.blowup_energy``, viz3d.diagnosis.EnergyWatch)."""
+    """(reason, detail) of a finished run (energy growth in conservative scenes and an energy ledger
+    that does not balance stop the run itself: ``sim.blowup_energy``, viz3d.diagnosis.EnergyWatch)."""
     status = traj.status
     if not traj.ok:
         low = status.lower()
@@ -117,6 +117,8 @@ def reason_of(traj) -> tuple[str, str]:
             return "singular", status
         if "newton" in low or "did not converge" in low:
             return "no convergence", status
+        if "energy ledger" in low:
+            return "energy ledger off", status
         if "diverged" in low or "non-finite" in low or "speed" in low:
             return "diverged", status
         if "constraint violation" in low:

@@ -158,3 +158,17 @@ def test_the_overload_time_outlasts_an_impact_of_the_anchor_on_the_hull():
     masses = [ship["anchor_mass"], float(system.bodies.mass[system.bodies.names.index("link0")])]
     longest = max(hertz_impact(K, m, np.inf, v).contact_time for m in masses for v in (1e-3, 0.15, 0.5))
     assert longest < 0.2 * ship["overload_time"]
+
+
+def test_a_step_that_does_not_resolve_the_contacts_fails_on_its_ledger_and_gives_no_verdict():
+    """At twice the scene's step the links' Hertz impacts on the rim (about 1 ms long at 1 m/s:
+    viz3d.contact.exact.hertz_impact) last one or two steps: the energy ledger stops balancing within
+    the first frames and the run stops with its diagnosis; no verdict is drawn from it (a stowage
+    study counts it as failed, not as jammed or seated)."""
+    from viz3d.stowagestudy import StowageMeasure
+
+    scene = viz3d.load_scene(SCENE, ["sim.dt=1e-3", "sim.t_end=0.5"])
+    traj = viz3d.simulate(scene)
+    assert "the energy ledger does not balance" in traj.status, traj.status
+    assert "stowage_verdict" not in traj.extras
+    assert StowageMeasure()(scene)["outcome"] == "failed"

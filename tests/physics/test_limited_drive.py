@@ -132,3 +132,30 @@ def _ledger_closes(traj) -> None:
     work = x["energy_work_in"]
     assert np.abs(work).max() > 0.0
     assert np.abs(x["energy_balance_error"]).max() <= 1e-6 * np.abs(work).max()
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["kernel", "numpy"])
+def test_a_gain_beyond_the_steps_stability_limit_stops_on_the_energy_ledger(tmp_path, compiled):
+    """RK4 is stable on the servo's pole ``z = -g_s h / m`` for ``|z| < 2.785`` (the real-axis end of
+    its stability region, where ``|R(z)| = 1``). At ``|z| = 2.9`` each step multiplies the velocity
+    error by ``|R(z)| = 1.19``: the run stops at its first frame with the ledger's diagnosis (its
+    work in no longer matches the energy it gave), long before any speed limit, and keeps that frame;
+    at ``|z| = 1`` the same run balances."""
+    dt, frame = 1e-3, 0.01
+    path = tmp_path / "hoist.toml"
+    for z, ok in ((2.9, False), (1.0, True)):
+        path.write_text(_scene(M, z * M / dt, V0, 1e9))
+        scene = viz3d.load_scene(path, ["sim.t_end=0.1", f"sim.dt={dt}", f"sim.output_dt={frame}",
+                                        f"sim.compiled={str(compiled).lower()}"])
+        traj = viz3d.simulate(scene)
+        if ok:
+            assert traj.status == "ok", traj.status
+            _ledger_closes_to(traj, 1e-3)          # RK4's error on the unresolved start: (h/tau)^4 / 120 ~ 1e-2
+        else:
+            assert traj.status.startswith(f"t = {frame:g} s: the energy ledger does not balance"), traj.status
+            assert traj.t[-1] == pytest.approx(frame)
+
+
+def _ledger_closes_to(traj, rel: float) -> None:
+    x = traj.extras
+    assert np.abs(x["energy_balance_error"]).max() <= rel * np.abs(x["energy_work_in"]).max()

@@ -78,8 +78,9 @@ SIM = Table({
                          "takes fewer iterations (benchmarks/bench_ali3p.py: 1e10-1e11 for 100-400 links)"),
     "blowup_violation": Field(positive, 0.1, "stop with a diagnosis when max |C| exceeds this [m]"),
     "blowup_speed": Field(positive, 1e4, "stop with a diagnosis when a body's speed exceeds this [m/s]"),
-    "blowup_energy": Field(positive, 0.5, "conservative scenes: stop with a diagnosis when the total energy grows by more "
-                           "than this fraction of the largest kinetic energy [-]"),
+    "blowup_energy": Field(positive, 0.5, "stop with a diagnosis when a conservative scene's total energy grows by more "
+                           "than this fraction of the largest kinetic energy, or a scene's energy ledger (contacts, "
+                           "drives) is off by more than this fraction of the energy that moved [-]"),
 }, "how to integrate")
 
 SHAPES = {
