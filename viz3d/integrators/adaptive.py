@@ -18,6 +18,7 @@ from typing import Callable
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.compiled import entry
 from viz3d.integrators.base import Integrator, StepResult
 
 #: Controller defaults (Hairer, Norsett & Wanner, Solving ODEs I, sec. II.4).
@@ -285,6 +286,25 @@ class Accepted:
     h: float
     h_next: float
     n_rejected: int
+
+
+@entry
+def step_to_try(h: float, max_step: float, t: float, t_end: float) -> float:
+    """The step [s] to try from ``t``: the proposal ``h`` within ``max_step`` and the rest of the run
+    to ``t_end`` (inf: unbounded), so no step goes past the run's end (``scipy.integrate.solve_ivp``
+    clips its steps to ``t_bound`` so). Compiled: the compiled adaptive driver
+    (``viz3d.kernel.adaptive``) calls it too."""
+    return min(h, max_step, t_end - t)
+
+
+@entry
+def step_end(t: float, h: float, t_end: float) -> float:
+    """The end [s] of the accepted step of length ``h`` from ``t``: ``t_end`` itself when the step is
+    the rest of the run (``step_to_try`` clipped it to ``t_end - t`` and it was accepted so; ``t +
+    h`` may round to either side of ``t_end``), so the run's last step ends exactly there; else ``t
+    + h``, which is then at most ``t_end`` (``h`` is less than ``t_end - t``, and ``t_end`` is a
+    float: ``t + h`` cannot round past it). Compiled, as ``step_to_try``."""
+    return t_end if h == t_end - t else t + h
 
 
 def error_order(method: Integrator) -> int:
