@@ -511,13 +511,12 @@ class KernelStepper:
 
 def _adaptive_method(tableau, controller) -> tuple:
     """The tableau and controller as the compiled adaptive driver takes them."""
-    from viz3d.integrators.adaptive import (CUBIC_ROUNDOFF, EPS, EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN,
-                                            SAFETY)
+    from viz3d.integrators.adaptive import EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, ROUNDING, SAFETY
     from viz3d.integrators.explicit_rk import is_end_stage
 
     dense, c = tableau.dense, np.ascontiguousarray
     ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
-                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, CUBIC_ROUNDOFF * EPS], float)
+                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, ROUNDING], float)
     a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
     return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),

@@ -8,7 +8,8 @@ projections, health checks, chart switches).
 A step over which an event function of the contacts changes sign is cut at the first event, as
 ``Simulation._event_step`` cuts it: the signs looked at at the step's ends and at the extrema of
 the event function's cubic Hermite (``viz3d.integrators.adaptive.first_event``: a crossing and its
-return inside one step are found too), each crossing located on the step's cubic Hermite interpolant
+return inside one step are found too; its ``crosses``, ``armed`` and ``hermite_extrema`` are called
+here, compiled there: one source for both paths), each crossing located on the step's cubic Hermite interpolant
 (``viz3d.integrators.adaptive.hermite``) by Brent's method with ``brentq``'s iteration and the
 Python loop's tolerances, the step redone to the earliest, its end settled and committed, the
 call ended (``EVENT``: ``flags[CUT]`` names the event row, Python applies the event's handler,
@@ -42,7 +43,7 @@ from __future__ import annotations
 import math
 
 from viz3d.compiled import entry, inline, jit
-from viz3d.integrators.adaptive import step_end, step_to_try
+from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
 from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
 from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
@@ -58,7 +59,7 @@ T, H, T0, T1, SPAN_H = 0, 1, 2, 3, 4
 HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
 #: Indices of the event tolerances in ``ctrl`` (after the controller's eight): ``brentq``'s
 #: ``xtol`` relative to the step, its ``rtol`` and iteration limit, the rounding of an event's cubic
-#: (``CUBIC_ROUNDOFF`` eps, ``viz3d.integrators.adaptive``).
+#: (``viz3d.integrators.adaptive.ROUNDING``).
 EV_XTOL, EV_RTOL, EV_MAXITER, EV_ROUNDING = 8, 9, 10, 11
 STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
@@ -179,64 +180,6 @@ def event_values(t, y, chart, kind, index, floor, m, v, w, forces, rows, geometr
                     return status
             out[e, 0] = w.lam[index[e]]
     return status
-
-
-@inline
-def crosses(direction, g0, g1):
-    """``viz3d.integrators.adaptive.crosses``."""
-    rising = g0 < 0.0 <= g1
-    falling = g0 > 0.0 >= g1
-    if direction > 0:
-        return rising
-    if direction < 0:
-        return falling
-    return rising or falling
-
-
-@inline
-def armed(direction, g):
-    """``viz3d.integrators.adaptive.armed``."""
-    if direction > 0:
-        return g < 0.0
-    if direction < 0:
-        return g > 0.0
-    return g != 0.0
-
-
-@inline
-def _cubic(s, g0, m0, g1, m1):
-    """``viz3d.integrators.adaptive._cubic``: its operations in its order."""
-    u2 = (1.0 - s) * (1.0 - s)
-    h00, h10 = (1.0 + 2.0 * s) * u2, s * u2
-    h01, h11 = s * s * (3.0 - 2.0 * s), s * s * (s - 1.0)
-    return h00 * g0 + h10 * m0 + h01 * g1 + h11 * m1
-
-
-@jit
-def hermite_extrema(g0, m0, g1, m1, rounding):
-    """``viz3d.integrators.adaptive.hermite_extrema`` (its operations in its order, so the same
-    points; ``rounding`` its ``CUBIC_ROUNDOFF * EPS``): ``(s_lo, p_lo, s_hi, p_hi)``, -1 (and 0)
-    for none."""
-    tol = rounding * (abs(g0) + abs(m0) + abs(g1) + abs(m1))
-    s_lo, p_lo, s_hi, p_hi = -1.0, 0.0, -1.0, 0.0
-    a = 2.0 * (g0 - g1) + m0 + m1
-    b = 3.0 * (g1 - g0) - 2.0 * m0 - m1
-    disc = b * b - 3.0 * a * m0
-    if not disc >= 0.0:
-        return s_lo, p_lo, s_hi, p_hi
-    q = -(b + math.copysign(math.sqrt(disc), b))
-    if q == 0.0:
-        return s_lo, p_lo, s_hi, p_hi
-    r1 = m0 / q
-    r2 = q / (3.0 * a) if a != 0.0 else -1.0
-    for s in (min(r1, r2), max(r1, r2)):
-        p = _cubic(s, g0, m0, g1, m1) if 0.0 < s < 1.0 else 0.0
-        if abs(p) > tol:
-            if s_lo < 0.0:
-                s_lo, p_lo = s, p
-            else:
-                s_hi, p_hi = s, p
-    return s_lo, p_lo, s_hi, p_hi
 
 
 @inline
