@@ -36,7 +36,8 @@ from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
 from viz3d.integrators.base import StepResult
 from viz3d.integrators.explicit_rk import DenseInterpolant
-from viz3d.integrators.adaptive import Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite
+from viz3d.integrators.adaptive import (Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite,
+                                        step_end, step_to_try)
 from viz3d.interrupts import InterruptGuard
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
@@ -75,6 +76,7 @@ class Simulation:
     * adaptive steps (``controller`` given; the integrator needs an embedded error estimate): as
       many accepted steps as ``adaptive.Controller`` chooses, the state at ``t0 + n dt`` sampled
       from the last step's dense output (the tableau's continuous extension, else cubic Hermite);
+      none past ``t_end``, where the last one ends (``adaptive.step_to_try``, ``adaptive.step_end``);
     * a formulation that steps itself (``ALI3P``): its own ``step`` with its memory (in the compiled
       kernel when it covers the system, several steps a call: ``steps``, ``output_states``).
 
@@ -94,6 +96,9 @@ class Simulation:
         Speed [m/s] above which the run is declared diverged.
     controller : adaptive.Controller, optional
         Error control of adaptive steps.
+    t_end : float
+        Time [s] no adaptive step goes past (``run`` sets it to the run's last sample; inf: none),
+        so no event, state or frame of the run is after it.
     compiled : bool
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
@@ -121,10 +126,11 @@ class Simulation:
     """
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
-                 blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True):
+                 blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True,
+                 t_end: float = math.inf):
         check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
         self.system, self.state = system, state
-        self.integrator, self.formulation, self.dt = integrator, formulation, dt
+        self.integrator, self.formulation, self.dt, self.t_end = integrator, formulation, dt, t_end
         self.blowup_speed, self.controller = blowup_speed, controller
         self.chart_switches = np.zeros(system.n_bodies, dtype=int)
         self.t0, self.n_steps, self.n_rejected, self.n_rhs, self.n_samples = state.t, 0, 0, 0, 0
@@ -477,10 +483,11 @@ class Simulation:
                 ctrl = self._step_controller(s)
                 if self._h is None:
                     self._h = min(ctrl.first_step(rhs, s.t, s.y, f0, error_order(method)), self._turn_limit(f0))
-                acc = accepted_step(rhs, s.t, s.y, f0, min(self._h, ctrl.max_step), method, ctrl)
+                h = step_to_try(self._h, ctrl.max_step, s.t, self.t_end)
+                acc = accepted_step(rhs, s.t, s.y, f0, h, method, ctrl)
                 self.n_rejected += acc.n_rejected
                 res, h, solver = acc.res, acc.h, None
-                t1 = s.t + h
+                t1 = step_end(s.t, h, self.t_end)
                 self._h = acc.h_next
             f1 = res.f1 if res.f1 is not None else rhs(t1, res.y)
         events = contacts.events(s)
@@ -543,8 +550,9 @@ class Simulation:
         if self._h is None:
             self._h = min(self.controller.first_step(rhs, s.t, s.y, f, error_order(method)), self._turn_limit(f))
         with np.errstate(all="ignore"):
-            acc = accepted_step(rhs, s.t, s.y, f, min(self._h, self.controller.max_step), method, self.controller)
-            t1 = s.t + acc.h
+            h = step_to_try(self._h, self.controller.max_step, s.t, self.t_end)
+            acc = accepted_step(rhs, s.t, s.y, f, h, method, self.controller)
+            t1 = step_end(s.t, acc.h, self.t_end)
             f1 = acc.res.f1 if acc.res.f1 is not None else rhs(t1, acc.res.y)
         self.n_rejected += acc.n_rejected
         self._span = self._rk_span(rhs, s, t1, acc.h, acc.res, f1)
@@ -679,9 +687,9 @@ class Simulation:
             records.n[0] = 0
         s, contacts = self._inner, self._contacts
         events = contacts.event_rows(s) if contacts is not None else ()
-        return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self._step_controller(s),
-                                     events, s.memory, contacts is not None, self.blowup_speed, ADAPTIVE_MAX_TURN,
-                                     records)
+        return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self.t_end,
+                                     self._step_controller(s), events, s.memory, contacts is not None,
+                                     self.blowup_speed, ADAPTIVE_MAX_TURN, records)
 
     def _step_controller(self, s: State) -> Controller:
         """The controller of the adaptive steps from ``s``: ``max_step`` within the contacts' step
@@ -965,6 +973,7 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     cfg = scene.data["sim"]
     n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
     every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
+    sim.t_end = min(sim.t_end, sim.t0 + (sim.n_samples + n_steps) * sim.dt)  # the last sample's time, as stepped to
     bar = ProgressBar(n_steps) if progress else None
     status, wall0, internal, failure = "ok", time.perf_counter(), None, None
     check, has_goal = run_checks(sim, scene)

@@ -1,6 +1,6 @@
 """Event location inside one step (``viz3d.integrators.adaptive.first_event``): a crossing and its
-return inside the step are found, a tangency is not, and the compiled driver's cubic extrema
-(``viz3d.kernel.adaptive.hermite_extrema``) are the Python loop's to the bit.
+return inside the step are found, a tangency is not, and the cubic extrema both paths take
+(``viz3d.integrators.adaptive.hermite_extrema``, compiled) are its source's run by Python to the bit.
 
 The event function here is ``x`` of a point under a constant acceleration ``A`` (``y = [x, v]``,
 ``f = [v, A]``), the rate of ``x`` its ``v``: the state's cubic Hermite interpolant is the motion
@@ -15,7 +15,8 @@ import pytest
 
 from viz3d.compiled import numba
 from viz3d.integrators import adaptive
-from viz3d.integrators.adaptive import CUBIC_ROUNDOFF, EPS, EVENT_RTOL, EVENT_XTOL, Event, first_event, hermite_extrema
+from viz3d.integrators.adaptive import (CUBIC_ROUNDOFF, EPS, EVENT_RTOL, EVENT_XTOL, ROUNDING, Event, first_event,
+                                        hermite_extrema)
 
 #: Acceleration of the point [m/s^2] and length of the step [s].
 A, H = 2.0, 1.0
@@ -107,14 +108,15 @@ def test_a_fresh_event_whose_excursion_falls_between_the_probes():
 
 
 @pytest.mark.skipif(numba is None, reason="numba is not installed")
-def test_the_compiled_extrema_are_the_python_ones_to_the_bit():
-    """``viz3d.kernel.adaptive.hermite_extrema`` against ``viz3d.integrators.adaptive.hermite_extrema``
-    on random cubics, tangencies and degenerate ones (no cubic term, no slope, nan slopes)."""
-    from viz3d.kernel.adaptive import hermite_extrema as compiled
+def test_the_compiled_extrema_are_the_python_ones_to_the_bit(monkeypatch):
+    """``hermite_extrema`` compiled, called from compiled code (the compiled adaptive driver) and from
+    Python (the Python loop), against its source run by Python (``py_func``, with ``_cubic``'s: what
+    runs without numba) on random cubics, tangencies and degenerate ones (no cubic term, no slope,
+    nan slopes)."""
 
     @numba.njit
     def call(g0, m0, g1, m1):
-        return compiled(g0, m0, g1, m1, CUBIC_ROUNDOFF * EPS)
+        return hermite_extrema(g0, m0, g1, m1, ROUNDING)
 
     rng = np.random.default_rng(7)
     cases = [tuple(x) for x in rng.standard_normal((2000, 4)) * 10.0 ** rng.integers(-8, 3, (2000, 1))]
@@ -123,5 +125,8 @@ def test_the_compiled_extrema_are_the_python_ones_to_the_bit():
     for c in np.linspace(0.05, 0.95, 19):
         y0, _, y1, _ = _parabola_step(c, 0.0)
         cases.append((y0[0], y0[1], y1[0], y1[1]))
-    for case in cases:
-        assert call(*case) == hermite_extrema(*case), case
+    compiled = [(call(*case), hermite_extrema(*case, ROUNDING)) for case in cases]
+    monkeypatch.setattr(adaptive, "_cubic", adaptive._cubic.py_func)
+    for case, (from_compiled, from_python) in zip(cases, compiled, strict=True):
+        interpreted = hermite_extrema.py_func(*case, ROUNDING)
+        assert from_compiled == interpreted and from_python == interpreted, case

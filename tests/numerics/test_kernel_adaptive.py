@@ -385,6 +385,38 @@ def test_bounce_times_of_a_dropped_ball_without_a_step_bound(e, h0, monkeypatch)
             assert abs(t - t_k) <= bound, f"bounce {k + 1}: {t - t_k:.3g} s off, bound {bound:.3g} s"
 
 
+#: Interval between the samples of the runs ending near a bounce [s]: coarser than the scene's (only
+#: the end matters), and the margin of their ends from the bounce, far above its location's error.
+END_DT = 1e-4
+
+
+@pytest.mark.parametrize("after", [False, True])
+def test_a_run_ends_at_t_end_just_before_or_after_a_bounce(after, monkeypatch):
+    """Was: adaptive steps went past t_end (free flight is exact for DOPRI5: without sim.max_step a
+    step spans a whole flight) and the events inside them were handled: bouncing_sphere with
+    restitution to 0.4 s reported a 6th contact at 0.4073 s, its contact report taken after t_end. Now
+    the last step is clipped to end at t_end exactly (as ``solve_ivp``'s at ``t_bound``): a run
+    ending one sample before the 6th bounce of ``_bounces`` has 5 contacts, one ending one sample
+    after it 6, every event at or before t_end, its last frame and the state after its last step at
+    t_end; the compiled driver and the Python loop alike (the same steps and events)."""
+    impactor = tomllib.loads((SCENES / "bouncing_sphere.toml").read_text())["impactor"]
+    contact = tomllib.loads((SCENES / "bouncing_sphere.toml").read_text())["contact"]
+    bounces = _bounces(contact["restitution"], impactor["gap"], impactor["force"] / impactor["mass"], 6)
+    n = math.ceil(bounces[5][0] / END_DT) if after else math.floor(bounces[5][0] / END_DT) - 1
+    t_end = n * END_DT  # (a sample time: the run's samples are at multiples of END_DT)
+    overrides = ("contact.law=restitution", f"sim.output_dt={END_DT}")  # (its dt: the sample interval)
+    a = _run("bouncing_sphere", t_end, True, overrides, monkeypatch=monkeypatch)
+    b = _run("bouncing_sphere", t_end, False, overrides, monkeypatch=monkeypatch)
+    _assert_same_run(a, b, STEPPED_ROUNDOFF)
+    for sim, traj, _ in (a, b):
+        assert traj.status == "ok"
+        assert traj.t[-1] == t_end, f"last frame at {traj.t[-1]!r} s, t_end {t_end!r} s"
+        assert np.all(traj.extras["events_t"] <= t_end), f"events at {traj.extras['events_t']} s, t_end {t_end} s"
+        assert int(traj.extras["contact_count"]) == (6 if after else 5)
+        sim._to_python()
+        assert sim._inner.t == t_end, f"last step ends at {sim._inner.t!r} s, t_end {t_end!r} s"
+
+
 def test_step_size_underflow_is_diagnosed_as_in_python(monkeypatch):
     """A min_step the tolerance cannot be met above: the kernel stops at the underflow and the Python
     path writes the same diagnosis at the same time, after the same frames."""

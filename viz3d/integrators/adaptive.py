@@ -18,6 +18,7 @@ from typing import Callable
 import numpy as np
 
 from viz3d._typing import FloatArray
+from viz3d.compiled import entry
 from viz3d.integrators.base import Integrator, StepResult
 
 #: Controller defaults (Hairer, Norsett & Wanner, Solving ODEs I, sec. II.4).
@@ -36,6 +37,8 @@ EVENT_MAXITER = 100
 #: and three sums, each within eps of the sum of the terms' magnitudes.
 CUBIC_ROUNDOFF = 8.0
 EPS = float(np.finfo(float).eps)
+#: ``hermite_extrema``'s ``rounding``: ``CUBIC_ROUNDOFF`` eps.
+ROUNDING = CUBIC_ROUNDOFF * EPS
 
 
 class StepSizeUnderflow(RuntimeError):
@@ -105,16 +108,28 @@ class Event:
         return crosses(self.direction, g0, g1)
 
 
+@entry
 def crosses(direction: int, g0: float, g1: float) -> bool:
-    """An event of ``direction`` (``Event.direction``) crosses from the value ``g0`` to ``g1``."""
+    """An event of ``direction`` (``Event.direction``) crosses from the value ``g0`` to ``g1``.
+    Compiled: the compiled adaptive driver (``viz3d.kernel.adaptive``) calls it too, as the other
+    event-location helpers (``armed``, ``hermite_extrema``), so both paths decide alike."""
     rising = g0 < 0.0 <= g1
     falling = g0 > 0.0 >= g1
-    return {1: rising, -1: falling, 0: rising or falling}[direction]
+    if direction > 0:
+        return rising
+    if direction < 0:
+        return falling
+    return rising or falling
 
 
+@entry
 def armed(direction: int, g: float) -> bool:
-    """An event of ``direction`` at the value ``g`` is on a side it crosses from."""
-    return g < 0.0 if direction > 0 else (g > 0.0 if direction < 0 else g != 0.0)
+    """An event of ``direction`` at the value ``g`` is on a side it crosses from. Compiled, as ``crosses``."""
+    if direction > 0:
+        return g < 0.0
+    if direction < 0:
+        return g > 0.0
+    return g != 0.0
 
 
 def hermite(t0, y0, f0, t1, y1, f1, t):
@@ -156,7 +171,8 @@ def first_event(events, g0, r0, t0, y0, f0, t1, y1, f1, fresh: tuple[str, ...] =
     for ev, g_start, r_start in zip(events, g0, r0):
         g_end = ev.g(t1, y1)
         r_end = ev.rate(t1, y1) if ev.rate is not None else np.nan
-        extrema = hermite_extrema(g_start, (t1 - t0) * r_start, g_end, (t1 - t0) * r_end)
+        h = t1 - t0
+        extrema = hermite_extrema(float(g_start), float(h * r_start), float(g_end), float(h * r_end), ROUNDING)
 
         def g_of(t, ev=ev):
             return ev.g(t, hermite(t0, y0, f0, t1, y1, f1, t))
@@ -178,11 +194,13 @@ def first_event(events, g0, r0, t0, y0, f0, t1, y1, f1, fresh: tuple[str, ...] =
 FRESH_PROBES = 32
 
 
-def hermite_extrema(g0: float, m0: float, g1: float, m1: float) -> tuple[float, float, float, float]:
+@entry
+def hermite_extrema(g0: float, m0: float, g1: float, m1: float, rounding: float) -> tuple[float, float, float, float]:
     """The interior extrema of the cubic Hermite ``p`` on [0, 1] with ``p(0) = g0``, ``p'(0) = m0``,
-    ``p(1) = g1``, ``p'(1) = m1`` at which ``|p|`` exceeds its rounding ``CUBIC_ROUNDOFF`` eps
-    ``(|g0| + |m0| + |g1| + |m1|)``: ``(s_lo, p_lo, s_hi, p_hi)``, ``s_lo < s_hi``, ``s = -1`` (and
-    ``p = 0``) for none; none when a slope is nan (an event without a rate).
+    ``p(1) = g1``, ``p'(1) = m1`` at which ``|p|`` exceeds its rounding ``rounding (|g0| + |m0| +
+    |g1| + |m1|)`` (``ROUNDING``): ``(s_lo, p_lo, s_hi, p_hi)``, ``s_lo < s_hi``, ``s = -1`` (and
+    ``p = 0``) for none; none when a slope is nan (an event without a rate). Compiled: the compiled
+    adaptive driver calls it too (``crosses``).
 
     For an event function over a step of length ``h``: ``g0``, ``g1`` its values and ``m0``, ``m1``
     ``h`` times its rates at the ends, ``s = (t - t0) / h``. Why this test: it needs only what
@@ -197,7 +215,7 @@ def hermite_extrema(g0: float, m0: float, g1: float, m1: float) -> tuple[float, 
     crosses nothing. The extrema are the roots of ``p'``, a quadratic, in closed form (the form
     without cancellation).
     """
-    tol = CUBIC_ROUNDOFF * EPS * (abs(g0) + abs(m0) + abs(g1) + abs(m1))
+    tol = rounding * (abs(g0) + abs(m0) + abs(g1) + abs(m1))
     s_lo, p_lo, s_hi, p_hi = -1.0, 0.0, -1.0, 0.0
     a = 2.0 * (g0 - g1) + m0 + m1                    # p(s) = g0 + m0 s + b s^2 + a s^3
     b = 3.0 * (g1 - g0) - 2.0 * m0 - m1
@@ -219,8 +237,9 @@ def hermite_extrema(g0: float, m0: float, g1: float, m1: float) -> tuple[float, 
     return s_lo, p_lo, s_hi, p_hi
 
 
+@entry
 def _cubic(s: float, g0: float, m0: float, g1: float, m1: float) -> float:
-    """``hermite_extrema``'s cubic at ``s`` in the Hermite basis."""
+    """``hermite_extrema``'s cubic at ``s`` in the Hermite basis (compiled, as it)."""
     u2 = (1.0 - s) * (1.0 - s)
     h00, h10 = (1.0 + 2.0 * s) * u2, s * u2
     h01, h11 = s * s * (3.0 - 2.0 * s), s * s * (s - 1.0)
@@ -285,6 +304,25 @@ class Accepted:
     h: float
     h_next: float
     n_rejected: int
+
+
+@entry
+def step_to_try(h: float, max_step: float, t: float, t_end: float) -> float:
+    """The step [s] to try from ``t``: the proposal ``h`` within ``max_step`` and the rest of the run
+    to ``t_end`` (inf: unbounded), so no step goes past the run's end (``scipy.integrate.solve_ivp``
+    clips its steps to ``t_bound`` so). Compiled: the compiled adaptive driver
+    (``viz3d.kernel.adaptive``) calls it too."""
+    return min(h, max_step, t_end - t)
+
+
+@entry
+def step_end(t: float, h: float, t_end: float) -> float:
+    """The end [s] of the accepted step of length ``h`` from ``t``: ``t_end`` itself when the step is
+    the rest of the run (``step_to_try`` clipped it to ``t_end - t`` and it was accepted so; ``t +
+    h`` may round to either side of ``t_end``), so the run's last step ends exactly there; else ``t
+    + h``, which is then at most ``t_end`` (``h`` is less than ``t_end - t``, and ``t_end`` is a
+    float: ``t + h`` cannot round past it). Compiled, as ``step_to_try``."""
+    return t_end if h == t_end - t else t + h
 
 
 def error_order(method: Integrator) -> int:

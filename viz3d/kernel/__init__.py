@@ -476,12 +476,13 @@ class KernelStepper:
                           d.geometry, d.energies, np.empty(self._yi.shape[0]), *out)
 
     def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,
-                 controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,
+                 t_end: float, controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,
                  max_turn: float, records: StepRecords | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, int]:
         """Up to ``n_frames`` output frames of an adaptive run, ``every`` samples ``dt`` apart, the
-        first after sample ``n0`` of a run started at ``t_start`` [s], advancing ``carry`` in place
-        (``viz3d.kernel.adaptive.adaptive_frames``) under ``controller`` (``adaptive.Controller``),
+        first after sample ``n0`` of a run started at ``t_start`` [s], no step past ``t_end`` [s],
+        advancing ``carry`` in place (``viz3d.kernel.adaptive.adaptive_frames``) under ``controller``
+        (``adaptive.Controller``),
         with the contacts' ``events`` (``viz3d.events.EventRow``) and memory ``memory``, each accepted
         step into ``records`` when given (from ``records.n[0]`` on). Returns
         ``(Ts, Y, charts, frames done, samples done in the next frame, status)``, the first three
@@ -501,7 +502,7 @@ class KernelStepper:
         record = records is not None
         records = records if record else StepRecords.empty(0, n, nf)
         done, partial, status = self._call(
-            adaptive_frames, n_frames, every, n0, t_start, dt, int(contact_mode), max_speed, max_turn,
+            adaptive_frames, n_frames, every, n0, t_start, dt, t_end, int(contact_mode), max_speed, max_turn,
             *self._method[1], kind, index, floor, direction, int(record), *records, d.model, self.view(memory),
             self.ws[1], d.forces,
             d.rows, d.geometry, *carry, self._k, *scratch, Y, charts, Ts)
@@ -510,13 +511,12 @@ class KernelStepper:
 
 def _adaptive_method(tableau, controller) -> tuple:
     """The tableau and controller as the compiled adaptive driver takes them."""
-    from viz3d.integrators.adaptive import (CUBIC_ROUNDOFF, EPS, EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN,
-                                            SAFETY)
+    from viz3d.integrators.adaptive import EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, ROUNDING, SAFETY
     from viz3d.integrators.explicit_rk import is_end_stage
 
     dense, c = tableau.dense, np.ascontiguousarray
     ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
-                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, CUBIC_ROUNDOFF * EPS], float)
+                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, ROUNDING], float)
     a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
     return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),

@@ -8,7 +8,8 @@ projections, health checks, chart switches).
 A step over which an event function of the contacts changes sign is cut at the first event, as
 ``Simulation._event_step`` cuts it: the signs looked at at the step's ends and at the extrema of
 the event function's cubic Hermite (``viz3d.integrators.adaptive.first_event``: a crossing and its
-return inside one step are found too), each crossing located on the step's cubic Hermite interpolant
+return inside one step are found too; its ``crosses``, ``armed`` and ``hermite_extrema`` are called
+here, compiled there: one source for both paths), each crossing located on the step's cubic Hermite interpolant
 (``viz3d.integrators.adaptive.hermite``) by Brent's method with ``brentq``'s iteration and the
 Python loop's tolerances, the step redone to the earliest, its end settled and committed, the
 call ended (``EVENT``: ``flags[CUT]`` names the event row, Python applies the event's handler,
@@ -42,6 +43,7 @@ from __future__ import annotations
 import math
 
 from viz3d.compiled import entry, inline, jit
+from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
 from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
 from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
@@ -57,7 +59,7 @@ T, H, T0, T1, SPAN_H = 0, 1, 2, 3, 4
 HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
 #: Indices of the event tolerances in ``ctrl`` (after the controller's eight): ``brentq``'s
 #: ``xtol`` relative to the step, its ``rtol`` and iteration limit, the rounding of an event's cubic
-#: (``CUBIC_ROUNDOFF`` eps, ``viz3d.integrators.adaptive``).
+#: (``viz3d.integrators.adaptive.ROUNDING``).
 EV_XTOL, EV_RTOL, EV_MAXITER, EV_ROUNDING = 8, 9, 10, 11
 STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
@@ -178,64 +180,6 @@ def event_values(t, y, chart, kind, index, floor, m, v, w, forces, rows, geometr
                     return status
             out[e, 0] = w.lam[index[e]]
     return status
-
-
-@inline
-def crosses(direction, g0, g1):
-    """``viz3d.integrators.adaptive.crosses``."""
-    rising = g0 < 0.0 <= g1
-    falling = g0 > 0.0 >= g1
-    if direction > 0:
-        return rising
-    if direction < 0:
-        return falling
-    return rising or falling
-
-
-@inline
-def armed(direction, g):
-    """``viz3d.integrators.adaptive.armed``."""
-    if direction > 0:
-        return g < 0.0
-    if direction < 0:
-        return g > 0.0
-    return g != 0.0
-
-
-@inline
-def _cubic(s, g0, m0, g1, m1):
-    """``viz3d.integrators.adaptive._cubic``: its operations in its order."""
-    u2 = (1.0 - s) * (1.0 - s)
-    h00, h10 = (1.0 + 2.0 * s) * u2, s * u2
-    h01, h11 = s * s * (3.0 - 2.0 * s), s * s * (s - 1.0)
-    return h00 * g0 + h10 * m0 + h01 * g1 + h11 * m1
-
-
-@jit
-def hermite_extrema(g0, m0, g1, m1, rounding):
-    """``viz3d.integrators.adaptive.hermite_extrema`` (its operations in its order, so the same
-    points; ``rounding`` its ``CUBIC_ROUNDOFF * EPS``): ``(s_lo, p_lo, s_hi, p_hi)``, -1 (and 0)
-    for none."""
-    tol = rounding * (abs(g0) + abs(m0) + abs(g1) + abs(m1))
-    s_lo, p_lo, s_hi, p_hi = -1.0, 0.0, -1.0, 0.0
-    a = 2.0 * (g0 - g1) + m0 + m1
-    b = 3.0 * (g1 - g0) - 2.0 * m0 - m1
-    disc = b * b - 3.0 * a * m0
-    if not disc >= 0.0:
-        return s_lo, p_lo, s_hi, p_hi
-    q = -(b + math.copysign(math.sqrt(disc), b))
-    if q == 0.0:
-        return s_lo, p_lo, s_hi, p_hi
-    r1 = m0 / q
-    r2 = q / (3.0 * a) if a != 0.0 else -1.0
-    for s in (min(r1, r2), max(r1, r2)):
-        p = _cubic(s, g0, m0, g1, m1) if 0.0 < s < 1.0 else 0.0
-        if abs(p) > tol:
-            if s_lo < 0.0:
-                s_lo, p_lo = s, p
-            else:
-                s_hi, p_hi = s, p
-    return s_lo, p_lo, s_hi, p_hi
 
 
 @inline
@@ -372,13 +316,12 @@ def _brent_step(x_pre, x_cur, x_blk, g_pre, g_cur, g_blk, s_pre, s_cur, s_bis, d
 
 
 @jit
-def _first_event(t, h, y, f, y1, f1, chart, ctrl, kind, index, floor, direction, g0, g1, m, v, w, forces, rows,
+def _first_event(t, t1, y, f, y1, f1, chart, ctrl, kind, index, floor, direction, g0, g1, m, v, w, forces, rows,
                  geometry, gap_out, ydot, yh):
     """``viz3d.integrators.adaptive.first_event`` over the step from ``(t, y)`` (field ``f``) to
-    ``(t + h, y1)`` (field ``f1``), the event values and rates ``g0`` and ``g1`` (E, 2) at its ends,
+    ``(t1, y1)`` (field ``f1``), the event values and rates ``g0`` and ``g1`` (E, 2) at its ends,
     no event fresh: (row, time, status) of the earliest crossing, the first row of the earliest
     time; row -1 when the cubic's crossing is not on the interpolant (``_bracket`` finds none on it)."""
-    t1 = t + h
     xtol = ctrl[EV_XTOL] * (t1 - t) + 1e-300
     best, t_best = -1, t1
     for e in range(kind.shape[0]):
@@ -482,16 +425,17 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
 
 
 @entry
-def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal,
-                    P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
+def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc,
+                    fsal, P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
                     rec_err, n_rec, m, v, w, forces, rows, geometry,
                     y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1, y_cut,
                     k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, yh, Y, charts, Ts):
     """Up to ``n_frames`` output frames, ``every`` samples apart, of an adaptive run (the carry in
     place, see the module docstring): sample ``i`` of the run is at ``t_start + i dt``, the first
-    here is ``n0 + 1``. Frame ``f``'s time, state and chart go to ``Ts[f]``, ``Y[f]``,
-    ``charts[f]``. ``contact_mode``: the sampling of a run with contacts (``Simulation._event_steps``:
-    no projection or check of samples, the inner state itself within round-off of the output time)
+    here is ``n0 + 1``; no step goes past ``t_end`` (``Simulation.t_end``). Frame ``f``'s time,
+    state and chart go to ``Ts[f]``, ``Y[f]``, ``charts[f]``. ``contact_mode``: the sampling of a
+    run with contacts (``Simulation._event_steps``: no projection or check of samples, the inner
+    state itself within round-off of the output time)
     and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``; with
     ``record`` every accepted step goes to the step records (module docstring).
 
@@ -511,7 +455,7 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, contact_mode, max_speed, m
                     break
                 if record and n_rec[0] == rec_t.shape[0]:
                     return frame, sample, FULL
-                status = _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
+                status = _commit_step(t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
                                       ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f,
                                       times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
                                       chart1, sw, gap_out, g0, g1, yh)
@@ -585,12 +529,12 @@ def _unit_parameters(n_rot, n_frames, y):
 
 
 @jit
-def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor, ev_dir,
-                 m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0, chart0, K, f1,
-                 y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
-    """One accepted step from the inner state (cut at the first contact event it crosses:
-    ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the carry only
-    when nothing needs Python (see the module docstring)."""
+def _commit_step(t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor,
+                 ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0, chart0, K,
+                 f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
+    """One accepted step from the inner state, not past ``t_end`` (cut at the first contact event it
+    crosses: ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the
+    carry only when nothing needs Python (see the module docstring)."""
     t = times[T]
     if flags[HAS_F] == 0:
         status = evaluate(t, y, chart, m, v, w, forces, rows, f)
@@ -598,41 +542,42 @@ def _commit_step(contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, 
             return status
         flags[HAS_F] = 1  # the field at the inner state, kept whatever follows (as Simulation._f)
         counts[EVALS] += 1
-    h, h_next, n_rejected, status = accepted_step(t, y, chart, f, min(times[H], ctrl[2]), ctrl, ta, tb, te, tc, m, v,
-                                                  w, forces, rows, k, yi, y1, err)
+    h, h_next, n_rejected, status = accepted_step(t, y, chart, f, step_to_try(times[H], ctrl[2], t, t_end), ctrl, ta,
+                                                  tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
     if status != OK:
         return status
+    t1 = step_end(t, h, t_end)
     n_evals = (n_rejected + 1) * (tb.shape[0] - 1)
     if fsal:
         _copy(f1, k[tb.shape[0] - 1])
     else:
         n_evals += 1
-        status = evaluate(t + h, y1, chart, m, v, w, forces, rows, f1)
+        status = evaluate(t1, y1, chart, m, v, w, forces, rows, f1)
         if status != OK:
             return status
     if contact_mode:
-        status = _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, ctrl[EV_ROUNDING], m, v, w,
+        status = _event_crossed(t, t1, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, ctrl[EV_ROUNDING], m, v, w,
                                 forces, rows, geometry, gap_out, yi, g0, g1)
         if status == EVENT:  # cut and committed (EVENT), a failure, or no crossing on the interpolant (OK)
-            status = _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
+            status = _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
                                    ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times,
                                    flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw,
                                    gap_out, g0, g1, yh)
         if status != OK:
             return status
-    status = _settled(t + h, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
+    status = _settled(t1, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
     if status != OK:
         return status
-    _commit(t, t + h, h, h_next, n_rejected, n_evals, 0, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
+    _commit(t, t1, h, h_next, n_rejected, n_evals, 0, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
             chart0, K, f1, k, yi, chart1, sw)
     return OK
 
 
 @jit
-def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index,
+def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index,
                   ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0,
                   chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
-    """The accepted step from ``(t, y)`` to ``(t + h, y1)`` (``h_next`` proposed after it, ``n_rejected``
+    """The accepted step from ``(t, y)`` to ``(t1, y1)`` (``h_next`` proposed after it, ``n_rejected``
     trials and ``n_evals`` evaluations before it), over which an event function changes sign, cut
     as ``Simulation._event_step`` cuts it: the first event located (``_first_event``), the step
     redone from ``(t, y)`` to it (its own error estimate into ``err``, its end field into ``f1``),
@@ -640,7 +585,7 @@ def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te
     limit, no field kept: the event's handler changes the state). Returns ``EVENT``, ``OK`` when no
     crossing is on the interpolant after all (nothing committed, the step stands), or the status of
     what failed (nothing committed)."""
-    e, t_ev, status = _first_event(t, h, y, f, y1, f1, chart, ctrl, ev_kind, ev_index, ev_floor, ev_dir, g0, g1, m, v,
+    e, t_ev, status = _first_event(t, t1, y, f, y1, f1, chart, ctrl, ev_kind, ev_index, ev_floor, ev_dir, g0, g1, m, v,
                                    w, forces, rows, geometry, gap_out, yi, yh)
     if status != OK or e < 0:
         return status
@@ -667,9 +612,9 @@ def _cut_at_event(t, h, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te
 
 
 @jit
-def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, rounding, m, v, w, forces, rows, geometry,
+def _event_crossed(t, t1, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, rounding, m, v, w, forces, rows, geometry,
                    gap_out, scratch, g0, g1):
-    """``EVENT`` when an event function may cross between ``(t, y)`` and ``(t + h, y1)``, both in the
+    """``EVENT`` when an event function may cross between ``(t, y)`` and ``(t1, y1)``, both in the
     step's ``chart`` (as ``Simulation._event_step`` evaluates them): its signs at the ends and at its
     cubic's extrema show a crossing (``_bracket``); else ``OK``, or the status of a failed
     evaluation. The values and rates at the ends go to ``g0``, ``g1`` (E, 2)."""
@@ -679,13 +624,13 @@ def _event_crossed(t, h, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, roun
                           g0)
     if status != OK:
         return status
-    status = event_values(t + h, y1, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out,
+    status = event_values(t1, y1, chart, ev_kind, ev_index, ev_floor, m, v, w, forces, rows, geometry, gap_out,
                           scratch, g1)
     if status != OK:
         return status
     for e in range(ev_kind.shape[0]):
-        s_lo, t_lo, p_lo, s_hi, t_hi, p_hi = _extrema_times(t, t + h, g0[e], g1[e], rounding)
-        if _bracket(ev_dir[e], t, g0[e, 0], s_lo, t_lo, p_lo, s_hi, t_hi, p_hi, t + h, g1[e, 0])[0]:
+        s_lo, t_lo, p_lo, s_hi, t_hi, p_hi = _extrema_times(t, t1, g0[e], g1[e], rounding)
+        if _bracket(ev_dir[e], t, g0[e, 0], s_lo, t_lo, p_lo, s_hi, t_hi, p_hi, t1, g1[e, 0])[0]:
             return EVENT
     return OK
 
