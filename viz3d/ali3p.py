@@ -243,35 +243,40 @@ def _held(system: System, state: State, dx: FloatArray, h: float) -> tuple:
 def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
     """The iteration (``_iterate``) with the forces' branches ``held`` (``_held``), then, at its
     converged point, the check against the forces found there: the difference of the two Newton
-    updates there (the solution's shift, to first order) within the tolerance, or the iteration goes
-    on from that point with the branches found there held (``MAX_SET_UPDATES`` times at most; then the
-    reason names what changed, and where). ``(result, evaluations)``, the result a ``_Converged`` or
+    updates there (the solution's shift, to first order, overestimated where the iteration matrix
+    lacks a contact's stiffness) within the tolerance, or the iteration goes on from that point with
+    the branches found there held, until it moves the solution by less than the tolerance
+    (``MAX_SET_UPDATES`` times at most; then the reason names what changed, and where). ``(result, evaluations)``, the result a ``_Converged`` or
     a reason string. An active set strategy, as implicit contact methods take it."""
     dx, lam, evals = _predictor(state, memory, h), memory.lam, 0
     search = held is not state.element_memory
-    for _ in range(MAX_SET_UPDATES + 1):
+    for update in range(MAX_SET_UPDATES + 1):
         result, n = _iterate(system, formulation, state, h, memory, exact_ok, dx, lam, held, search)
         evals += n
         if not isinstance(result, _Converged) or not search:
             return result, evals
+        if update and np.max(np.abs(result.dx - dx)) <= formulation.tol:
+            return result, evals  # the branches found at the last solution moved it by less than tol
         found = _point(system, state, memory.v_dot, result.dx, h, state.t + h, result.p.M, state.element_memory)
         evals += 1
         shift = result.lu.solve(0.25 * h * h * (result.p.Q - found.Q))
         if np.max(np.abs(shift), initial=0.0) <= formulation.tol:
             return result, evals
-        change = _change(system, state, result.dx, h, held)
+        change = _change(system, state, result.dx, h, held, ROUND_OFF_FACTOR * formulation.tol)
+        if not change:  # the same branches, the held contacts' depths those found to the narrow phase's
+            return result, evals  # resolution (a face on a face: which witness points is arbitrary)
         dx, lam, held = result.dx, result.lam, _held(system, state, result.dx, h)
     return (f"the contact set did not settle in {MAX_SET_UPDATES} updates at t = {state.t + h:.6g} s: {change}, "
             f"moving the solution by {np.max(np.abs(shift)):.2e}"), evals
 
 
-def _change(system: System, state: State, dx: FloatArray, h: float, held: tuple) -> str:
+def _change(system: System, state: State, dx: FloatArray, h: float, held: tuple, tol: float) -> str:
     """What the elements with branches find at the trial point of ``dx`` that differs from what they
-    ``held`` (``ForceElement.frozen_change``)."""
+    ``held``, beyond positions within ``tol`` [m] (``ForceElement.frozen_change``); '' if nothing."""
     cfg = body_state(system, retract(system, state.q, dx, state.chart), 2.0 / h * dx - state.v, state.chart,
                      state.t + h)
-    said = [e.frozen_change(cfg, m) for e, m in zip(system.forces, held) if e.branches]
-    return "; ".join(s for s in said if s) or "no change of the contacts found"
+    said = [e.frozen_change(cfg, m, tol) for e, m in zip(system.forces, held) if e.branches]
+    return "; ".join(s for s in said if s)
 
 
 def failure(state: State, h: float, reason: str) -> Status:

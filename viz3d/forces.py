@@ -79,9 +79,9 @@ class ForceElement(ABC):
         engaged); the others evaluate with their ``memory`` unchanged."""
         return memory
 
-    def frozen_change(self, cfg: Configuration, frozen) -> str:
-        """What differs at ``cfg`` between the element's own choices and those held in ``frozen``
-        (from ``self.frozen``), for a diagnosis; '' when nothing does."""
+    def frozen_change(self, cfg: Configuration, frozen, tol: float = 0.0) -> str:
+        """What differs at ``cfg`` between the element's own branches and those held in ``frozen``
+        (from ``self.frozen``), beyond positions within ``tol`` [m]; '' when nothing does."""
         return ""
 
     def coupled_bodies(self) -> IntArray | None:
@@ -554,7 +554,7 @@ class JointStop(JointCoordinateForce):
         spring = np.where(side != 0, -self.stiffness * delta, 0.0)
         return spring - self.damping * q_dot * (side != 0), spring
 
-    def frozen_change(self, cfg, side) -> str:
+    def frozen_change(self, cfg, side, tol: float = 0.0) -> str:
         now = self.frozen(cfg, None)
         moved = [f"{n!r} {'released' if b == 0 else 'engaged'}" for n, a, b in zip(self.names, side, now) if a != b]
         return ("stops " + ", ".join(moved)) if moved else ""

@@ -878,27 +878,28 @@ class Collisions(ForceElement):
         F = self._evaluate(cfg, tc, memory, match)[2]
         return FrozenTouches(tc.shape, tc.body, tc.law, A_r, B_r, B_n, match, F > 0.0, memory)
 
-    def frozen_change(self, cfg: Configuration, frozen: FrozenTouches) -> str:
+    def frozen_change(self, cfg: Configuration, frozen: FrozenTouches, tol: float = 0.0) -> str:
         """What differs at ``cfg`` between the contacts found and those held in ``frozen`` ('' if
-        nothing): the pairs of shapes whose number of touching contacts differs, else the pair whose
-        depths differ most (a contact moved to another face)."""
+        nothing): the pairs of shapes whose number of pushing contacts differs, else the pair whose
+        depths differ most (a contact moved to another face, or to other witness points), if by more
+        than ``tol`` [m]."""
         live, held = self.detect(cfg), frozen.at(cfg)
-        held_on = held.depth > 0.0
-        pairs = sorted({tuple(p) for p in live.shape} | {tuple(p) for p in held.shape[held_on]})
+        live_on = self.evaluate(cfg)[2] > 0.0
+        held_on = (held.depth > 0.0) & frozen.active
+        pairs = sorted({tuple(p) for p in live.shape[live_on]} | {tuple(p) for p in held.shape[held_on]})
         if not pairs:
             return ""
-        count = [(int(np.all(live.shape == p, axis=1).sum()), int(np.all(held.shape[held_on] == p, axis=1).sum()))
-                 for p in pairs]
+        count = [(int(np.all(live.shape[live_on] == p, axis=1).sum()),
+                  int(np.all(held.shape[held_on] == p, axis=1).sum())) for p in pairs]
         name = [f"{self.shapes[i].name!r}-{self.shapes[j].name!r}" for i, j in pairs]
         changed = [f"{n} {'began' if h == 0 else 'ended' if c == 0 else f'{h} -> {c} contacts'}"
                    for n, (c, h) in zip(name, count) if c != h]
         if changed:
             return "contacts " + ", ".join(changed)
-        gap = [abs(live.depth[np.all(live.shape == p, axis=1)].sum() - held.depth[held_on & np.all(held.shape == p,
-                                                                                                   axis=1)].sum())
-               for p in pairs]
+        gap = [abs(live.depth[live_on & np.all(live.shape == p, axis=1)].sum()
+                   - held.depth[held_on & np.all(held.shape == p, axis=1)].sum()) for p in pairs]
         k = int(np.argmax(gap))
-        return f"contacts {name[k]} moved (depths differ by {gap[k]:.2e} m)"
+        return f"contacts {name[k]} moved (depths differ by {gap[k]:.2e} m)" if gap[k] > tol else ""
 
     def compiled(self, pack):
         """The element packed for the compiled kernel (``viz3d.kernel.collisions``, through the packer:
