@@ -84,3 +84,21 @@ def test_held_contacts_are_those_found_where_they_were_held(tmp_path):
     q[2] -= 2e-4
     lower = body_state(system, q, state.v, state.chart, state.t)
     assert held.at(lower).depth[0] == pytest.approx(1e-3 + 2e-4, abs=1e-15)
+
+
+def test_a_change_of_the_held_contacts_is_named(tmp_path):
+    """``frozen_change`` names the pair whose contact began or ended since the contacts were held, and
+    nothing where the held contact is the one found (only deeper)."""
+    system, state = _sphere(tmp_path, R - 1e-3)
+    collisions = system.forces[-1]
+    name = f"{'ball'!r}-{collisions.shapes[-1].name!r}"
+
+    def cfg_at(z):
+        q = state.q.copy()
+        q[2] = z
+        return body_state(system, q, state.v * 0.0, state.chart, state.t)
+
+    touching, apart = collisions.frozen(cfg_at(R - 1e-3), None), collisions.frozen(cfg_at(R + 1e-3), None)
+    assert collisions.frozen_change(cfg_at(R - 2e-3), touching) == ""
+    assert collisions.frozen_change(cfg_at(R + 1e-3), touching) == f"contacts {name} ended"
+    assert collisions.frozen_change(cfg_at(R - 1e-3), apart) == f"contacts {name} began"

@@ -885,7 +885,7 @@ class Collisions(ForceElement):
         than ``tol`` [m]."""
         live, held = self.detect(cfg), frozen.at(cfg)
         live_on = self.evaluate(cfg)[2] > 0.0
-        held_on = (held.depth > 0.0) & frozen.active
+        held_on = frozen.active  # (an active contact that separated pulls: it ended)
         pairs = sorted({tuple(p) for p in live.shape[live_on]} | {tuple(p) for p in held.shape[held_on]})
         if not pairs:
             return ""
