@@ -246,8 +246,10 @@ def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
     updates there (the solution's shift, to first order, overestimated where the iteration matrix
     lacks a contact's stiffness) within the tolerance, or the iteration goes on from that point with
     the branches found there held, until it moves the solution by less than the tolerance
-    (``MAX_SET_UPDATES`` times at most; then the reason names what changed, and where). ``(result, evaluations)``, the result a ``_Converged`` or
-    a reason string. An active set strategy, as implicit contact methods take it."""
+    (``MAX_SET_UPDATES`` times at most; then the reason names what changed, and where). Branches found
+    unchanged, with held contacts as deep as those found to ``ROUND_OFF_FACTOR * tol``, settle it too.
+    ``(result, evaluations)``, the result a ``_Converged`` or a reason string. An active-set strategy,
+    as implicit contact methods take it."""
     dx, lam, evals = _predictor(state, memory, h), memory.lam, 0
     search = held is not state.element_memory
     for update in range(MAX_SET_UPDATES + 1):
