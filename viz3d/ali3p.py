@@ -30,6 +30,14 @@ O(N) in the number of links, not the O(N^3) of a dense LU; below, dense matrices
 less. The finite-difference tangents difference the columns of bodies that share no neighbour
 together (``viz3d.sparsity``): 2 x 18 + 1 force evaluations on a chain of any length.
 
+Forces with branches (``ForceElement.branches``: shape contacts that touch or not, on one face or
+another, stops engaged or not) would make the residual a non-smooth function of the iterate: a
+contact set that changes between iterates stalls the iteration. A step therefore holds them as they
+are at its predictor (``ForceElement.frozen``: contacts as material points against tangent planes,
+an active set, anchors fixed), iterates on that smooth problem, may take the exact tangent there,
+and checks the branches found at its converged point; where they move the solution by more than
+the tolerance, it iterates again from there with those (``_solve``, ``MAX_SET_UPDATES``).
+
 The method is written here, on NumPy: the reference. When the compiled kernel covers the system,
 ``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``: the attempts of
 a step (``_one_step``) are one compiled call of the same iteration (the same stopping tests,
@@ -70,6 +78,14 @@ STALL_RATE, ROUND_OFF_FACTOR = 0.9, 100.0
 MAX_HALVINGS = 3
 #: Why an attempt failed, besides ``no_convergence`` (the reason in the step's diagnosis).
 NONFINITE_STATE, SINGULAR_MATRIX = "non-finite state", "singular iteration matrix"
+#: A step's iteration holds the branches of the forces that have them (``ForceElement.branches``:
+#: which shape contacts push, on which faces, with which anchors; which stops are engaged) as they
+#: are at its predictor; where those found at the converged configuration move the solution by more
+#: than the tolerance, it is solved again with them, from there: at most this many times (``_solve``).
+MAX_SET_UPDATES = 3
+#: Halvings of an update in a row that an iteration on the exact tangent may take where it overshoots
+#: (systems whose forces have branches: ``_iterate``'s line search).
+MAX_CUTS = 4
 #: Systems up to this many velocity unknowns factor T densely (21 rigid bodies; above, multithreaded
 #: LAPACK on this 2-core machine took 28 ms for the 150 x 150 T of 25 links where SuperLU takes 3.6 ms).
 DENSE_MAX = 128
@@ -124,6 +140,19 @@ class _Point:
     M: object  # sparse (n_v, n_v)
 
 
+@dataclass(frozen=True)
+class _Converged:
+    """A converged iteration: its last trial point and increment ``dx`` (n_v,), multipliers ``lam``
+    (n_c,), the factors ``lu`` of its last iteration matrix and ``W`` (eq. 3.26 without the
+    constraints)."""
+
+    p: _Point
+    dx: FloatArray
+    lam: FloatArray
+    lu: object
+    W: object
+
+
 def init_memory(system: System, formulation, state: State, kernel=None) -> ALI3PMemory:
     """Initial accelerations and multipliers from ``formulation.start`` (the penalty method);
     ``kernel``: a ``viz3d.kernel.ali3p.KernelALI3P`` that takes the steps (None: NumPy)."""
@@ -168,15 +197,88 @@ def _one_step(system: System, formulation, state: State, h: float, memory: ALI3P
     if memory.kernel is not None:
         return memory.kernel.step(system, formulation, state, h, memory)
     with np.errstate(all="ignore"):
+        held = _held(system, state, _predictor(state, memory, h), h)
         for fresh in ((False, True) if memory.K is not None else (True,)):
             if fresh:
-                K, D = force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, state.element_memory)
+                K, D = _force_tangent(system, state, memory, h, held)
                 memory = replace(memory, K=K, D=D, n_evals=memory.n_evals + 2 * len(memory.plan[0]) + 1)
-            result, evals = _iterate(system, formulation, state, h, memory, exact_ok=fresh and smooth_forces(system))
-            if isinstance(result, tuple):
-                return result + (Status.OK,)
+            result, evals = _solve(system, formulation, state, h, memory, held, exact_ok=fresh)
+            if isinstance(result, _Converged):
+                try:
+                    return _finish(system, formulation, state, result, h, memory, evals) + (Status.OK,)
+                except RuntimeError:
+                    result = SINGULAR_MATRIX
             memory = replace(memory, n_evals=memory.n_evals + evals)
     return state, memory, failure(state, h, result)
+
+
+def _force_tangent(system: System, state: State, memory: ALI3PMemory, h: float, held: tuple):
+    """``force_tangent`` at ``state``, or, when the iteration holds some forces' choices (``_held``),
+    with them at the predictor, where they were taken: a contact that begins within the step has no
+    stiffness yet at ``state``."""
+    if held is state.element_memory:
+        return force_tangent(system, state.t, state.q, state.v, state.chart, memory.plan, held)
+    dx = _predictor(state, memory, h)
+    return force_tangent(system, state.t + h, retract(system, state.q, dx, state.chart), 2.0 / h * dx - state.v,
+                         state.chart, memory.plan, held)
+
+
+def _predictor(state: State, memory: ALI3PMemory, h: float) -> FloatArray:
+    """The increment (n_v,) of the trapezoidal rule with ``a1 = a0``: the iteration's first iterate."""
+    return h * state.v + 0.5 * h * h * memory.v_dot
+
+
+def _held(system: System, state: State, dx: FloatArray, h: float) -> tuple:
+    """``state.element_memory`` with the ``branches`` of the force elements held as they are at the
+    trial point of the increment ``dx`` (``ForceElement.frozen``): the forces the iteration
+    evaluates, smooth in the iterate; ``state.element_memory`` itself when no element has branches."""
+    if not any(e.branches for e in system.forces):
+        return state.element_memory
+    q1, t1 = retract(system, state.q, dx, state.chart), state.t + h
+    cfg = body_state(system, q1, 2.0 / h * dx - state.v, state.chart, t1)
+    old = state.element_memory or (None,) * len(system.forces)
+    return tuple(e.frozen(cfg, m) if e.branches else m for e, m in zip(system.forces, old))
+
+
+def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
+    """The iteration (``_iterate``) with the forces' branches ``held`` (``_held``), then, at its
+    converged point, the check against the forces found there: the difference of the two Newton
+    updates there (the solution's shift, to first order, overestimated where the iteration matrix
+    lacks a contact's stiffness) within the tolerance, or the iteration goes on from that point with
+    the branches found there held, until it moves the solution by less than the tolerance
+    (``MAX_SET_UPDATES`` times at most; then the reason names what changed, and where). Branches found
+    unchanged, with held contacts as deep as those found to ``ROUND_OFF_FACTOR * tol``, settle it too.
+    ``(result, evaluations)``, the result a ``_Converged`` or a reason string. An active-set strategy,
+    as implicit contact methods take it."""
+    dx, lam, evals = _predictor(state, memory, h), memory.lam, 0
+    search = held is not state.element_memory
+    for update in range(MAX_SET_UPDATES + 1):
+        result, n = _iterate(system, formulation, state, h, memory, exact_ok, dx, lam, held, search)
+        evals += n
+        if not isinstance(result, _Converged) or not search:
+            return result, evals
+        if update and np.max(np.abs(result.dx - dx)) <= formulation.tol:
+            return result, evals  # the branches found at the last solution moved it by less than tol
+        found = _point(system, state, memory.v_dot, result.dx, h, state.t + h, result.p.M, state.element_memory)
+        evals += 1
+        shift = result.lu.solve(0.25 * h * h * (result.p.Q - found.Q))
+        if np.max(np.abs(shift), initial=0.0) <= formulation.tol:
+            return result, evals
+        change = _change(system, state, result.dx, h, held, ROUND_OFF_FACTOR * formulation.tol)
+        if not change:  # the same branches, the held contacts' depths those found to the narrow phase's
+            return result, evals  # resolution (a face on a face: which witness points is arbitrary)
+        dx, lam, held = result.dx, result.lam, _held(system, state, result.dx, h)
+    return (f"the contact set did not settle in {MAX_SET_UPDATES} updates at t = {state.t + h:.6g} s: {change}, "
+            f"moving the solution by {np.max(np.abs(shift)):.2e}"), evals
+
+
+def _change(system: System, state: State, dx: FloatArray, h: float, held: tuple, tol: float) -> str:
+    """What the elements with branches find at the trial point of ``dx`` that differs from what they
+    ``held``, beyond positions within ``tol`` [m] (``ForceElement.frozen_change``); '' if nothing."""
+    cfg = body_state(system, retract(system, state.q, dx, state.chart), 2.0 / h * dx - state.v, state.chart,
+                     state.t + h)
+    said = [e.frozen_change(cfg, m, tol) for e, m in zip(system.forces, held) if e.branches]
+    return "; ".join(s for s in said if s)
 
 
 def failure(state: State, h: float, reason: str) -> Status:
@@ -197,18 +299,23 @@ def refresh_tangent(evals: int) -> bool:
     return evals > REFRESH_ITER
 
 
-def _iterate(system, formulation, state, h, memory, exact_ok: bool):
-    """Newton-Raphson + multiplier updates, then projections: ``(result, evaluations)``, the
-    result a reason string if it fails. With ``exact_ok``, an iteration that would not converge
-    within ``MAX_ITER`` at its present rate switches to the exact tangent."""
+def _iterate(system, formulation, state, h, memory, exact_ok: bool, dx: FloatArray, lam: FloatArray,
+             elements: tuple, search: bool = False):
+    """Newton-Raphson + multiplier updates from the increment ``dx`` (n_v,) and multipliers ``lam``
+    (n_c,), the force elements evaluated with the memory ``elements``: ``(result, evaluations)``, the
+    result a ``_Converged`` or a reason string if it fails. With ``exact_ok``, an iteration that would
+    not converge within ``MAX_ITER`` at its present rate switches to the exact tangent; with
+    ``search`` (held branches, ``_solve``), an update on it that overshoots is halved (``MAX_CUTS``)."""
     alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
     M = mass_matrix(system, state)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
-    lam = memory.lam.copy()
-    dx = h * state.v + 0.5 * h * h * memory.v_dot          # predictor: a1 = a0
-    lu, step, prev, exact, evals = None, np.inf, np.inf, False, 0
+    lam = lam.copy()
+    lu, step, prev, exact, evals, last, cuts = None, np.inf, np.inf, False, 0, None, 0
     for it in range(MAX_ITER):
-        p = _point(system, state, memory.v_dot, dx, h, t1, M)
+        try:
+            p = _point(system, state, memory.v_dot, dx, h, t1, M, elements)
+        except OverflowError:  # a diverging iterate (force laws on math's exp)
+            return NONFINITE_STATE, evals + 1
         evals += 1
         if not (np.all(np.isfinite(p.C)) and np.all(np.isfinite(p.Q))):
             return NONFINITE_STATE, evals
@@ -217,10 +324,7 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
             lam += alpha * p.C
             rate = step / prev if np.isfinite(prev) else np.inf
             if small_update(step, rate, tol) and np.max(np.abs(p.C), initial=0.0) <= tol:
-                try:
-                    return _finish(system, formulation, state, p, W, h, t1, lam, memory, evals), evals
-                except RuntimeError:
-                    return SINGULAR_MATRIX, evals
+                return _Converged(p, dx, lam, lu, W), evals
         prev = step
         residual = _residual(p, alpha, lam, h)
         if lu is None:
@@ -231,13 +335,20 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool):
         elif exact_ok and (exact or it >= 3) and rate > SLOW_RATE and (exact or too_slow(step, rate, tol, MAX_ITER - it)):
             # slow: Newton on the exact tangent (turning joint arms, rotation kinematics,
             # gyroscopic terms), rebuilt at every iterate while the contraction stays slow
-            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan)
+            tangent = _residual_tangent(system, state, memory.v_dot, dx, h, t1, M, alpha, lam, residual, memory.plan,
+                                        elements)
             evals += len(memory.plan[0])
             try:
                 lu, exact = _factor(_matrix(tangent)), True
             except RuntimeError:  # a singular difference tangent: go on with the approximate one
                 exact_ok = False
         ddx = lu.solve(-residual)
+        if search and exact and np.max(np.abs(ddx)) > SLOW_RATE * step and cuts < MAX_CUTS:
+            # the exact tangent's update overshot (a friction law steep near sticking, a kink): back
+            # half-way along the update that led here (a backtracking line search)
+            ddx, last, cuts = -0.5 * last, 0.5 * last, cuts + 1
+        else:
+            last, cuts = ddx, 0
         step = np.max(np.abs(ddx))
         dx = dx + ddx
     return no_convergence(step, np.max(np.abs(p.C), initial=0.0)), evals
@@ -254,12 +365,12 @@ def small_update(step: float, rate: float, tol: float) -> bool:
             or (rate >= STALL_RATE and step <= ROUND_OFF_FACTOR * tol))
 
 
-def _finish(system, formulation, state, p: _Point, W, h, t1, lam, memory, evals: int) -> tuple[State, ALI3PMemory]:
+def _finish(system, formulation, state, done: _Converged, h, memory, evals: int) -> tuple[State, ALI3PMemory]:
     """Project velocities (eq. 3.27, with the drives' explicit rate ``C_t``: ``C_v v = -C_t``) and
     accelerations (eq. 3.28) with the matrix ``W + h^2/4 alpha C_v^T C_v`` at the converged
     positions. A step that needed more than ``REFRESH_ITER`` evaluations rebuilds the force tangent
     for the next."""
-    alpha = formulation.alpha
+    alpha, p, W, lam, t1 = formulation.alpha, done.p, done.W, done.lam, state.t + h
     T = _factor(W + 0.25 * h * h * alpha * (p.Cv.T @ p.Cv))
     C_t = _rows(system, p.q, p.v, state.chart, t1)[0]
     v = T.solve(W @ p.v if C_t is None else W @ p.v - 0.25 * h * h * alpha * (p.Cv.T @ C_t))
@@ -304,9 +415,11 @@ def _factor(A):
 
 def smooth_forces(system: System) -> bool:
     """Are the applied forces smooth in the positions? Not with shape contacts (a force element with
-    ``smooth = False``): their contact sets change between iterates, a difference tangent taken
-    across such a change sends Newton's iterate anywhere (through a thin triangle surface, where
-    the residual has a spurious root), so their steps keep the approximate tangent."""
+    ``smooth = False``): their contact sets change between nearby configurations, and a difference
+    tangent taken across such a change sends Newton's iterate anywhere (through a thin triangle
+    surface, where the residual has a spurious root). Here their contacts are held fixed during an
+    iteration (``_held``, ``_solve``), which may then take the exact tangent; the compiled steps
+    take only smooth systems without branches."""
     return all(e.smooth for e in system.forces)
 
 
@@ -322,12 +435,12 @@ def _residual(p: _Point, alpha, lam, h) -> FloatArray:
     return 0.25 * h * h * (p.M @ p.a + p.Cv.T @ (alpha * p.C + lam) - p.Q)
 
 
-def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan):
+def _residual_tangent(system, state, a0, dx, h, t1, M, alpha, lam, r0, plan, elements: tuple):
     """``d residual / d dx`` at fixed multipliers by forward differences, sparse (n_v, n_v), columns
     grouped by ``plan`` (``viz3d.sparsity``): everything the seed's tangent (eq. 3.26) leaves out
     (the geometric stiffness of the constraint forces, the rotation kinematics, gyroscopic terms at
     the iterate) is in it."""
-    return grouped_fd_jacobian(lambda x: _residual(_point(system, state, a0, x, h, t1, M), alpha, lam, h),
+    return grouped_fd_jacobian(lambda x: _residual(_point(system, state, a0, x, h, t1, M, elements), alpha, lam, h),
                                dx, r0, *plan, FD_REL * np.maximum(np.abs(dx), 1.0))
 
 
@@ -363,15 +476,16 @@ def force_tangent(system: System, t: float, q: FloatArray, v: FloatArray, chart:
     return _matrix(K), _matrix(D)
 
 
-def _point(system: System, state: State, a0, dx, h: float, t1: float, M) -> _Point:
+def _point(system: System, state: State, a0, dx, h: float, t1: float, M, elements: tuple) -> _Point:
     """The trial point of the increment ``dx`` (n_v,) from ``state`` with accelerations ``a0``; ``M``:
-    the constant mass matrix of a rigid system (flexible ones carry their own)."""
+    the constant mass matrix of a rigid system (flexible ones carry their own); ``elements``: the
+    force elements' memory (``state.element_memory``, or held by ``_held``)."""
     q1 = retract(system, state.q, dx, state.chart)
     v1 = 2.0 / h * dx - state.v
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
     cfg = body_state(system, q1, v1, state.chart, t1)
     C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
-    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=state.element_memory))
+    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=elements))
     if system.n_elastic:
         M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
     return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)

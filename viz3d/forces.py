@@ -42,8 +42,12 @@ class ForceElement(ABC):
 
     type_name: ClassVar[str]
     #: Forces smooth in the positions (False: shape contacts, whose contact sets change between
-    #: nearby configurations, so a difference tangent across a change misleads Newton; ``viz3d.ali3p``).
+    #: nearby configurations, so a difference tangent across a change misleads Newton; ``viz3d.ali3p``
+    #: holds their contact sets fixed within a step's iteration with ``frozen``).
     smooth: ClassVar[bool] = True
+    #: Its force has branches (a contact touching or not, a stop engaged or not) with a kink or a jump
+    #: between them; ``frozen`` holds them for an implicit step's iteration (``viz3d.ali3p``).
+    branches: ClassVar[bool] = False
     #: Its non-potential power is a loss (dampers, stops, drag, contact damping and friction): the
     #: energy ledger books it as dissipated, not as (negative) work in (``viz3d.dynamics.aux_rates``).
     dissipative: ClassVar[bool] = False
@@ -66,6 +70,19 @@ class ForceElement(ABC):
         """The element's memory after an accepted step that ends at ``cfg``, from the one it carried
         during the step (None at the start of a run); elements without memory: None."""
         return None
+
+    def frozen(self, cfg: Configuration, memory):
+        """The memory to evaluate this element with near ``cfg`` with its ``branches`` held as they
+        are at ``cfg`` (``viz3d.ali3p``: one step's Newton iteration), so that its force is smooth
+        there; ``memory``: the element's own (``State.element_memory``). Elements with branches
+        override it (shape contacts: which contacts push, their faces and anchors; stops: which are
+        engaged); the others evaluate with their ``memory`` unchanged."""
+        return memory
+
+    def frozen_change(self, cfg: Configuration, frozen, tol: float = 0.0) -> str:
+        """What differs at ``cfg`` between the element's own branches and those held in ``frozen``
+        (from ``self.frozen``), beyond positions within ``tol`` [m]; '' when nothing does."""
+        return ""
 
     def coupled_bodies(self) -> IntArray | None:
         """Pairs of bodies (k, 2) whose coordinates each other's forces from this element depend on
@@ -434,9 +451,10 @@ class JointCoordinateForce(ForceElement):
             q[k], q_dot[k] = values[j, c], rates[j, c]
         return q, q_dot
 
-    def wrench(self, cfg):
+    def wrench(self, cfg, memory=None):
+        """(``ForceElement.wrench``; ``memory``: branches held by ``frozen``, when the element has them.)"""
         q, q_dot = self.coordinates(cfg)
-        f, _ = self.effort(cfg.t, q, q_dot)
+        f, _ = self.effort(cfg.t, q, q_dot) if memory is None else self.held_effort(q, q_dot, memory)
         F, tau = np.zeros_like(cfg.pose.W_r), np.zeros_like(cfg.pose.W_r)
         axes = {id(js): js.axes(cfg.pose.R_WB) for js in self.joints}  # once per joint set
         for k, (js, j) in enumerate(zip(self.joints, self.index)):
@@ -515,10 +533,31 @@ class JointStop(JointCoordinateForce):
 
     type_name = "joint_stop"
     dissipative = True
+    branches = True
     lower: FloatArray = field(default=None)
     upper: FloatArray = field(default=None)
     stiffness: FloatArray = field(default=None)
     damping: FloatArray = field(default=None)
+
+    def frozen(self, cfg, memory) -> IntArray:
+        """The stops engaged at ``cfg`` (k,): +1 on ``upper``, -1 on ``lower``, 0 none (those whose
+        clipped force is not zero): ``held_effort`` then gives their spring-damper unclipped, smooth
+        across the limit and the clipping."""
+        q, q_dot = self.coordinates(cfg)
+        f, _ = self.effort(cfg.t, q, q_dot)
+        return np.sign(self._penetration(q)).astype(int) * (f != 0.0)
+
+    def held_effort(self, q: FloatArray, q_dot: FloatArray, side: IntArray) -> tuple[FloatArray, FloatArray]:
+        """``effort`` with the stops engaged on ``side`` (``frozen``): ``-k (q - q_lim) - c q_dot`` there,
+        pulling too, zero elsewhere."""
+        delta = q - np.where(side > 0, self.upper, self.lower)
+        spring = np.where(side != 0, -self.stiffness * delta, 0.0)
+        return spring - self.damping * q_dot * (side != 0), spring
+
+    def frozen_change(self, cfg, side, tol: float = 0.0) -> str:
+        now = self.frozen(cfg, None)
+        moved = [f"{n!r} {'released' if b == 0 else 'engaged'}" for n, a, b in zip(self.names, side, now) if a != b]
+        return ("stops " + ", ".join(moved)) if moved else ""
 
     def _penetration(self, q: FloatArray) -> FloatArray:
         """``q - upper`` above, ``q - lower`` below, zero inside."""

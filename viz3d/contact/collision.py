@@ -245,7 +245,8 @@ class Touches:
     n : ndarray, shape (m, 3)
         Unit normal from B towards A.
     depth : ndarray, shape (m,)
-        Penetration depth ``alpha > 0`` [m].
+        Penetration depth ``alpha`` [m]: > 0 where found (``FrozenTouches.at``: any sign, no force
+        where <= 0).
     """
 
     shape: IntArray
@@ -284,6 +285,63 @@ class StickAnchors:
     @property
     def n(self) -> int:
         return len(self.shape)
+
+
+@dataclass(frozen=True)
+class FrozenTouches:
+    """The contacts found at one configuration, held fixed for evaluations near it (m of them): the
+    memory an implicit step's Newton iteration evaluates the shape contacts with
+    (``Collisions.frozen``, ``viz3d.ali3p``), so that their forces are smooth in the iterate. Each
+    contact is a material point of A (its witness, the deepest point) against the tangent plane of
+    B at B's witness point; at a configuration
+
+        p_A = W_r_A + R_WA A_r,   p_B = W_r_B + R_WB B_r,   n = R_WB B_n,   depth = (p_B - p_A) . n,
+
+    the point their middle. Exact while a vertex or flat face of A stays on the same face of B, to
+    second order in the motion for curved ones. Which contacts push is held too (an active set):
+    an active one carries its law's force without the clipping at zero (``force_unclipped``: the
+    clipped force has a kink where a rate law's damping cancels it), continued as an odd function
+    of the depth where it separates (``sign(depth) F(|depth|)``, smooth through 0 for exponents
+    >= 1): it may pull, which the iteration's check at its converged point sees; the others carry
+    none. The bristles' anchors, and each contact's match among them, are fixed
+    as well.
+
+    Attributes
+    ----------
+    shape, body : ndarray of int, shape (m, 2)
+        Shapes and bodies A and B.
+    law : ndarray of int, shape (m,)
+        Index into ``Collisions.laws``.
+    A_r, B_r : ndarray, shape (m, 3)
+        The witness points, each in its body's axes from its frame origin (ground: world) [m].
+    B_n : ndarray, shape (m, 3)
+        The unit normal from B towards A in B's axes.
+    match : ndarray of int, shape (m,)
+        Each contact's entry in ``anchors`` (``Collisions.match``), -1: none.
+    active : ndarray of bool, shape (m,)
+        The contacts that push (their clipped force > 0 where they were found).
+    anchors : StickAnchors or None
+        The element's memory of the step (bristle friction's stick anchors).
+    """
+
+    shape: IntArray
+    body: IntArray
+    law: IntArray
+    A_r: FloatArray
+    B_r: FloatArray
+    B_n: FloatArray
+    match: IntArray
+    active: np.ndarray
+    anchors: StickAnchors | None = None
+
+    def at(self, cfg: Configuration) -> Touches:
+        """The contacts at ``cfg`` (depths may be <= 0)."""
+        W_r, R = cfg.pose.W_r, cfg.pose.R_WB
+        a, b = self.body[:, 0], self.body[:, 1]
+        p_A = W_r[a] + np.einsum("kij,kj->ki", R[a], self.A_r)
+        p_B = W_r[b] + np.einsum("kij,kj->ki", R[b], self.B_r)
+        n = np.einsum("kij,kj->ki", R[b], self.B_n)
+        return Touches(self.shape, self.body, self.law, 0.5 * (p_A + p_B), n, np.einsum("ki,ki->k", p_B - p_A, n))
 
 
 def _world_box(s: Shape) -> tuple[FloatArray, FloatArray]:
@@ -346,6 +404,7 @@ class Collisions(ForceElement):
     #: The live viewer's plot of this element: (title, frame scalar).
     live_plot: ClassVar[tuple[str, str]] = ("Shape contacts: normal force [N]", "collision/normal_force")
     smooth: ClassVar[bool] = False
+    branches: ClassVar[bool] = True
     shapes: tuple[Shape, ...]
     groups: tuple[str, ...]
     pair_law: IntArray
@@ -637,20 +696,28 @@ class Collisions(ForceElement):
 
         return hertz_stiffness(pl.hertz_modulus, 1.0 / self._world()["curvature"][tc.shape[mask]].sum(axis=1))
 
-    def evaluate(self, cfg: Configuration, touches: Touches | None = None, memory: StickAnchors | None = None):
+    def evaluate(self, cfg: Configuration, touches: Touches | None = None,
+                 memory: StickAnchors | FrozenTouches | None = None):
         """``(touches, alpha_dot (m,), F (m,), F_el (m,), f (m, 3), v_t (m, 3))``: indentation rates, normal
         forces, their elastic parts, the total force on A and the slip velocities; ``memory``: the stick
-        anchors of bristle friction (None: every contact without deflection)."""
+        anchors of bristle friction (None: every contact without deflection), or the contacts held
+        fixed by ``frozen`` (with their anchors)."""
         if touches is None:  # the forces and the ledger's power of one evaluation: evaluated once
             last = self._cache.get("evaluated")
             if last is not None and last[0] is cfg and last[1] is memory:
                 return last[2]
-            out = self._evaluate(cfg, self.detect(cfg), memory)
+            if isinstance(memory, FrozenTouches):
+                out = self._evaluate(cfg, memory.at(cfg), memory.anchors, memory.match, memory.active)
+            else:
+                out = self._evaluate(cfg, self.detect(cfg), memory)
             self._cache["evaluated"] = (cfg, memory, out)
             return out
         return self._evaluate(cfg, touches, memory)
 
-    def _evaluate(self, cfg: Configuration, tc: Touches, memory: StickAnchors | None):
+    def _evaluate(self, cfg: Configuration, tc: Touches, memory: StickAnchors | None, match: IntArray | None = None,
+                  active: np.ndarray | None = None):
+        """``evaluate`` of the contacts ``tc``; ``match``: their entries in ``memory`` (None: found by
+        ``match``); ``active``: an active set (``FrozenTouches``), None: the clipped forces."""
         m = tc.m
         alpha_dot, F, F_el = np.zeros(m), np.zeros(m), np.zeros(m)
         f, v_t = np.zeros((m, 3)), np.zeros((m, 3))
@@ -668,10 +735,18 @@ class Collisions(ForceElement):
             on = tc.law == k
             pl = self.laws[k]
             scale = self._stiffness_scale(tc, on, k)
-            F_el[on] = scale * pl.law.force(tc.depth[on], np.zeros(on.sum()), None)
-            F[on] = np.maximum(scale * pl.law.force(tc.depth[on], alpha_dot[on], None) + pl.damping * alpha_dot[on], 0.0)
+            touching = tc.depth[on] > 0.0  # (all found contacts; held ones may have separated)
+            depth = np.where(touching, tc.depth[on], 0.0)
+            F_el[on] = scale * pl.law.force(depth, np.zeros(on.sum()), None)
+            if active is None:
+                F[on] = np.where(touching, np.maximum(scale * pl.law.force(depth, alpha_dot[on], None)
+                                                      + pl.damping * alpha_dot[on], 0.0), 0.0)
+            else:
+                d = tc.depth[on]  # (odd in the depth: an active contact pulls where it separates)
+                F[on] = np.where(active[on], scale * np.sign(d) * pl.law.force_unclipped(np.abs(d), alpha_dot[on], None)
+                                 + pl.damping * alpha_dot[on], 0.0)
             if pl.friction is not None and pl.friction.stateful:
-                s = self.deflection(cfg, tc, memory) if s is None else s
+                s = self.deflection(cfg, tc, memory, match) if s is None else s
                 for i in np.flatnonzero(on & (F > 0.0)):
                     f_t[i] = pl.friction.vector(v_t[i], s[i], F[i])
             elif pl.friction is not None:
@@ -786,6 +861,45 @@ class Collisions(ForceElement):
             anchor[i] = memory.anchor[match[i]] if kept is s_i else R[b[i]].T @ (tc.point[i] - kept - W_r[b[i]])
         mark = np.stack([np.einsum("kji,kj->ki", R[c], tc.point - W_r[c]) for c in (a, b)], axis=1)
         return StickAnchors(tc.shape[keep], anchor[keep], mark[keep])
+
+    # ------------------------------------------------------------------ contacts held fixed (implicit steps)
+
+    def frozen(self, cfg: Configuration, memory: StickAnchors | None) -> FrozenTouches:
+        """The contacts at ``cfg`` held fixed (``FrozenTouches``), with their anchors and matches in the
+        step's ``memory``: the forces near ``cfg`` as a smooth function of the configuration."""
+        tc = self.detect(cfg)
+        W_r, R = cfg.pose.W_r, cfg.pose.R_WB
+        a, b = tc.body[:, 0], tc.body[:, 1]
+        half = 0.5 * tc.depth[:, None] * tc.n
+        A_r = np.einsum("kji,kj->ki", R[a], tc.point - half - W_r[a])
+        B_r = np.einsum("kji,kj->ki", R[b], tc.point + half - W_r[b])
+        B_n = np.einsum("kji,kj->ki", R[b], tc.n)
+        match = self.match(cfg, tc, memory) if self.has_memory else -np.ones(tc.m, int)
+        F = self._evaluate(cfg, tc, memory, match)[2]
+        return FrozenTouches(tc.shape, tc.body, tc.law, A_r, B_r, B_n, match, F > 0.0, memory)
+
+    def frozen_change(self, cfg: Configuration, frozen: FrozenTouches, tol: float = 0.0) -> str:
+        """What differs at ``cfg`` between the contacts found and those held in ``frozen`` ('' if
+        nothing): the pairs of shapes whose number of pushing contacts differs, else the pair whose
+        depths differ most (a contact moved to another face, or to other witness points), if by more
+        than ``tol`` [m]."""
+        live, held = self.detect(cfg), frozen.at(cfg)
+        live_on = self.evaluate(cfg)[2] > 0.0
+        held_on = frozen.active  # (an active contact that separated pulls: it ended)
+        pairs = sorted({tuple(p) for p in live.shape[live_on]} | {tuple(p) for p in held.shape[held_on]})
+        if not pairs:
+            return ""
+        count = [(int(np.all(live.shape[live_on] == p, axis=1).sum()),
+                  int(np.all(held.shape[held_on] == p, axis=1).sum())) for p in pairs]
+        name = [f"{self.shapes[i].name!r}-{self.shapes[j].name!r}" for i, j in pairs]
+        changed = [f"{n} {'began' if h == 0 else 'ended' if c == 0 else f'{h} -> {c} contacts'}"
+                   for n, (c, h) in zip(name, count) if c != h]
+        if changed:
+            return "contacts " + ", ".join(changed)
+        gap = [abs(live.depth[live_on & np.all(live.shape == p, axis=1)].sum()
+                   - held.depth[held_on & np.all(held.shape == p, axis=1)].sum()) for p in pairs]
+        k = int(np.argmax(gap))
+        return f"contacts {name[k]} moved (depths differ by {gap[k]:.2e} m)" if gap[k] > tol else ""
 
     def compiled(self, pack):
         """The element packed for the compiled kernel (``viz3d.kernel.collisions``, through the packer:

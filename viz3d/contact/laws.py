@@ -140,6 +140,13 @@ class NormalLaw(ABC):
         F = self._magnitude(_pos(alpha), alpha_dot, memory)
         return _result(np.where(alpha > 0.0, _pos(F), 0.0))
 
+    def force_unclipped(self, alpha: Scalar, alpha_dot: Scalar, memory: ContactMemory) -> Scalar:
+        """The force formula at ``max(alpha, 0)`` [N] without ``force``'s clipping at zero (it may pull):
+        the force of a contact that an implicit step's iteration holds active
+        (``viz3d.contact.collision.FrozenTouches``), smooth where ``force`` has its kink."""
+        alpha, alpha_dot = np.broadcast_arrays(np.asarray(alpha, dtype=float), np.asarray(alpha_dot, dtype=float))
+        return _result(self._magnitude(_pos(alpha), alpha_dot, memory))
+
     def onset(self, alpha_dot_0: float, previous: ContactMemory | None = None) -> ContactMemory:
         """Memory at the start of a contact approached at ``alpha_dot_0`` [m/s]; plastic history persists."""
         previous = ContactMemory() if previous is None else previous
