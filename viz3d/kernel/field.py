@@ -228,11 +228,11 @@ def row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
     return acc
 
 
-@inline
+@jit
 def constrain(m, v, w, t, rows):
     """Rows from the pieces, then ``(C M^-1 C^T + compliance I) lam = C a - gamma_s`` and
     ``a -= M^-1 C^T lam``; False if the matrix is not positive definite."""
-    fill_rows(m.row_body, v, t, rows)
+    fill_rows(m, v, t, rows)
     twists(m, w)
     _schur_rhs(m, v, w)
     if not schur_solve(m, v, w, m.form[2]):
@@ -242,12 +242,10 @@ def constrain(m, v, w, t, rows):
 
 
 @jit
-def fill_rows(row_body, v, t, rows):
-    """Every constraint row (``row_body`` (n_c, 2)) at time ``t`` from the pieces: ``C``, ``C_v`` (``J``,
-    ``Je``), ``gamma``, ``C_t`` and the rows that do not act, for the points' kinematics in ``v``. Takes
-    ``row_body``, not the model: called at every stage, and each compiled call passes its arguments'
-    arrays flattened."""
-    for r in range(row_body.shape[0]):
+def fill_rows(m, v, t, rows):
+    """Every constraint row at time ``t`` from the pieces: ``C``, ``C_v`` (``J``, ``Je``), ``gamma``,
+    ``C_t`` and the rows that do not act, for the points' kinematics in ``v``."""
+    for r in range(m.row_body.shape[0]):
         v.C[r] = 0.0
         v.gam[r] = 0.0
         v.Ct[r] = 0.0
@@ -271,7 +269,7 @@ def twists(m, w):
             w.tw[b, 3 + i] = w.wB[b, i]
 
 
-@inline
+@jit
 def schur_solve(m, v, w, compliance):
     """``(C M^-1 C^T + compliance I) lam = b`` in place (``b`` in ``w.lam``, row order), with ``W = M^-1
     C^T`` in ``w.W6``, ``w.We``; rows that do not act get 1 on the diagonal (their ``b`` is 0, so
@@ -413,32 +411,13 @@ def rates(m, v, w, y, ydot):
 @entry
 def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
     """``ydot = f(t, y)`` for the charts ``chart`` (nf, 3, 3) and the contacts' memory in ``v.mem``;
-    returns ``OK`` or ``SINGULAR`` (a mass block or the constraint matrix not positive definite).
-    ``viz3d.kernel.stepping.stages`` makes the same three calls for each stage of a step."""
-    field_kinematics(m, v, w, y, chart)
-    for d in literal_unroll(forces):
-        if d.i.shape[0] > 0:  # every registered type is passed (but present_only ones); most are empty
-            force_piece(d, t, v, w.aux)
-    return field_rates(t, y, m, v, w, rows, ydot)
-
-
-@inline
-def field_kinematics(m, v, w, y, chart):
-    """The field's stages before the force elements: frames, material points, forces cleared."""
+    returns ``OK`` or ``SINGULAR`` (a mass block or the constraint matrix not positive definite)."""
     frames(m, v, w, y, chart)
     kinematics(m, v, w)
     clear(m, v, w)
-
-
-@inline
-def field_rates(t, y, m, v, w, rows, ydot):
-    """The field's stages after the force elements, to ``ydot``; returns ``OK`` or ``SINGULAR``.
-
-    Inlined, with ``field_kinematics``, into ``evaluate`` and into ``viz3d.kernel.stepping.stages``
-    (a step's stages in one compiled call): each compiled call of the field passes ``m``, ``v``, ``w``
-    and the elements' data flattened, some 700 words, more than a small system's evaluation costs.
-    The force elements' loop between the two (``literal_unroll``) is written out in both callers:
-    numba inlines no function that uses ``literal_unroll``."""
+    for d in literal_unroll(forces):
+        if d.i.shape[0] > 0:  # every registered type is passed (but present_only ones); most are empty
+            force_piece(d, t, v, w.aux)
     generalized_forces(m, v, w)
     if not free_accelerations(m, v, w):
         return SINGULAR

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import math
 
-from viz3d.compiled import after_step_piece, entry, force_piece, inline, jit
+from viz3d.compiled import after_step_piece, entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, field_kinematics, field_rates,
-                                frames, rotation, turn_quaternion)
+from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation,
+                                turn_quaternion)
 from viz3d.kernel.projection import project
 from viz3d.kernel.sampling import sample_state
 from viz3d.points import kinematics
@@ -28,7 +28,7 @@ except ImportError:  # pragma: no cover
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). With ``group`` 1 (a tableau
-    without an error estimate) Euler parameters advance on the group (``stages``, the
+    without an error estimate) Euler parameters advance on the group (``_group_stages``, the
     Munthe-Kaas step of ``viz3d.integrators.explicit_rk.ExplicitRK``). Between steps, Euler parameters
     are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
     counted in ``switches`` (per body); the run
@@ -45,7 +45,10 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
     turns = group == 1 and m.n_rot == 4
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
-        status = stages(t0 + step * h, h, y, chart, ta, tc, 0, turns, m, v, w, forces, rows, k, yi)
+        if turns:
+            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        else:
+            status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
         if status != OK:
             return step, status
         for f in range(n_turned // 7):
@@ -162,9 +165,21 @@ def _stage_point(h, y, ta, i, k, yi):
 
 
 @inline
+def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
+    """Stages ``first`` to the last of a step from ``(t, y)`` into ``k`` (the rows before ``first``
+    given); the status of the first failed evaluation, ``OK`` when none."""
+    for i in range(first, ta.shape[0]):
+        _stage_point(h, y, ta, i, k, yi)
+        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
+        if status != OK:
+            return status
+    return OK
+
+
+@inline
 def _increment(coef, s, h, k, i0):
     """``h sum_l coef[l] K_l`` over the first ``s`` stages, ``K_l = k[l, i0:i0 + 3]``: a frame's
-    body-frame rotation increment [rad] (``stages`` keeps its ``K`` there)."""
+    body-frame rotation increment [rad] (``_group_stages`` keeps its ``K`` there)."""
     u1 = u2 = u3 = 0.0
     for l in range(s):
         if coef[l] != 0.0:
@@ -174,20 +189,16 @@ def _increment(coef, s, h, k, i0):
     return u1, u2, u3
 
 
-@jit
-def stages(t, h, y, chart, ta, tc, first, turns, m, v, w, forces, rows, k, yi):
-    """The stages of a step from ``(t, y)`` into ``k``, ``first`` to the last (the rows before
-    ``first`` given); the status of the first failed evaluation, ``OK`` when none. One compiled call
-    a step, the field inlined (``viz3d.kernel.field.field_rates``: a compiled call of it costs more
-    than a small system's evaluation).
-
-    ``turns``: the stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``): each
-    frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
-    (``turn_quaternion``), the rest of ``yi`` as for linear stages (``_stage_point``); after the
-    evaluation, the frame's ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)``
-    (``viz3d.dynamics.dexpinv``) and 0 (those of the rows before ``first`` too)."""
-    nf = m.frame_body.shape[0] if turns else 0
-    for i in range(0 if turns else first, ta.shape[0]):
+@inline
+def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
+    """The stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``) into ``k``:
+    each frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
+    (``turn_quaternion``), the rest of ``yi`` as in ``_stages``; after the evaluation, the frame's
+    ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
+    and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
+    the first failed evaluation, ``OK`` when none."""
+    nf = m.frame_body.shape[0]
+    for i in range(ta.shape[0]):
         _stage_point(h, y, ta, i, k, yi)
         for f in range(nf):
             i0 = 7 * f + 3
@@ -195,13 +206,8 @@ def stages(t, h, y, chart, ta, tc, first, turns, m, v, w, forces, rows, k, yi):
             for c in range(4):
                 yi[i0 + c] = y[i0 + c]
             turn_quaternion(yi, i0, u1, u2, u3)
-        if i >= first:  # evaluate(t_i, yi, ...) -> k[i], inlined
-            t_i = t + tc[i] * h
-            field_kinematics(m, v, w, yi, chart)
-            for d in literal_unroll(forces):
-                if d.i.shape[0] > 0:
-                    force_piece(d, t_i, v, w.aux)
-            status = field_rates(t_i, yi, m, v, w, rows, k[i])
+        if i >= first:
+            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
             if status != OK:
                 return status
         for f in range(nf):
@@ -280,7 +286,10 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    status = stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, turns, m, v, w, forces, rows, k, yi)
+    if turns:
+        status = _group_stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    else:
+        status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
     for f in range(n_turned // 7):
@@ -310,7 +319,7 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
 @inline
 def _stage_rates(h, y, ta, m, k, yi):
     """``k``'s Euler-parameter entries of a group step back from ``K`` to the stages' ``p_dot``, as
-    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``stages`` built them,
+    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``_group_stages`` built them,
     last stage first (stage ``i``'s ``p`` needs the ``K`` of the stages before it)."""
     nf = m.frame_body.shape[0]
     for i in range(ta.shape[0] - 1, -1, -1):
