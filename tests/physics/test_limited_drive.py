@@ -126,12 +126,13 @@ def test_a_drive_held_at_its_capacity_ends_the_run_cleanly(tmp_path):
     assert np.all(effort == F)
 
 
-def _ledger_closes(traj) -> None:
-    """Work in (the drive's power integrated) = kinetic + potential change, to the step's error."""
+def _ledger_closes(traj, rel: float = 1e-6) -> None:
+    """Work in (the drive's power integrated) = kinetic + potential change, to ``rel`` of the work in
+    (the step's error)."""
     x = traj.extras
     work = x["energy_work_in"]
     assert np.abs(work).max() > 0.0
-    assert np.abs(x["energy_balance_error"]).max() <= 1e-6 * np.abs(work).max()
+    assert np.abs(x["energy_balance_error"]).max() <= rel * np.abs(work).max()
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["kernel", "numpy"])
@@ -150,12 +151,9 @@ def test_a_gain_beyond_the_steps_stability_limit_stops_on_the_energy_ledger(tmp_
         traj = viz3d.simulate(scene)
         if ok:
             assert traj.status == "ok", traj.status
-            _ledger_closes_to(traj, 1e-3)          # RK4's error on the unresolved start: (h/tau)^4 / 120 ~ 1e-2
+            # the ledger's error is RK4's on the start's transient, |z|^4 / 120 = 8e-3 of its kinetic energy
+            # m v_ss^2 / 2 = 8e-3 J, against the work m g v_ss t_end = 0.39 J in 0.1 s: 2e-4 of it (5x margin)
+            _ledger_closes(traj, 1e-3)
         else:
             assert traj.status.startswith(f"t = {frame:g} s: the energy ledger does not balance"), traj.status
             assert traj.t[-1] == pytest.approx(frame)
-
-
-def _ledger_closes_to(traj, rel: float) -> None:
-    x = traj.extras
-    assert np.abs(x["energy_balance_error"]).max() <= rel * np.abs(x["energy_work_in"]).max()
