@@ -129,10 +129,10 @@ class ButcherTableau:
     dense: DenseOutput | None = None
 
     def __post_init__(self):
-        for key in ("c", "a", "b"):
-            object.__setattr__(self, key, np.asarray(getattr(self, key), dtype=float))
+        for key in ("c", "a", "b"):  # C order: the compiled step's signature (one for every tableau)
+            object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), dtype=float))
         if self.b_hat is not None:
-            object.__setattr__(self, "b_hat", np.asarray(self.b_hat, dtype=float))
+            object.__setattr__(self, "b_hat", np.ascontiguousarray(self.b_hat, dtype=float))
             if abs(self.b_hat.sum() - 1) > TABLEAU_TOL or self.b_hat.shape != self.b.shape:
                 raise ValueError(f"{self.name}: b_hat must have the shape of b and sum to 1")
         s = len(self.b)
