@@ -56,7 +56,7 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.compiled import entry
-from viz3d.constraints import constraint_jacobian, constraint_residual, constraint_rows, dense_jacobian, sparse_jacobian
+from viz3d.constraints import constraint_rows, dense_jacobian, residual_and_jacobian, sparse_jacobian
 from viz3d.dynamics import accelerations, aux_rates, body_state, drive_power, flat_velocity, generalized_forces, retract
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
@@ -484,11 +484,12 @@ def _point(system: System, state: State, a0, dx, h: float, t1: float, M, element
     v1 = 2.0 / h * dx - state.v
     a1 = 4.0 / (h * h) * (dx - h * state.v) - a0
     cfg = body_state(system, q1, v1, state.chart, t1)
-    C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, *constraint_jacobian(system.joints, cfg))
+    C, J, Je = residual_and_jacobian(system.joints, cfg)
+    C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, J, Je)
     Q = flat_velocity(system, *generalized_forces(system, cfg, elements=elements))
     if system.n_elastic:
         M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
-    return _Point(q1, v1, a1, constraint_residual(system.joints, cfg), C_v, Q, M)
+    return _Point(q1, v1, a1, C, C_v, Q, M)
 
 
 def _rows(system: System, q, v, chart, t: float):

@@ -279,9 +279,21 @@ def constraint_rows(layout: ConstraintLayout, cfg: Configuration, memory: tuple 
 
 def constraint_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[FloatArray, FloatArray]:
     """Jacobian blocks of every joint, stacked: frame (n_c, 2, 6) and elastic (n_c, 2, n_e)."""
-    if not layout.joints:
+    return _stacked_jacobian(layout, [js.jacobian(cfg) for js in layout.joints])
+
+
+def residual_and_jacobian(layout: ConstraintLayout, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``C`` (n_c,) [m] and the Jacobian blocks (``constraint_jacobian``) from one ``Joint.rows`` call
+    per joint set (a set whose three share their work computes them once: ``RowsJoint``)."""
+    parts = [js.rows(cfg) for js in layout.joints]
+    C = np.concatenate([res.reshape(-1) for res, _, _ in parts]) if parts else np.zeros(0)
+    return (C, *_stacked_jacobian(layout, [J for _, J, _ in parts]))
+
+
+def _stacked_jacobian(layout: ConstraintLayout, parts: list) -> tuple[FloatArray, FloatArray]:
+    """The joint sets' Jacobian blocks ``(J, Je)`` stacked: (n_c, 2, 6) and (n_c, 2, n_e)."""
+    if not parts:
         return np.zeros((0, 2, 6)), np.zeros((0, 2, layout.n_elastic))
-    parts = [js.jacobian(cfg) for js in layout.joints]
     return (np.concatenate([J.reshape(-1, 2, 6) for J, _ in parts]),
             np.concatenate([Je.reshape(js.n_joints * js.n_eq, 2, layout.n_elastic)
                             for js, (_, Je) in zip(layout.joints, parts)]))
