@@ -136,6 +136,8 @@ def test_anchor_hoist_in_a_real_browser():
                 assert wait_for(lambda: runner.snapshot.frame.t > 0.2), "simulation not running"
                 page.get_by_role("checkbox", name="Forces", exact=True).dispatch_event("click")
                 assert wait_for(lambda: viewer.flags["forces"]), "the Forces toggle did not reach the viewer"
+                runner.command("pause")  # the rest is the page's: software GL drawing gets the cores
+                # (the stepping kernel holds the interpreter, so it slowed the viewer's thread too)
                 for panel in HOIST_PANELS:
                     assert wait_for(lambda panel=panel: page.get_by_text(panel, exact=False).count() > 0), \
                         f"no plot titled {panel!r} on the page"
