@@ -32,20 +32,23 @@ def scene_files(kind: str = "multibody") -> list[Path]:
 
 
 #: What each of the first two pytest-xdist workers compiles before its first test, on a cold numba
-#: cache: the compiled kernel's entry for rigid systems, and its second signature, for systems with
-#: shape contacts (``viz3d.compiled.Items.present_only``). Each is minutes of CPU; compiled at once on
-#: the two workers they cost one compilation's wall time, and a worker that needs the other's waits on
-#: its lock (``viz3d.compiled._lock_compiles``) and loads it from the cache instead of compiling it
-#: again. On a warm cache this is a short run of each scene.
-WARM_UP = {"gw0": ("torque_free.toml", 0.01), "gw1": ("anchor_hoist.toml", 0.05)}
+#: cache: the compiled kernel's signatures that many tests share, split so that the two compile at
+#: once (about 170 s and 200 s of CPU): on gw0 the rigid one and the adaptive driver, on gw1 the one
+#: for systems with shape contacts (``viz3d.compiled.Items.present_only``) and the compiled ALI3-P.
+#: A worker that needs a signature the other is compiling waits on its lock
+#: (``viz3d.compiled._lock_compiles``), its core idle, and then loads it from the cache; compiled
+#: here, they are ready before either worker's first test (measured 2026-11-27: a test that met
+#: the adaptive driver being compiled waited 35 s). On a warm cache this is a short run of each scene.
+WARM_UP = {
+    "gw0": (("torque_free.toml", 0.01, ()), ("flexible_pendulum.toml", 0.01, ())),
+    "gw1": (("anchor_hoist.toml", 0.05, ()), ("chain.toml", 0.01, ("sim.formulation=ali3p", "sim.integrator=trapezoidal"))),
+}
 
 
 @pytest.fixture(scope="session", autouse=True)
 def _warm_kernel(request):
     worker = getattr(request.config, "workerinput", {}).get("workerid")  # (None without xdist)
-    if worker not in WARM_UP:
-        return
     from viz3d.simulate import simulate
 
-    name, t_end = WARM_UP[worker]
-    simulate(SCENES / name, t_end=t_end)
+    for name, t_end, overrides in WARM_UP.get(worker, ()):
+        simulate(SCENES / name, overrides=list(overrides), t_end=t_end)
