@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from viz3d.columns import FrameColumns, StateLog, chunk_length
+from viz3d.columns import CHUNK, FrameColumns, StateLog, chunk_length
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
     CapacityWatch,
@@ -985,6 +985,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             fine = emitter.interval(every, cfg["dt"])  # steps between the instants anyone needs (divides every)
             if has_goal:  # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
                 log.chunk = max(1, round(GOAL_CHECK_INTERVAL / (fine * cfg["dt"])))
+            else:
+                log.chunk = chunk_length(sim.system, fine)
             log.record(sim.state)
             n = 0
             while n < n_steps:  # to the next instant in one call, or as many instants as fit the chunk
@@ -1101,7 +1103,7 @@ class _Emitter:
     def start(self, check) -> StateLog:
         """The run's ``StateLog``, emitting to the sinks when there are any."""
         emit = self._emit if self.sinks else None
-        self.log = StateLog(self.sim, check, chunk_length(self.sim.system), emit, self.guard.held)
+        self.log = StateLog(self.sim, check, CHUNK, emit, self.guard.held)
         return self.log
 
     def events(self, last: bool = False) -> None:

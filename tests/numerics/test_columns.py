@@ -291,3 +291,15 @@ def test_a_chunk_holds_at_most_chunk_bytes(monkeypatch, name):
             + sum(getattr(cols, f.name).nbytes for f in fields(cols) if f.name != "scalars")
             + sum(a.nbytes for a in cols.scalars.values()))
     assert held <= columns.CHUNK_BYTES, f"{held} bytes"
+
+
+def test_frames_many_steps_apart_keep_chunks_of_chunk():
+    """Frames ``CHUNK_STEPS / CHUNK`` steps apart or more come ``CHUNK`` at a time (a kernel call, which
+    Ctrl-C waits for, takes no more steps than before); closer ones as many as take ``CHUNK_STEPS``,
+    within ``CHUNK_BYTES``."""
+    from viz3d import columns
+
+    system, _ = viz3d.build(viz3d.load_scene(SCENES / "torque_free.toml"))
+    far = columns.CHUNK_STEPS // columns.CHUNK
+    assert columns.chunk_length(system, far) == columns.chunk_length(system, 100 * far) == columns.CHUNK
+    assert columns.chunk_length(system, 4) == columns.CHUNK_STEPS // 4 < columns.chunk_length(system, 1)
