@@ -34,9 +34,34 @@ from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
 from viz3d.system import State, States, System
 
-#: States turned into columns at a time (the run's health checks on energy and constraint
-#: violation see frames in chunks this long; a chunk of a 50-link chain holds about 2 MB).
+#: States turned into columns at a time, at least (the run's health checks on energy and constraint
+#: violation see frames in chunks this long; ``chunk_length``).
 CHUNK = 256
+#: ... and more while a chunk's arrays (the kernel's samples, the states, the columns) stay within
+#: this many bytes: each chunk costs about 0.1 ms of Python (a kernel call, its columns and checks),
+#: 0.8 ms of the torque-free body's 2000 frames in chunks of 256 (256 frames of a 50-link chain hold
+#: about 11 MB: large systems keep ``CHUNK``) ...
+CHUNK_BYTES = 2**22
+#: ... and take no more steps than this (Ctrl-C waits for a kernel call to end, and a chunk whose
+#: frame fails is stepped again up to it): about 35 ms of the torque-free body, 0.3 s of a 10-link chain.
+CHUNK_STEPS = 2**14
+
+
+def chunk_length(system: System, steps: int) -> int:
+    """States per chunk of ``system``'s run, ``steps`` steps (or adaptive samples) apart: ``CHUNK``, or
+    as many as take at most ``CHUNK_STEPS`` and hold at most ``CHUNK_BYTES`` of the kernel's samples
+    (``viz3d.kernel.Samples``: 21 floats per body and the ground, 14 per constraint row, 11 per
+    contact, 3 more), the states (``y``, 9 per chart, the time) and the columns (18 per body; 3 per
+    row: the joints' reactions, coordinates and rates; 2 per contact; 10 more: energies, violation
+    and the energy ledger). With flexible bodies, ``CHUNK``: their columns take matrix
+    products over a chunk's states (``_centres_of_mass``), whose rounding depends on the chunk's
+    length (by 3e-17 m/s at one frame of ``impact_clamped_bar`` in chunks of 1327 against 256)."""
+    if system.bodies.flexible:
+        return CHUNK
+    n_y = system.n_q + system.n_v + system.n_aux
+    k = sum(c.k for c in system.contacts)
+    floats = 21 * (system.n_bodies + 1) + 18 * system.n_bodies + 17 * system.n_c + 13 * k + n_y + 9 * system.n_frames + 14
+    return max(CHUNK, min(CHUNK_BYTES // (8 * floats), CHUNK_STEPS // steps))
 
 
 @dataclass

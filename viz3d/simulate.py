@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from viz3d.columns import CHUNK, FrameColumns, StateLog
+from viz3d.columns import CHUNK, FrameColumns, StateLog, chunk_length
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.diagnosis import (
     CapacityWatch,
@@ -380,7 +380,7 @@ class Simulation:
         self.n_rhs += done * every * self._kernel.tableau.stages
         n0 = self.n_samples
         elements = self._kernel_elements()  # (one frame when it changes: _frames_run)
-        ts = np.array([self.t0 + (n0 + (f + 1) * every) * self.dt for f in range(done)])
+        ts = self.t0 + (n0 + every * np.arange(1, done + 1)) * self.dt  # (each as the kernel's: the same float ops)
         states = States.alike(ts, Y, charts, system.n_q, system.n_v, s.replace(element_memory=elements), samples)
         self.state = states[-1]
         self.n_samples += done * every
@@ -622,7 +622,7 @@ class Simulation:
         elif carry.counts[STEPS]:
             self._span_memory = None
         states = States(Ts, Y, charts, self.system.n_q, self.system.n_v,
-                        tuple(self._memory_at(float(Ts[f]), records, memories, like.memory) for f in range(done)),
+                        self._memories_at(Ts[:done], records, memories, like.memory),
                         (like.element_memory,) * done)
         self.n_samples += done * every
         if states:
@@ -672,13 +672,13 @@ class Simulation:
         return keep
 
     @staticmethod
-    def _memory_at(t: float, records, memories: list[tuple], memory: tuple) -> tuple:
-        """The contacts' memory of a sample at ``t`` [s]: after the last recorded step ending by
-        ``t`` (``memory``, that at the call's start, before the first)."""
+    def _memories_at(ts: np.ndarray, records, memories: list[tuple], memory: tuple) -> tuple:
+        """The contacts' memory of each sample at ``ts`` (N,) [s]: after the last recorded step ending
+        by its time (``memory``, that at the call's start, before the first)."""
         if not memories:
-            return memory
-        r = int(np.searchsorted(records.t[: len(memories)], t, side="right"))
-        return memories[r - 1] if r else memory
+            return (memory,) * ts.shape[0]
+        rs = np.searchsorted(records.t[: len(memories)], ts, side="right")
+        return tuple(memories[r - 1] if r else memory for r in rs.tolist())
 
     def _adaptive_call(self, carry, n_frames: int, every: int, records=None) -> tuple:
         """The kernel's ``adaptive`` call from ``carry`` (its counters and ``records`` emptied first)."""
@@ -985,6 +985,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             fine = emitter.interval(every, cfg["dt"])  # steps between the instants anyone needs (divides every)
             if has_goal:  # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
                 log.chunk = max(1, round(GOAL_CHECK_INTERVAL / (fine * cfg["dt"])))
+            else:
+                log.chunk = chunk_length(sim.system, fine)
             log.record(sim.state)
             n = 0
             while n < n_steps:  # to the next instant in one call, or as many instants as fit the chunk

@@ -15,6 +15,7 @@ Bodies whose frame is fixed (a clamped bar) have no frame coordinates: their fra
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -294,8 +295,7 @@ class States:
             samples = type(p0.samples)(*(np.concatenate(x) for x in zip(*(p.samples for p in parts))))
         return cls(np.concatenate([p.t for p in parts]), np.concatenate([p.Y for p in parts]),
                    np.concatenate([p.chart for p in parts]), p0.n_q, p0.n_v,
-                   tuple(m for p in parts for m in p.memory), tuple(m for p in parts for m in p.element_memory),
-                   samples)
+                   _chained(p.memory for p in parts), _chained(p.element_memory for p in parts), samples)
 
     def __len__(self) -> int:
         return self.t.shape[0]
@@ -316,3 +316,8 @@ class States:
 
     def __iter__(self):
         return (self[i] for i in range(len(self)))
+
+
+def _chained(tuples) -> tuple:
+    """The entries of ``tuples`` one after another, as one tuple."""
+    return tuple(itertools.chain.from_iterable(tuples))

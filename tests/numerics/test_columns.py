@@ -3,6 +3,8 @@ NumPy reference frames (``viz3d.frames.frame_from_state`` with nothing from the 
 on every shipped scene: rigid chains and their reactions, springs, law and kinematic contacts in and
 out of touch (their forces, stored and dissipated energy), flexible bodies and gauges."""
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 
@@ -227,3 +229,77 @@ def test_a_chunk_keeps_the_samples_its_batch_was_stepped_with(monkeypatch):
     for name in ("t", "position", "rotation", "velocity", "omega", "energy_kinetic", "energy_potential",
                  "constraint_violation", "reaction_force"):
         np.testing.assert_array_equal(getattr(kept, name), getattr(again, name), err_msg=name)
+
+
+#: (scene, overrides) run in chunks: the kernel's batched fixed steps (quaternions, projection) and
+#: its adaptive steps, each over several chunks of ``CHUNK``.
+CHUNKED = {"torque_free": ["sim.integrator=rk4", "sim.formulation=projection", "sim.rotation=quaternion",
+                           "sim.dt=0.0025", "sim.output_dt=0.01", "sim.t_end=6"],
+           "chain": ["chain.n=2", "sim.integrator=dop853", "sim.formulation=projection", "sim.dt=0.01",
+                     "sim.rtol=1e-6", "sim.atol=1e-9", "sim.t_end=6"]}
+
+
+def _chunks(monkeypatch, scene) -> tuple:
+    """The trajectory of ``scene`` and the chunks its frames were computed in: (States, FrameColumns,
+    the kernel's samples) each."""
+    from viz3d import columns
+
+    chunks = []
+    sampled = columns._sampled
+
+    def kept(sim, stepper, states):
+        cols, s = sampled(sim, stepper, states)
+        chunks.append((states, cols, s))
+        return cols, s
+
+    monkeypatch.setattr(columns, "_sampled", kept)
+    traj = viz3d.simulate(scene)
+    monkeypatch.setattr(columns, "_sampled", sampled)
+    return traj, chunks
+
+
+@pytest.mark.parametrize("name", CHUNKED)
+def test_the_chunk_length_changes_nothing_in_the_run(monkeypatch, name):
+    """A small system's run in one long chunk (``columns.chunk_length``) is its run in chunks of
+    ``CHUNK`` (no byte allowance), bit for bit."""
+    from viz3d import columns
+    from viz3d.trajectory import ARRAY_FIELDS
+
+    scene = viz3d.load_scene(SCENES / f"{name}.toml", CHUNKED[name])
+    long, in_long = _chunks(monkeypatch, scene)
+    monkeypatch.setattr(columns, "CHUNK_BYTES", 0)
+    short, in_short = _chunks(monkeypatch, scene)
+    assert len(long.t) > 2 * columns.CHUNK and len(in_long) == 1 and len(in_short) == -(-len(short.t) // columns.CHUNK)
+    for key in ARRAY_FIELDS + ("status", "n_steps", "n_rhs"):
+        np.testing.assert_array_equal(getattr(long, key), getattr(short, key), err_msg=key)
+    assert long.extras.keys() == short.extras.keys()
+    for key in long.extras:
+        np.testing.assert_array_equal(long.extras[key], short.extras[key], err_msg=key)
+
+
+@pytest.mark.parametrize("name", CHUNKED)
+def test_a_chunk_holds_at_most_chunk_bytes(monkeypatch, name):
+    """A full chunk longer than ``CHUNK`` (``columns.chunk_length``) holds at most ``CHUNK_BYTES`` of
+    the kernel's samples, states and columns (all of their arrays, views counted again)."""
+    from viz3d import columns
+
+    monkeypatch.setattr(columns, "CHUNK_BYTES", 2**20)  # (chunks of 1365 and 510 frames)
+    _, chunks = _chunks(monkeypatch, viz3d.load_scene(SCENES / f"{name}.toml", CHUNKED[name] + ["sim.t_end=20"]))
+    states, cols, samples = chunks[0]
+    assert len(states) > columns.CHUNK and len(chunks) > 1  # (a full chunk, over the minimum)
+    held = (sum(a.nbytes for a in samples) + states.t.nbytes + states.Y.nbytes + states.chart.nbytes
+            + sum(getattr(cols, f.name).nbytes for f in fields(cols) if f.name != "scalars")
+            + sum(a.nbytes for a in cols.scalars.values()))
+    assert held <= columns.CHUNK_BYTES, f"{held} bytes"
+
+
+def test_frames_many_steps_apart_keep_chunks_of_chunk():
+    """Frames ``CHUNK_STEPS / CHUNK`` steps apart or more come ``CHUNK`` at a time (a kernel call, which
+    Ctrl-C waits for, takes no more steps than before); closer ones as many as take ``CHUNK_STEPS``,
+    within ``CHUNK_BYTES``."""
+    from viz3d import columns
+
+    system, _ = viz3d.build(viz3d.load_scene(SCENES / "torque_free.toml"))
+    far = columns.CHUNK_STEPS // columns.CHUNK
+    assert columns.chunk_length(system, far) == columns.chunk_length(system, 100 * far) == columns.CHUNK
+    assert columns.chunk_length(system, 4) == columns.CHUNK_STEPS // 4 < columns.chunk_length(system, 1)

@@ -293,7 +293,7 @@ def test_compiled_entries_are_found_once_per_argument_types_and_are_the_right_on
     monkeypatch.setattr(K, "_typed_entry", lambda d, a: typed.append(d) or typeof(d, a))
     again = [viz3d.simulate(s, t_end=0.05) for s in scenes]
     assert typed == []
-    monkeypatch.setattr(K, "_entry_point", lambda d, a: d)  # numba's own dispatch at every call
+    monkeypatch.setattr(K, "_entry_point", lambda d, a, fingerprint=None: d)  # numba's own dispatch at every call
     direct = [viz3d.simulate(s, t_end=0.05) for s in scenes]
     for a, b, c in zip(runs, again, direct):
         for name in ("position", "rotation", "omega", "reaction_force"):

@@ -260,16 +260,17 @@ def _c(a: np.ndarray) -> np.ndarray:
 _ENTRIES: dict = {}
 
 
-def _entry_point(dispatcher, args):
+def _entry_point(dispatcher, args, fingerprint=None):
     """The compiled entry of ``dispatcher`` for these argument types (skips the per-call type
     dispatch, a few microseconds for tuples of arrays); the dispatcher itself if unavailable.
 
     Looked up once per process and argument types: numba's own typing of the arguments (``typeof``)
     costs about a millisecond for the packed model's tuples of arrays, 6 of a small run's 8 ms
-    before this cache. The key is numba's fingerprint of each argument, the key numba's dispatcher
-    caches its own typing under (so equal fingerprints mean equal types)."""
+    before this cache. The key is numba's fingerprint of each argument (``fingerprint(a)``, numba's
+    ``compute_fingerprint`` unless given), the key numba's dispatcher caches its own typing under
+    (so equal fingerprints mean equal types)."""
     try:
-        key = (dispatcher, tuple(compute_fingerprint(a) for a in args))
+        key = (dispatcher, tuple((fingerprint or compute_fingerprint)(a) for a in args))
     except (NameError, TypeError, ValueError, NotImplementedError):  # no fingerprint: type them each time
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
@@ -297,6 +298,10 @@ class KernelStepper:
         self.data, self.tableau = data, tableau
         self.ws = workspace(data)
         self._entries: dict = {}
+        #: The fingerprints (``_entry_point``) of the packed data's and the workspace's tuples, by ``id``:
+        #: the same objects in each entry's first call (about 20 us of each lookup), held here.
+        self._prints: dict = {id(x): None for x in (data.model, data.forces, data.rows, data.geometry, data.energies,
+                                                     data.memories, *self.ws) if x is not None}
         self._memory_id, self._view = None, self.ws[0]
         self._elements_id = None  # the force elements' memory in the packed data (None: unknown)
         self._method = None  # the tableau and controller as the adaptive driver takes them
@@ -327,13 +332,21 @@ class KernelStepper:
         first call (which compiles or loads the entry)."""
         fn = self._entries.get(dispatcher)
         if fn is None:
-            fn = _entry_point(dispatcher, args)
+            fn = _entry_point(dispatcher, args, self._fingerprint)
             if fn is dispatcher:
                 result = dispatcher(*args)
-                self._entries[dispatcher] = _entry_point(dispatcher, args)
+                self._entries[dispatcher] = _entry_point(dispatcher, args, self._fingerprint)
                 return result
             self._entries[dispatcher] = fn
         return fn(*args)
+
+    def _fingerprint(self, a) -> object:
+        """numba's fingerprint of the argument ``a``, computed once for this stepper's own tuples."""
+        if id(a) not in self._prints:
+            return compute_fingerprint(a)
+        if self._prints[id(a)] is None:
+            self._prints[id(a)] = compute_fingerprint(a)
+        return self._prints[id(a)]
 
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
         """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""

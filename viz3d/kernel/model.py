@@ -38,6 +38,8 @@ from viz3d.rotations import matrix_from_euler
 
 #: ``Model.body_kind`` codes.
 RIGID, FLOATING_FLEXIBLE, FIXED_FLEXIBLE, GROUND = 0, 1, 2, 3
+#: The rotation of the Euler charts' centre (``Model``'s, copied into each).
+_CHART_CENTRE_R = matrix_from_euler(CHART_CENTRE)
 #: Formulations the kernel evaluates, and their ``Model.form`` = [damping, frequency, compliance]:
 #: ``gamma - 2 damping C_d - frequency^2 C`` and ``compliance`` added to the Schur diagonal.
 FORMULATIONS = {
@@ -399,7 +401,7 @@ def _model(system, formulation, pt_s) -> tuple[Model, tuple, np.ndarray]:
     model = Model(nb, kind, frame, flex, mass_inv, inertia, inertia_inv, r0, R0, system.frame_body.astype(np.int64),
                   system.n_q, system.n_v, system.n_elastic, fx_i, fx_f, fx_pool, fx_bij, pt_s,
                   row_body, perm, pair, kd, form, system.rotation.n_q, int(isinstance(system.rotation, EulerSwitching)),
-                  CHART_CENTRE.copy(), matrix_from_euler(CHART_CENTRE), system.n_aux, *_projection(formulation),
+                  CHART_CENTRE.copy(), _CHART_CENTRE_R.copy(), system.n_aux, *_projection(formulation),
                   int(any(e.has_memory for e in system.forces)))
     n_contacts = sum(c.k for c in system.contacts)
     return model, (nb, len(b.flexible), pt_s.shape[0], system.n_elastic, fx_work, row_body.shape[0], n_je, kd,
