@@ -884,7 +884,7 @@ class Collisions(ForceElement):
         depths differ most (a contact moved to another face, or to other witness points), if by more
         than ``tol`` [m]."""
         live, held = self.detect(cfg), frozen.at(cfg)
-        live_on = self.evaluate(cfg)[2] > 0.0
+        live_on = self.evaluate(cfg, live)[2] > 0.0
         held_on = frozen.active  # (an active contact that separated pulls: it ended)
         pairs = sorted({tuple(p) for p in live.shape[live_on]} | {tuple(p) for p in held.shape[held_on]})
         if not pairs:
