@@ -37,7 +37,7 @@ from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERF
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
-           "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
+           "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
            "AdaptiveCarry", "StepRecords"]
 
 
@@ -68,10 +68,30 @@ def _coverage(system, formulation) -> tuple[KernelData | None, str | None]:
 
 def keep_packed(system, formulation) -> None:
     """Pack ``system`` for ``formulation`` now, kept with it for its runs (``kernel_coverage``), when
-    they can share it: what ``viz3d.scene.build.build`` does with the model it builds, as the run's
-    clock starts once the model is built."""
+    they can share it, with the fingerprints of its tuples (``type_prints``): what
+    ``viz3d.scene.build.build`` does with the model it builds, as the run's clock starts once the
+    model is built."""
     if numba is not None and not per_run(system):
-        kernel_coverage(system, formulation)
+        data = kernel_coverage(system, formulation)[0]
+        if data is not None:
+            type_prints(data)
+
+
+#: The ``KernelData`` fields the compiled calls take (tuples of arrays; ``memories`` may be None).
+DATA_TUPLES = ("model", "forces", "rows", "geometry", "energies", "memories")
+
+
+def type_prints(data: KernelData) -> dict:
+    """numba's fingerprints (``_entry_point``) of ``data``'s tuples (``DATA_TUPLES``), by field name,
+    computed once per packed data and kept in ``data.prints`` (about 16 us of the first compiled call
+    of each run otherwise); none where numba's fingerprint is unavailable."""
+    if not data.prints:
+        try:
+            data.prints.update({name: compute_fingerprint(getattr(data, name)) for name in DATA_TUPLES
+                                if getattr(data, name) is not None})
+        except (NameError, TypeError, ValueError, NotImplementedError):  # (_entry_point then types them itself)
+            data.prints.clear()
+    return data.prints
 
 
 def kernel_for(system, formulation) -> KernelData | None:
@@ -293,7 +313,7 @@ def _entry_point(dispatcher, args, fingerprint=None):
     ``compute_fingerprint`` unless given), the key numba's dispatcher caches its own typing under
     (so equal fingerprints mean equal types)."""
     try:
-        key = (dispatcher, tuple((fingerprint or compute_fingerprint)(a) for a in args))
+        key = (dispatcher, tuple(map(fingerprint or compute_fingerprint, args)))
     except (NameError, TypeError, ValueError, NotImplementedError):  # no fingerprint: type them each time
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
@@ -321,10 +341,10 @@ class KernelStepper:
     def __init__(self, data: KernelData, tableau):
         self.data, self.tableau = data, tableau
         self.ws = workspace(data)
-        #: The fingerprints (``_entry_point``) of the packed data's and the workspace's tuples, by ``id``:
-        #: the same objects in each entry's first call (about 20 us of each lookup), held here.
-        self._prints: dict = {id(x): None for x in (data.model, data.forces, data.rows, data.geometry, data.energies,
-                                                     data.memories, *self.ws) if x is not None}
+        #: The fingerprints (``_entry_point``) of the packed data's tuples (``type_prints``) and of the
+        #: workspace's (None until first needed), by ``id``: the same objects in each entry's first call.
+        self._prints: dict = {id(x): None for x in self.ws}
+        self._prints.update({id(getattr(data, name)): p for name, p in type_prints(data).items()})
         self._memory_id, self._view = None, self.ws[0]
         self._elements_id = None  # the force elements' memory in the packed data (None: unknown)
         self._method = None  # the tableau and controller as the adaptive driver takes them
@@ -367,12 +387,15 @@ class KernelStepper:
         return fn(*args)
 
     def _fingerprint(self, a) -> object:
-        """numba's fingerprint of the argument ``a``, computed once for this stepper's own tuples."""
-        if id(a) not in self._prints:
-            return compute_fingerprint(a)
-        if self._prints[id(a)] is None:
-            self._prints[id(a)] = compute_fingerprint(a)
-        return self._prints[id(a)]
+        """numba's fingerprint of the argument ``a``, computed once for the packed data's and this
+        stepper's own tuples."""
+        known = self._prints.get(id(a))
+        if known is not None:
+            return known
+        p = compute_fingerprint(a)
+        if id(a) in self._prints:
+            self._prints[id(a)] = p
+        return p
 
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
         """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""

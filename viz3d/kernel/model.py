@@ -177,6 +177,8 @@ class KernelData:
     #: Compiled entries of the kernel's functions for this data's argument types, by dispatcher
     #: (``viz3d.kernel.KernelStepper._call``); a copy made by ``dataclasses.replace`` starts empty.
     entries: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+    #: numba's fingerprints of its tuples the compiled calls take, by field name (``viz3d.kernel.type_prints``).
+    prints: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
 
 class Packer:
