@@ -19,6 +19,8 @@ columns when asked for, the drawing evaluated only for the frames a sink draws).
 
 from __future__ import annotations
 
+import itertools
+import operator
 from collections.abc import Mapping
 from contextlib import nullcontext
 from dataclasses import dataclass, field, fields, replace
@@ -110,9 +112,12 @@ class FrameColumns:
 
     @classmethod
     def join(cls, parts: list["FrameColumns"], nb: int, nj: int) -> "FrameColumns":
-        """One set of columns from consecutive ones (scalars missing in a part are nan there)."""
+        """One set of columns from consecutive ones (scalars missing in a part are nan there; one
+        part is returned as it is)."""
         if not parts:
             return cls.from_frames([], nb, nj)
+        if len(parts) == 1:
+            return parts[0]
         keys = list(dict.fromkeys(k for p in parts for k in p.scalars))
         arrays = {f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls) if f.name != "scalars"}
         scalars = {k: np.concatenate([p.scalars.get(k, np.full(len(p), np.nan)) for p in parts]) for k in keys}
@@ -325,7 +330,7 @@ def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, 
 def _groups(memory: tuple, elements: tuple) -> list[tuple[int, int]]:
     """Runs ``[a, b)`` of consecutive states sharing one contact memory object and one force elements'
     memory object (``memory``, ``elements``: each state's)."""
-    if len(set(map(id, memory))) <= 1 and len(set(map(id, elements))) <= 1:
+    if _one_object(memory) and _one_object(elements):
         return [(0, len(memory))] if memory else []
     out, a = [], 0
     for i in range(1, len(memory) + 1):
@@ -333,6 +338,11 @@ def _groups(memory: tuple, elements: tuple) -> list[tuple[int, int]]:
             out.append((a, i))
             a = i
     return out
+
+
+def _one_object(objects: tuple) -> bool:
+    """Every entry of ``objects`` is one and the same object (by identity; true of none)."""
+    return not objects or all(map(operator.is_, objects, itertools.repeat(objects[0])))
 
 
 def kernel_samples(stepper, states: States):

@@ -99,8 +99,11 @@ def euler_from_matrix(R: FloatArray) -> FloatArray:
     s2 = np.hypot(R[..., 0, 2], R[..., 1, 2])
     theta = np.arctan2(s2, R[..., 2, 2])
     regular = s2 > GIMBAL_EPS
-    psi = np.where(regular, np.arctan2(R[..., 0, 2], -R[..., 1, 2]), np.arctan2(R[..., 1, 0], R[..., 0, 0]))
-    phi = np.where(regular, np.arctan2(R[..., 2, 0], R[..., 2, 1]), 0.0)
+    psi = np.arctan2(R[..., 0, 2], -R[..., 1, 2])
+    phi = np.arctan2(R[..., 2, 0], R[..., 2, 1])
+    if not np.all(regular):  # (the gimbal-lock branch only where some rotation needs it)
+        psi = np.where(regular, psi, np.arctan2(R[..., 1, 0], R[..., 0, 0]))
+        phi = np.where(regular, phi, 0.0)
     return np.stack([psi, theta, phi], axis=-1)
 
 

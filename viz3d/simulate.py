@@ -1148,7 +1148,9 @@ class _Emitter:
 
 
 def scene_json(scene: Scene, sim: Simulation) -> str:
-    """The resolved scene plus what produced the run (version, integrator, step, source)."""
+    """The resolved scene plus what produced the run (version, integrator, step, source):
+    ``json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)``, the scene's part as the scene
+    keeps it (``Scene.json_text``)."""
     from viz3d import __version__
 
     cfg = scene.data["sim"]
@@ -1156,7 +1158,7 @@ def scene_json(scene: Scene, sim: Simulation) -> str:
             "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
             "overrides": list(scene.overrides),
             "conservative": sim.system.conservative, "kernel": sim.kernel_note}
-    return json.dumps({"scene": scene.data, "run": meta}, sort_keys=True)
+    return f'{{"run": {json.dumps(meta, sort_keys=True)}, "scene": {scene.json_text}}}'
 
 
 class ProgressBar:

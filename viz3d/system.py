@@ -49,6 +49,11 @@ class System:
         Body index of each floating frame, in ``q`` order (derived).
     q_elastic, v_elastic : tuple of slice
         Where each flexible body's ``eta`` and ``eta_dot`` sit in ``q`` and ``v`` (derived).
+    derived : dict
+        What other layers derive from the system alone and keep with it, by their key (its packing
+        for the compiled kernel: ``viz3d.kernel.kernel_coverage``), so each run of the system reuses
+        it: the system does not change, so neither does what is derived from it. Nothing a run
+        writes to is kept here.
     """
 
     bodies: Bodies
@@ -60,6 +65,7 @@ class System:
     frame_body: IntArray = field(init=False, repr=False)
     q_elastic: tuple[slice, ...] = field(init=False, repr=False)
     v_elastic: tuple[slice, ...] = field(init=False, repr=False)
+    derived: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
     def __post_init__(self):
         floating = np.ones(self.bodies.n_bodies, dtype=bool)

@@ -9,7 +9,7 @@ from viz3d.dynamics import VectorField
 from viz3d.integrators import make_integrator
 from viz3d.integrators.tableaus import RK4
 from viz3d.scene.build import make_formulation
-from viz3d.simulate import Simulation
+from viz3d.simulate import Simulation, simulate_built
 
 from conftest import SCENES, scene_files
 
@@ -37,6 +37,33 @@ def test_shape_contact_scenes_take_the_kernel_or_name_the_missing_narrow_phase(p
     _, system, state, form = _setup(path)
     data, why = K.kernel_coverage(system, form)
     assert data is not None or "narrow phase" in why, why
+
+
+def test_a_system_is_packed_once_for_all_its_runs():
+    # build packs the model for the scene's formulation and keeps it with the system (a system without
+    # joints: no initial projection packs it); runs of it reuse that packing (another formulation has
+    # its own) and give the same trajectory each time.
+    scene = viz3d.load_scene(SCENES / "torque_free.toml", {"sim.t_end": 0.05})
+    system, state = viz3d.build(scene)
+    form = make_formulation(scene.data["sim"])
+    packed = dict(system.derived)  # (what build kept)
+    data = K.kernel_for(system, form)
+    assert data is not None and data in (v[0] for v in packed.values()), "build packs the model"
+    assert K.kernel_for(system, make_formulation(scene.data["sim"])) is data
+    assert K.kernel_for(system, make_formulation({**scene.data["sim"], "formulation": "baumgarte"})) is not data
+    first, again = simulate_built(scene, system, state), simulate_built(scene, system, state)
+    assert first.ok and again.n_steps == first.n_steps and again.n_rhs == first.n_rhs
+    for name in ("t", "position", "rotation", "velocity", "omega", "energy_total"):
+        assert np.array_equal(getattr(first, name), getattr(again, name)), name
+
+
+@pytest.mark.parametrize("path", SHAPE_CONTACTS[:1], ids=lambda p: p.stem)
+def test_shape_contacts_are_packed_for_each_run(path):
+    # Their packed data holds each run's scratch and stick anchors: never shared.
+    _, system, _, form = _setup(path)
+    a, b = K.kernel_for(system, form), K.kernel_for(system, form)
+    assert a is not None, K.kernel_coverage(system, form)[1]
+    assert a is not b and K.kernel_for(system, form) is not a
 
 
 def _setup(path, formulation="index1", overrides=None):

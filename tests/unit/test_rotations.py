@@ -101,3 +101,12 @@ def test_cross_and_skew_match_numpy():
     a, b = rng.normal(size=(7, 3)), rng.normal(size=(7, 3))
     assert np.allclose(cross(a, b), np.cross(a, b), atol=1e-15)
     assert np.allclose(np.einsum("nij,nj->ni", skew(a), b), np.cross(a, b), atol=1e-15)
+
+
+def test_euler_from_matrix_of_a_batch_is_that_of_each_rotation():
+    # Rotations at gimbal lock and away from it in one call: each row as the rotation alone gives it.
+    angles = np.array([[0.3, 1.1, -0.7], [0.3, 0.0, -1.2], [2.9, np.pi, 0.4], [-3.0, 2.0, 3.0]])
+    R = matrix_from_euler(angles)
+    batch = euler_from_matrix(R)
+    assert np.array_equal(batch, np.array([euler_from_matrix(r) for r in R]))
+    assert np.array_equal(batch[[0, 3]], euler_from_matrix(R[[0, 3]]))

@@ -94,3 +94,4 @@ def test_trajectory_records_resolved_scene_with_overrides(write_scene):
     assert meta["run"]["overrides"] == ["sim.integrator=heun", "sim.t_end=0.01"]
     assert meta["scene"]["sim"]["t_end"] == 0.01
     assert meta["run"]["viz3d_version"] == viz3d.__version__
+    assert traj.scene_json == json.dumps(meta, sort_keys=True)  # json's own text (the scene's part kept by the scene)

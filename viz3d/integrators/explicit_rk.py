@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import Callable
 
 import numpy as np
@@ -33,9 +34,17 @@ class ExplicitRK(Integrator):
         self.tableau = tableau
         self.name = tableau.name
         self.order = tableau.order
-        # Nonzero (index, coefficient) pairs of each row of a, and of b.
-        self._a = [[(j, a) for j, a in enumerate(row[:i]) if a != 0.0] for i, row in enumerate(tableau.a)]
-        self._b = [(j, b) for j, b in enumerate(tableau.b) if b != 0.0]
+
+    @cached_property
+    def _a(self) -> list[list[tuple[int, float]]]:
+        """Nonzero ``(j, a_ij)`` pairs of each row ``i`` of ``a`` (made on the first NumPy step: runs
+        whose steps the compiled kernel takes need none)."""
+        return [[(j, a) for j, a in enumerate(row[:i]) if a != 0.0] for i, row in enumerate(self.tableau.a)]
+
+    @cached_property
+    def _b(self) -> list[tuple[int, float]]:
+        """Nonzero ``(j, b_j)`` pairs of ``b``."""
+        return [(j, b) for j, b in enumerate(self.tableau.b) if b != 0.0]
 
     @property
     def embedded(self) -> bool:

@@ -32,23 +32,66 @@ try:  # numba's fingerprint of an argument's type (C, fast), the key of its own 
 except ImportError:  # pragma: no cover - no numba, or a numba without it: _entry_point types each time
     pass
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
-from viz3d.kernel.model import KernelData, Unsupported, pack, workspace
+from viz3d.kernel.model import KernelData, Unsupported, pack, per_run, workspace
 from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
-           "KernelData", "kernel_for", "kernel_coverage", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
+           "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
            "AdaptiveCarry", "StepRecords"]
 
 
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
-    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``."""
+    """``(data, None)`` when the kernel covers ``system`` with ``formulation``, else ``(None, why)``.
+
+    Packed once per system and formulation (``formulation``'s value: its class and parameters) and
+    kept with the system (``System.derived``), so that its runs share it (``keep_packed``), unless
+    a run writes to it (``model.per_run``): then packed anew for each caller."""
     if numba is None:
         return None, "numba is not installed"
+    if per_run(system):
+        return _coverage(system, formulation)
+    key = ("kernel", formulation)
+    kept = system.derived.get(key)
+    if kept is None:
+        kept = system.derived[key] = _coverage(system, formulation)
+    return kept
+
+
+def _coverage(system, formulation) -> tuple[KernelData | None, str | None]:
+    """``kernel_coverage``, packed now."""
     try:
         return pack(system, formulation), None
     except Unsupported as e:
         return None, str(e)
+
+
+def keep_packed(system, formulation) -> None:
+    """Pack ``system`` for ``formulation`` now, kept with it for its runs (``kernel_coverage``), when
+    they can share it, with the fingerprints of its tuples (``type_prints``): what
+    ``viz3d.scene.build.build`` does with the model it builds, as the run's clock starts once the
+    model is built."""
+    if numba is not None and not per_run(system):
+        data = kernel_coverage(system, formulation)[0]
+        if data is not None:
+            type_prints(data)
+
+
+#: The ``KernelData`` fields the compiled calls take (tuples of arrays; ``memories`` may be None).
+DATA_TUPLES = ("model", "forces", "rows", "geometry", "energies", "memories")
+
+
+def type_prints(data: KernelData) -> dict:
+    """numba's fingerprints (``_entry_point``) of ``data``'s tuples (``DATA_TUPLES``), by field name,
+    computed once per packed data and kept in ``data.prints`` (about 16 us of the first compiled call
+    of each run otherwise); none where numba's fingerprint is unavailable."""
+    if not data.prints:
+        try:
+            data.prints.update({name: compute_fingerprint(getattr(data, name)) for name in DATA_TUPLES
+                                if getattr(data, name) is not None})
+        except (NameError, TypeError, ValueError, NotImplementedError):  # (_entry_point then types them itself)
+            data.prints.clear()
+    return data.prints
 
 
 def kernel_for(system, formulation) -> KernelData | None:
@@ -270,7 +313,7 @@ def _entry_point(dispatcher, args, fingerprint=None):
     ``compute_fingerprint`` unless given), the key numba's dispatcher caches its own typing under
     (so equal fingerprints mean equal types)."""
     try:
-        key = (dispatcher, tuple((fingerprint or compute_fingerprint)(a) for a in args))
+        key = (dispatcher, tuple(map(fingerprint or compute_fingerprint, args)))
     except (NameError, TypeError, ValueError, NotImplementedError):  # no fingerprint: type them each time
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
@@ -291,17 +334,17 @@ def _typed_entry(dispatcher, args):
 
 
 class KernelStepper:
-    """One system in the kernel: its packed data, workspace, compiled entries (looked up once) and
-    explicit RK steps."""
+    """One run of a system in the kernel: its packed data (shared by the system's runs), its own
+    workspace and explicit RK steps; the compiled entries are looked up once per packed data
+    (``KernelData.entries``)."""
 
     def __init__(self, data: KernelData, tableau):
         self.data, self.tableau = data, tableau
         self.ws = workspace(data)
-        self._entries: dict = {}
-        #: The fingerprints (``_entry_point``) of the packed data's and the workspace's tuples, by ``id``:
-        #: the same objects in each entry's first call (about 20 us of each lookup), held here.
-        self._prints: dict = {id(x): None for x in (data.model, data.forces, data.rows, data.geometry, data.energies,
-                                                     data.memories, *self.ws) if x is not None}
+        #: The fingerprints (``_entry_point``) of the packed data's tuples (``type_prints``) and of the
+        #: workspace's (None until first needed), by ``id``: the same objects in each entry's first call.
+        self._prints: dict = {id(x): None for x in self.ws}
+        self._prints.update({id(getattr(data, name)): p for name, p in type_prints(data).items()})
         self._memory_id, self._view = None, self.ws[0]
         self._elements_id = None  # the force elements' memory in the packed data (None: unknown)
         self._method = None  # the tableau and controller as the adaptive driver takes them
@@ -328,25 +371,31 @@ class KernelStepper:
 
     def _call(self, dispatcher, *args):
         """``dispatcher(*args)`` through its compiled entry for these argument types: found once per
-        stepper (``_entry_point``, once per process), the dispatcher itself only on the process's
-        first call (which compiles or loads the entry)."""
-        fn = self._entries.get(dispatcher)
+        packed data (``_entry_point``, once per process; the arguments of a call site have the same
+        types for every stepper of the data: its tuples, a workspace of its sizes, C-contiguous
+        float64 tableaus), the dispatcher itself only on the process's first call (which compiles
+        or loads the entry)."""
+        entries = self.data.entries
+        fn = entries.get(dispatcher)
         if fn is None:
             fn = _entry_point(dispatcher, args, self._fingerprint)
             if fn is dispatcher:
                 result = dispatcher(*args)
-                self._entries[dispatcher] = _entry_point(dispatcher, args, self._fingerprint)
+                entries[dispatcher] = _entry_point(dispatcher, args, self._fingerprint)
                 return result
-            self._entries[dispatcher] = fn
+            entries[dispatcher] = fn
         return fn(*args)
 
     def _fingerprint(self, a) -> object:
-        """numba's fingerprint of the argument ``a``, computed once for this stepper's own tuples."""
-        if id(a) not in self._prints:
-            return compute_fingerprint(a)
-        if self._prints[id(a)] is None:
-            self._prints[id(a)] = compute_fingerprint(a)
-        return self._prints[id(a)]
+        """numba's fingerprint of the argument ``a``, computed once for the packed data's and this
+        stepper's own tuples."""
+        known = self._prints.get(id(a))
+        if known is not None:
+            return known
+        p = compute_fingerprint(a)
+        if id(a) in self._prints:
+            self._prints[id(a)] = p
+        return p
 
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
         """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""

@@ -25,7 +25,7 @@ drop). ``load_anchors`` and ``stored_anchors`` convert them from and to ``StickA
 of a compiled call, so frames, the recorder and resumed runs see the same state as on the NumPy path.
 
 The packed data holds its own scratch (raw contacts, contacts, match candidates): a ``KernelData``
-belongs to one run (``viz3d.kernel.model.pack`` is called per run).
+belongs to one run (``viz3d.kernel.model.per_run``: packed for each run, not kept with the system).
 """
 
 from __future__ import annotations

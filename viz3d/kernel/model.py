@@ -15,7 +15,7 @@ stacked elastic coordinates and rates, then the ledger's work integrals.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -174,6 +174,11 @@ class KernelData:
     energy_gap: str | None    # why output frames cannot take their energies from the kernel (None: they can)
     memories: tuple | None    # the force elements' data per registered after-step piece (their memory; None: none)
     anchors: tuple            # (index in System.forces, CollisionItems) of shape contacts with stick anchors
+    #: Compiled entries of the kernel's functions for this data's argument types, by dispatcher
+    #: (``viz3d.kernel.KernelStepper._call``); a copy made by ``dataclasses.replace`` starts empty.
+    entries: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+    #: numba's fingerprints of its tuples the compiled calls take, by field name (``viz3d.kernel.type_prints``).
+    prints: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
 
 class Packer:
@@ -291,6 +296,12 @@ def pack(system, formulation) -> KernelData:
     return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, pt_P, row_je,
                       _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]),
                       energies, _energy_gap(system.forces, classes), memories, _anchors(system.forces, parts))
+
+
+def per_run(system) -> bool:
+    """True when ``system``'s packed data holds what a run writes, so that each run needs its own
+    packing: shape contacts' scratch and stick anchors (``viz3d.kernel.collisions``)."""
+    return any(getattr(e, "type_name", None) == "collisions" for e in system.forces)
 
 
 def _anchors(forces, parts: dict[type, list]) -> tuple:

@@ -90,6 +90,10 @@ def build(scene: Scene) -> tuple[System, State]:
     v = initial_velocities(scene, R0, system)
     state = State(0.0, q, v, chart, np.zeros(system.n_aux), tuple(c.initial_phases() for c in contacts))
     formulation = make_formulation(sim) if sim["compiled"] else None
+    if formulation is not None:  # the model packed for the compiled kernel too, kept with it for its runs
+        from viz3d.kernel import keep_packed
+
+        keep_packed(system, formulation)
     return system, consistent_state(system, state, src, sim["projection_tol"], formulation)
 
 

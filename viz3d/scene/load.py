@@ -11,6 +11,7 @@ import dataclasses
 import json
 import tomllib
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -57,6 +58,12 @@ class Scene:
     @property
     def base_dir(self) -> Path:
         return self.path.parent
+
+    @cached_property
+    def json_text(self) -> str:
+        """``data`` as JSON, keys sorted (``json.dumps(data, sort_keys=True)``), made once per scene
+        (a ``Scene`` is a value: its tables are not changed once it is made)."""
+        return json.dumps(self.data, sort_keys=True)
 
     def source(self) -> str:
         """How errors name this scene: the file, plus the overrides if any."""
