@@ -75,7 +75,7 @@ def _rows_at(t, y, chart, m, v, w, rows):
             shape_moments(m.fx_i, m.fx_pool, m.fx_bij, w.fx_work, fx, w.eta)
     if not factor_blocks(m, v, w):
         return False
-    fill_rows(m, v, t, rows)
+    fill_rows(m.row_body, v, t, rows)
     return True
 
 

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from viz3d.compiled import after_step_piece, entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation,
-                                turn_quaternion)
+from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, frames, rotation,
+                                rotation_increment, stages, turn_quaternion)
 from viz3d.kernel.projection import project
 from viz3d.kernel.sampling import sample_state
 from viz3d.points import kinematics
@@ -28,7 +30,7 @@ except ImportError:  # pragma: no cover
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). With ``group`` 1 (a tableau
-    without an error estimate) Euler parameters advance on the group (``_group_stages``, the
+    without an error estimate) Euler parameters advance on the group (``stages``, the
     Munthe-Kaas step of ``viz3d.integrators.explicit_rk.ExplicitRK``). Between steps, Euler parameters
     are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
     counted in ``switches`` (per body); the run
@@ -45,14 +47,11 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
     turns = group == 1 and m.n_rot == 4
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
-        if turns:
-            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
-        else:
-            status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        status = stages(t0 + step * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)  # (not a literal 0: one compiled stages)
         if status != OK:
             return step, status
         for f in range(n_turned // 7):
-            u1, u2, u3 = _increment(tb, s, h, k, 7 * f + 3)
+            u1, u2, u3 = rotation_increment(tb, s, h, k, 7 * f + 3)
             turn_quaternion(y, 7 * f + 3, u1, u2, u3)
         for j in range(n):
             if j < n_turned and j % 7 >= 3:
@@ -154,75 +153,6 @@ def _finite(y):
 
 
 @inline
-def _stage_point(h, y, ta, i, k, yi):
-    """``yi = y + h sum_l a_il k_l`` over the stages before ``i`` (zero coefficients skipped)."""
-    for j in range(y.shape[0]):
-        acc = y[j]
-        for l in range(i):
-            if ta[i, l] != 0.0:
-                acc += h * ta[i, l] * k[l, j]
-        yi[j] = acc
-
-
-@inline
-def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
-    """Stages ``first`` to the last of a step from ``(t, y)`` into ``k`` (the rows before ``first``
-    given); the status of the first failed evaluation, ``OK`` when none."""
-    for i in range(first, ta.shape[0]):
-        _stage_point(h, y, ta, i, k, yi)
-        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-        if status != OK:
-            return status
-    return OK
-
-
-@inline
-def _increment(coef, s, h, k, i0):
-    """``h sum_l coef[l] K_l`` over the first ``s`` stages, ``K_l = k[l, i0:i0 + 3]``: a frame's
-    body-frame rotation increment [rad] (``_group_stages`` keeps its ``K`` there)."""
-    u1 = u2 = u3 = 0.0
-    for l in range(s):
-        if coef[l] != 0.0:
-            u1 += h * coef[l] * k[l, i0]
-            u2 += h * coef[l] * k[l, i0 + 1]
-            u3 += h * coef[l] * k[l, i0 + 2]
-    return u1, u2, u3
-
-
-@inline
-def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
-    """The stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``) into ``k``:
-    each frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
-    (``turn_quaternion``), the rest of ``yi`` as in ``_stages``; after the evaluation, the frame's
-    ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
-    and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
-    the first failed evaluation, ``OK`` when none."""
-    nf = m.frame_body.shape[0]
-    for i in range(ta.shape[0]):
-        _stage_point(h, y, ta, i, k, yi)
-        for f in range(nf):
-            i0 = 7 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
-            for c in range(4):
-                yi[i0 + c] = y[i0 + c]
-            turn_quaternion(yi, i0, u1, u2, u3)
-        if i >= first:
-            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-            if status != OK:
-                return status
-        for f in range(nf):
-            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
-            w1, w2, w3 = yi[o], yi[o + 1], yi[o + 2]
-            c1, c2, c3 = u2 * w3 - u3 * w2, u3 * w1 - u1 * w3, u1 * w2 - u2 * w1
-            k[i, i0] = w1 + 0.5 * c1 + (u2 * c3 - u3 * c2) / 12.0
-            k[i, i0 + 1] = w2 + 0.5 * c2 + (u3 * c1 - u1 * c3) / 12.0
-            k[i, i0 + 2] = w3 + 0.5 * c3 + (u1 * c2 - u2 * c1) / 12.0
-            k[i, i0 + 3] = 0.0
-    return OK
-
-
-@inline
 def _frame_health(nq, n_rot, switching, y, f, h, max_speed):
     """``(status, |sin theta|)`` of floating frame ``f`` of ``y`` after a step ``h``, as
     ``viz3d.diagnosis.check_state`` judges it: ``SPEED`` above ``max_speed``, ``ROTATION`` when its
@@ -286,15 +216,12 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    if turns:
-        status = _group_stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
-    else:
-        status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    status = stages(t, h, y, chart, ta, tc, np.int64(1 if use_f0 else 0), turns, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
     for f in range(n_turned // 7):
         i0 = 7 * f + 3
-        u1, u2, u3 = _increment(tb, tb.shape[0], h, k, i0)
+        u1, u2, u3 = rotation_increment(tb, tb.shape[0], h, k, i0)
         for c in range(4):
             y1[i0 + c] = y[i0 + c]
         turn_quaternion(y1, i0, u1, u2, u3)
@@ -319,13 +246,13 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
 @inline
 def _stage_rates(h, y, ta, m, k, yi):
     """``k``'s Euler-parameter entries of a group step back from ``K`` to the stages' ``p_dot``, as
-    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``_group_stages`` built them,
+    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``stages`` built them,
     last stage first (stage ``i``'s ``p`` needs the ``K`` of the stages before it)."""
     nf = m.frame_body.shape[0]
     for i in range(ta.shape[0] - 1, -1, -1):
         for f in range(nf):
             i0, o = 7 * f + 3, m.n_q + 6 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            u1, u2, u3 = rotation_increment(ta[i], i, h, k, i0)
             for c in range(4):
                 yi[i0 + c] = y[i0 + c]
             turn_quaternion(yi, i0, u1, u2, u3)
