@@ -47,7 +47,8 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
     turns = group == 1 and m.n_rot == 4
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
-        status = stages(t0 + step * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)  # (not a literal 0: one compiled stages)
+        # (np.int64(0), not a literal 0: numba would compile stages apart for it)
+        status = stages(t0 + step * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)
         if status != OK:
             return step, status
         for f in range(n_turned // 7):
