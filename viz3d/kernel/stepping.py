@@ -28,6 +28,12 @@ except ImportError:  # pragma: no cover
 
 @entry
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
+    """``steps``, called from Python."""
+    return steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi)
+
+
+@inline
+def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). With ``group`` 1 (a tableau
     without an error estimate) Euler parameters advance on the group (``stages``, the
@@ -101,7 +107,7 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, g
     entry for stepping and sampling (each entry loaded from numba's cache costs a run's start tens
     of milliseconds).
 
-    ``every`` > 0: up to ``n_frames`` calls of ``advance`` (``group`` as there) of ``every`` steps each, the first from
+    ``every`` > 0: up to ``n_frames`` runs of ``steps`` (``group`` as there) of ``every`` steps each, the first from
     step ``n0`` of a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the
     time the run's own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and
     ``charts[f]``, its time into ``ts[f]`` and, while ``sampled[0]`` (given as 1) is not cleared,
@@ -120,26 +126,24 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, g
     the first state whose evaluation fails; projecting, (0, 0, the projection's status)."""
     if every < 0:
         return 0, 0, project(t0, y, chart, m, v, w, rows)
-    if every == 0:
-        for f in range(n_frames):
-            if not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies, ydot, r, R, vW,
-                                wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
-                return f, 0, SINGULAR
-        return n_frames, 0, OK
     for f in range(n_frames):
-        done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
-                               v, w, forces, rows, memories, k, yi)
-        if status != OK:
-            return f, done, status
-        for j in range(y.shape[0]):
-            Y[f, j] = y[j]
-        for b in range(chart.shape[0]):
-            for i in range(3):
-                for c in range(3):
-                    charts[f, b, i, c] = chart[b, i, c]
-        ts[f] = t0 + (n0 + (f + 1) * every) * h
-        if sampled[0] == 1 and not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies,
-                                                 ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
+        if every > 0:
+            done, status = steps(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, group, max_speed,
+                                 m, v, w, forces, rows, memories, k, yi)
+            if status != OK:
+                return f, done, status
+            for j in range(y.shape[0]):
+                Y[f, j] = y[j]
+            for b in range(chart.shape[0]):
+                for i in range(3):
+                    for c in range(3):
+                        charts[f, b, i, c] = chart[b, i, c]
+            ts[f] = t0 + (n0 + (f + 1) * every) * h
+        if (every == 0 or sampled[0] == 1) and not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows,
+                                                                geometry, energies, ydot, r, R, vW, wW, wB, eta,
+                                                                eta_dot, lam, C, J, gap, T, V):
+            if every == 0:
+                return f, 0, SINGULAR
             sampled[0] = 0
     return n_frames, every, OK
 
