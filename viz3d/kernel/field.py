@@ -272,7 +272,7 @@ def twists(m, w):
             w.tw[b, 3 + i] = w.wB[b, i]
 
 
-@jit
+@inline
 def schur_solve(m, v, w, compliance):
     """``(C M^-1 C^T + compliance I) lam = b`` in place (``b`` in ``w.lam``, row order), with ``W = M^-1
     C^T`` in ``w.W6``, ``w.We``; rows that do not act get 1 on the diagonal (their ``b`` is 0, so

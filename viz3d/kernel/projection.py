@@ -92,7 +92,7 @@ def _max_abs(x):
     return out
 
 
-@jit
+@inline
 def _min_norm_correction(m, v, w):
     """``w.a``, ``w.ae`` = ``-M^-1 C_v^T (C_v M^-1 C_v^T)^-1 b`` per body (frame, elastic) for ``b`` in
     ``w.lam`` (the multipliers left there); False if the matrix is not positive definite."""

@@ -50,7 +50,7 @@ def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v
     their memory at each step's end (``renew``) after all that."""
     n = y.shape[0]
     s = tb.shape[0]
-    turns = group == 1 and m.n_rot == 4
+    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
         # (np.int64(0), not a literal 0: numba would compile stages apart for it)
@@ -209,6 +209,12 @@ def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, char
 
 @entry
 def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
+    """``step``, called from Python."""
+    return step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err)
+
+
+@inline
+def step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
     """One step of the tableau ``(ta, tb, tc)`` from ``y`` (what ``viz3d.integrators.explicit_rk``
     does, for adaptive runs and steps taken one at a time): the stages into ``k`` (stages, n), with
     ``f0`` as the first one when ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i``
@@ -216,7 +222,7 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
     ``k`` holds the stages' rates ``p_dot`` again at the end (``_stage_rates``). Returns the status of
     the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
-    turns = group == 1 and m.n_rot == 4
+    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
     n_turned = 7 * m.frame_body.shape[0] if turns else 0
     if use_f0:
         for j in range(n):
