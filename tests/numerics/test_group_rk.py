@@ -1,5 +1,5 @@
 """Fixed-step explicit Runge-Kutta methods advance Euler parameters on the group (Runge-Kutta-Munthe-Kaas,
-``viz3d.integrators.explicit_rk.ExplicitRK``, ``viz3d.kernel.stepping._group_stages``), against references
+``viz3d.integrators.explicit_rk.ExplicitRK``, ``viz3d.kernel.field.stages``), against references
 nobody here wrote: the closed form of a constant spin, ``p(t) = p0 (x) exp(t B_omega)``, and scipy's
 DOP853 on an independent quaternion formulation (``references.fixed_point_body``) for the tumbling
 T-handle. The compiled steps take the NumPy path's to round-off: test_kernel_quaternion.py."""

@@ -31,13 +31,14 @@ try:  # numba's fingerprint of an argument's type (C, fast), the key of its own 
     from numba._dispatcher import compute_fingerprint
 except ImportError:  # pragma: no cover - no numba, or a numba without it: _entry_point types each time
     pass
-from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, evaluate, gaps
+from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, gaps, rhs
 from viz3d.kernel.model import KernelData, Unsupported, pack, per_run, workspace
 from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
 from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
-           "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance", "CompiledField", "KernelStepper",
+           "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance",
+           "CompiledField", "KernelStepper",
            "AdaptiveCarry", "StepRecords"]
 
 
@@ -138,7 +139,7 @@ def kernel_rhs(data: KernelData, t: float, y: np.ndarray, chart: np.ndarray, mem
     v, w = workspace(data)
     v = v._replace(mem=memory_table(data, memory))
     out = np.empty_like(y)
-    if evaluate(t, y, chart, data.model, v, w, data.forces, data.rows, out) != OK:
+    if rhs(t, y, chart, data.model, v, w, data.forces, data.rows, out) != OK:
         raise np.linalg.LinAlgError("mass block or constraint matrix is not positive definite")
     return out
 
@@ -400,7 +401,7 @@ class KernelStepper:
     def evaluate(self, t: float, y: np.ndarray, chart: np.ndarray, v, out: np.ndarray) -> int:
         """``out = f(t, y)`` with the view ``v`` (``view``); returns the status."""
         d = self.data
-        return self._call(evaluate, t, _c(y), _c(chart), d.model, v, self.ws[1], d.forces, d.rows, out)
+        return self._call(rhs, t, _c(y), _c(chart), d.model, v, self.ws[1], d.forces, d.rows, out)
 
     def multipliers(self, t: float, y: np.ndarray, chart: np.ndarray, memory: tuple, elements: tuple = ()) -> np.ndarray:
         """The constraint multipliers at ``(t, y)`` (n_c,) (those of kinematic contacts included), with the

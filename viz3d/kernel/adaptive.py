@@ -46,7 +46,7 @@ from viz3d.compiled import entry, inline, jit
 from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
 from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
-from viz3d.kernel.stepping import _check_frames, rk_step, state_ok, unit_parameters
+from viz3d.kernel.stepping import _check_frames, state_ok, step, unit_parameters
 
 #: Status codes beyond ``viz3d.kernel.field``'s: the last step was cut at a contact event (committed
 #: up to it, the handler is Python's); the controller asked for a step below ``min_step``; the step
@@ -363,7 +363,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@jit
+@inline
 def dense_coefficients(t0, h, y0, chart0, f1, s, P, c_extra, a_extra, reuse, m, v, w, forces, rows, K, yi, Q):
     """``ExplicitRK.dense_coefficients``: the extra stages into ``K[s:]`` (``reuse[i]``: the stage is
     ``f1``) and ``Q = h P^T K``; returns (evaluations, status)."""
@@ -404,7 +404,7 @@ def dense_sample(t, t0, h, y0, Q, out):
         out[j] = y0[j] + acc
 
 
-@jit
+@inline
 def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err):
     """``viz3d.integrators.adaptive.accepted_step``: trial steps from ``(t, y)`` until the error
     test passes; returns (step taken, next step proposed, rejections, status)."""
@@ -412,7 +412,7 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
     safety, fac_min, fac_max = ctrl[5], ctrl[6], ctrl[7]
     n_rejected = 0
     while True:
-        status = rk_step(t, h, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
+        status = step(t, h, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
         if status != OK:
             return h, h, n_rejected, status
         norm = error_norm(err, y, y1, rtol, atol, yi)
@@ -493,7 +493,7 @@ def _record(t, y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec):
     n_rec[0] = r + 1
 
 
-@jit
+@inline
 def _span_sample(contact_mode, target, max_speed, P, c_extra, a_extra, reuse, s, m, v, w, forces, rows, times,
                  flags, counts, y0, chart0, K, Q, f1, yi, ys):
     """The last accepted step's dense output at ``target`` into ``ys`` (its coefficients built on
@@ -591,7 +591,7 @@ def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, t
         return status
     s = tb.shape[0]
     h_ev = t_ev - t
-    status = rk_step(t, h_ev, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
+    status = step(t, h_ev, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
     if status != OK:
         return status
     n_evals += s - 1
@@ -635,7 +635,7 @@ def _event_crossed(t, t1, y, y1, chart, ev_kind, ev_index, ev_floor, ev_dir, rou
     return OK
 
 
-@jit
+@inline
 def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
     """The step's end state ``y1`` after the projection (``m.projects``), the health checks and the
     chart switches, into ``y_end`` and ``chart_end`` (switches per body into ``sw``); the status of
@@ -655,7 +655,7 @@ def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
                          max_speed)
 
 
-@jit
+@inline
 def _commit(t, t1, h, h_next, n_rejected, n_evals, cut, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
             chart0, K, f1, k, y_end, chart_end, sw):
     """The accepted step ``[t, t1]`` of length ``h`` into the carry: its span (start, stages, length,

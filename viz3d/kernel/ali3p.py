@@ -151,7 +151,7 @@ def _forces_and_rows(t, y, chart, m, v, w, forces, rows, Q):
             force_piece(d, t, v, w.aux)
     generalized_forces(m, v, w)
     if m.row_body.shape[0] > 0:
-        fill_rows(m, v, t, rows)
+        fill_rows(m.row_body, v, t, rows)
     ok = True
     for k in range(m.frame_body.shape[0]):
         for i in range(6):

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from viz3d.compiled import cross3, entry, force_piece, gap_piece, inline, jit, matvec3, row_piece, tmatvec3
 from viz3d.flexible.floating_kernel import FX_BODY, FX_E0, FX_N, body_forces, factor, solve
 from viz3d.kernel.model import FIXED_FLEXIBLE, FLOATING_FLEXIBLE, GROUND, RIGID
@@ -228,11 +230,11 @@ def row_times(row_body, row_je, body_kind, body_flex, fx_i, J, Je, row, x6, xe):
     return acc
 
 
-@jit
+@inline
 def constrain(m, v, w, t, rows):
     """Rows from the pieces, then ``(C M^-1 C^T + compliance I) lam = C a - gamma_s`` and
     ``a -= M^-1 C^T lam``; False if the matrix is not positive definite."""
-    fill_rows(m, v, t, rows)
+    fill_rows(m.row_body, v, t, rows)
     twists(m, w)
     _schur_rhs(m, v, w)
     if not schur_solve(m, v, w, m.form[2]):
@@ -242,10 +244,11 @@ def constrain(m, v, w, t, rows):
 
 
 @jit
-def fill_rows(m, v, t, rows):
-    """Every constraint row at time ``t`` from the pieces: ``C``, ``C_v`` (``J``, ``Je``), ``gamma``,
-    ``C_t`` and the rows that do not act, for the points' kinematics in ``v``."""
-    for r in range(m.row_body.shape[0]):
+def fill_rows(row_body, v, t, rows):
+    """Every constraint row (``row_body`` (n_c, 2)) at time ``t`` from the pieces: ``C``, ``C_v``
+    (``J``, ``Je``), ``gamma``, ``C_t`` and the rows that do not act, for the points' kinematics in
+    ``v``. Takes ``row_body``, not the model: a compiled call passes its arguments' arrays flattened."""
+    for r in range(row_body.shape[0]):
         v.C[r] = 0.0
         v.gam[r] = 0.0
         v.Ct[r] = 0.0
@@ -269,7 +272,7 @@ def twists(m, w):
             w.tw[b, 3 + i] = w.wB[b, i]
 
 
-@jit
+@inline
 def schur_solve(m, v, w, compliance):
     """``(C M^-1 C^T + compliance I) lam = b`` in place (``b`` in ``w.lam``, row order), with ``W = M^-1
     C^T`` in ``w.W6``, ``w.We``; rows that do not act get 1 on the diagonal (their ``b`` is 0, so
@@ -408,16 +411,88 @@ def rates(m, v, w, y, ydot):
         ydot[n_q + m.n_v + k] = w.aux[k]
 
 
-@entry
+@inline
 def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
     """``ydot = f(t, y)`` for the charts ``chart`` (nf, 3, 3) and the contacts' memory in ``v.mem``;
-    returns ``OK`` or ``SINGULAR`` (a mass block or the constraint matrix not positive definite)."""
+    returns ``OK`` or ``SINGULAR`` (a mass block or the constraint matrix not positive definite).
+
+    The first stage of a step (``stages``), which is taken at ``(t, y)`` itself and reads neither the
+    tableau nor the stage point: ``ydot`` as a (1, n) stage array and ``y`` stand in for them, with
+    the types a step passes, and ``first``, ``turns`` are typed as a step's variables (numba compiles
+    a call with literal arguments apart): one compiled field for both."""
+    k = ydot.reshape((1, ydot.shape[0]))
+    return stages(t, 0.0, y, chart, k, ydot, np.int64(0), np.bool_(False), m, v, w, forces, rows, k, y)
+
+
+@entry
+def rhs(t, y, chart, m, v, w, forces, rows, ydot):
+    """``evaluate``, called from Python."""
+    return evaluate(t, y, chart, m, v, w, forces, rows, ydot)
+
+
+@jit
+def stages(t, h, y, chart, ta, tc, first, turns, m, v, w, forces, rows, k, yi):
+    """The stages of an explicit Runge-Kutta step of size ``h`` from ``(t, y)`` into ``k`` (stages, n),
+    ``first`` to the last (the rows before ``first`` given); the status of the first failed
+    evaluation, ``OK`` when none.
+
+    The field's one compiled form, inlined here (``field_kinematics``, the force elements' pieces,
+    ``field_rates``): a step's stages take one compiled call, not one per stage (each compiled call
+    passes ``m``, ``v``, ``w`` and the elements' data flattened, some 700 words, more than a small
+    system's evaluation costs), and every other evaluation is the first stage of a step
+    (``evaluate``), so the field is compiled once for a system's types.
+
+    Stage ``i`` is taken at ``t + c_i h`` and ``yi = y + h sum_l a_il k_l`` (``_stage_point``),
+    stage 0 (``c_0 = 0``, no ``a_0l``) at ``(t, y)`` itself. ``turns``: the stages of a
+    Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``): each frame's Euler parameters at
+    stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l`` (``turn_quaternion``); after the
+    evaluation, the frame's ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)``
+    (``viz3d.dynamics.dexpinv``) and 0 (those of the rows before ``first`` too)."""
+    nf = m.frame_body.shape[0] if turns else 0
+    for i in range(0 if turns else first, ta.shape[0]):
+        t_i, p = t, y
+        if i > 0 or turns:
+            t_i, p = t + tc[i] * h, yi
+            _stage_point(h, y, ta, i, k, yi)
+            for f in range(nf):
+                i0 = 7 * f + 3
+                u1, u2, u3 = rotation_increment(ta[i], i, h, k, i0)
+                for c in range(4):
+                    yi[i0 + c] = y[i0 + c]
+                turn_quaternion(yi, i0, u1, u2, u3)
+        if i >= first:
+            field_kinematics(m, v, w, p, chart)
+            for d in literal_unroll(forces):
+                if d.i.shape[0] > 0:  # every registered type is passed (but present_only ones); most are empty
+                    force_piece(d, t_i, v, w.aux)
+            status = field_rates(t_i, p, m, v, w, rows, k[i])
+            if status != OK:
+                return status
+        for f in range(nf):
+            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
+            u1, u2, u3 = rotation_increment(ta[i], i, h, k, i0)
+            w1, w2, w3 = yi[o], yi[o + 1], yi[o + 2]
+            c1, c2, c3 = u2 * w3 - u3 * w2, u3 * w1 - u1 * w3, u1 * w2 - u2 * w1
+            k[i, i0] = w1 + 0.5 * c1 + (u2 * c3 - u3 * c2) / 12.0
+            k[i, i0 + 1] = w2 + 0.5 * c2 + (u3 * c1 - u1 * c3) / 12.0
+            k[i, i0 + 2] = w3 + 0.5 * c3 + (u1 * c2 - u2 * c1) / 12.0
+            k[i, i0 + 3] = 0.0
+    return OK
+
+
+@inline
+def field_kinematics(m, v, w, y, chart):
+    """The field's stages before the force elements: frames, material points, forces cleared."""
     frames(m, v, w, y, chart)
     kinematics(m, v, w)
     clear(m, v, w)
-    for d in literal_unroll(forces):
-        if d.i.shape[0] > 0:  # every registered type is passed (but present_only ones); most are empty
-            force_piece(d, t, v, w.aux)
+
+
+@inline
+def field_rates(t, y, m, v, w, rows, ydot):
+    """The field's stages after the force elements, to ``ydot``; returns ``OK`` or ``SINGULAR``.
+    (The force elements' loop between ``field_kinematics`` and this is written out in ``stages``:
+    numba inlines no function that uses ``literal_unroll``.)"""
     generalized_forces(m, v, w)
     if not free_accelerations(m, v, w):
         return SINGULAR
@@ -429,6 +504,30 @@ def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
                 w.aux[w.aux.shape[0] - 1] += w.lam[r] * v.Ct[r]
     rates(m, v, w, y, ydot)
     return OK
+
+
+@inline
+def _stage_point(h, y, ta, i, k, yi):
+    """``yi = y + h sum_l a_il k_l`` over the stages before ``i`` (zero coefficients skipped)."""
+    for j in range(y.shape[0]):
+        acc = y[j]
+        for l in range(i):
+            if ta[i, l] != 0.0:
+                acc += h * ta[i, l] * k[l, j]
+        yi[j] = acc
+
+
+@inline
+def rotation_increment(coef, s, h, k, i0):
+    """``h sum_l coef[l] K_l`` over the first ``s`` stages, ``K_l = k[l, i0:i0 + 3]``: a frame's
+    body-frame rotation increment [rad] (``stages`` keeps its ``K`` there)."""
+    u1 = u2 = u3 = 0.0
+    for l in range(s):
+        if coef[l] != 0.0:
+            u1 += h * coef[l] * k[l, i0]
+            u2 += h * coef[l] * k[l, i0 + 1]
+            u3 += h * coef[l] * k[l, i0 + 2]
+    return u1, u2, u3
 
 
 @entry

@@ -75,7 +75,7 @@ def _rows_at(t, y, chart, m, v, w, rows):
             shape_moments(m.fx_i, m.fx_pool, m.fx_bij, w.fx_work, fx, w.eta)
     if not factor_blocks(m, v, w):
         return False
-    fill_rows(m, v, t, rows)
+    fill_rows(m.row_body, v, t, rows)
     return True
 
 
@@ -92,7 +92,7 @@ def _max_abs(x):
     return out
 
 
-@jit
+@inline
 def _min_norm_correction(m, v, w):
     """``w.a``, ``w.ae`` = ``-M^-1 C_v^T (C_v M^-1 C_v^T)^-1 b`` per body (frame, elastic) for ``b`` in
     ``w.lam`` (the multipliers left there); False if the matrix is not positive definite."""

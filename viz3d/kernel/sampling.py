@@ -11,7 +11,7 @@ Nothing is allocated here: the caller hands the output arrays (``viz3d.kernel.Ke
 
 from __future__ import annotations
 
-from viz3d.compiled import energy_piece, gap_piece, jit
+from viz3d.compiled import energy_piece, gap_piece, inline, jit
 from viz3d.kernel.field import OK, evaluate
 from viz3d.kernel.model import RIGID
 
@@ -22,7 +22,7 @@ except ImportError:  # pragma: no cover
         return x
 
 
-@jit
+@inline
 def sample_state(i, t, y, chart, m, v, w, forces, rows, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot,
                  lam, C, J, gap, T, V):
     """Row ``i`` of the outputs for the state ``(t, y, chart)`` (shapes: N states, nb + 1 bodies, n_e
@@ -30,8 +30,11 @@ def sample_state(i, t, y, chart, m, v, w, forces, rows, geometry, energies, ydot
     (N, nb + 1, 3, 3), ``eta``, ``eta_dot`` (N, n_e), ``lam``, ``C`` (N, n_c), ``J`` (N, n_c, 2, 6),
     ``gap`` (N, k, 11), ``T`` (N,) rigid kinetic energy [J], ``V`` (N, 2) potential energy (signed,
     non-negative) [J]; False when its evaluation failed (a mass block or the constraint matrix not
-    positive definite). Called by the kernel's one entry for output frames,
-    ``viz3d.kernel.stepping.advance_frames``, as it steps them or on given states."""
+    positive definite). Inlined into the kernel's one entry for output frames,
+    ``viz3d.kernel.stepping.advance_frames`` (a compiled call per frame would pass the model, the
+    elements' data and the outputs flattened, more words than a small system's step), as it steps
+    them or on given states; the elements' loops are compiled calls (numba inlines no function that
+    uses ``literal_unroll``) that take only what they read."""
     if evaluate(t, y, chart, m, v, w, forces, rows, ydot) != OK:
         return False
     T[i] = 0.0
@@ -59,12 +62,25 @@ def sample_state(i, t, y, chart, m, v, w, forces, rows, geometry, energies, ydot
         for s_ in range(2):
             for a in range(6):
                 J[i, k, s_, a] = v.J[k, s_, a]
+    sample_gaps(geometry, v, gap[i])
+    sample_energies(energies, v, V[i])
+    return True
+
+
+@jit
+def sample_gaps(geometry, v, out):
+    """Every contact's gap row (k, 11) from the view ``v`` (its ``gap_piece``)."""
     for d in literal_unroll(geometry):
         if d.i.shape[0] > 0:
-            gap_piece(d, v, gap[i])
-    V[i, 0] = 0.0
-    V[i, 1] = 0.0
+            gap_piece(d, v, out)
+
+
+@jit
+def sample_energies(energies, v, out):
+    """``out`` (2,) = the force elements' potential energy, signed and non-negative [J], from the view
+    ``v`` (their ``energy_piece``)."""
+    out[0] = 0.0
+    out[1] = 0.0
     for d in literal_unroll(energies):
         if d.i.shape[0] > 0:
-            energy_piece(d, v, V[i])
-    return True
+            energy_piece(d, v, out)

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from viz3d.compiled import after_step_piece, entry, inline, jit
 from viz3d.coordinates import SINGULAR_SIN, SWITCH_SIN
 from viz3d.diagnosis import MAX_COORDINATE_TURN as MAX_TURN
-from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, evaluate, frames, rotation,
-                                turn_quaternion)
+from viz3d.kernel.field import (NONFINITE, OK, ROTATION, SINGULAR, SPEED, coordinate_rates, frames, rotation,
+                                rotation_increment, stages, turn_quaternion)
 from viz3d.kernel.projection import project
 from viz3d.kernel.sampling import sample_state
 from viz3d.points import kinematics
@@ -26,9 +28,15 @@ except ImportError:  # pragma: no cover
 
 @entry
 def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
+    """``steps``, called from Python."""
+    return steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi)
+
+
+@inline
+def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
     ``k`` (stages, n) and ``yi`` (n,); returns (steps done, status). With ``group`` 1 (a tableau
-    without an error estimate) Euler parameters advance on the group (``_group_stages``, the
+    without an error estimate) Euler parameters advance on the group (``stages``, the
     Munthe-Kaas step of ``viz3d.integrators.explicit_rk.ExplicitRK``). Between steps, Euler parameters
     are normalised (``m.n_rot`` 4), frames near gimbal lock are re-charted (``m.switching``) and
     counted in ``switches`` (per body); the run
@@ -42,17 +50,15 @@ def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
     their memory at each step's end (``renew``) after all that."""
     n = y.shape[0]
     s = tb.shape[0]
-    turns = group == 1 and m.n_rot == 4
+    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for step in range(n_steps):
-        if turns:
-            status = _group_stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
-        else:
-            status = _stages(t0 + step * h, h, y, chart, ta, tc, 0, m, v, w, forces, rows, k, yi)
+        # (np.int64(0), not a literal 0: numba would compile stages apart for it)
+        status = stages(t0 + step * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)
         if status != OK:
             return step, status
         for f in range(n_turned // 7):
-            u1, u2, u3 = _increment(tb, s, h, k, 7 * f + 3)
+            u1, u2, u3 = rotation_increment(tb, s, h, k, 7 * f + 3)
             turn_quaternion(y, 7 * f + 3, u1, u2, u3)
         for j in range(n):
             if j < n_turned and j % 7 >= 3:
@@ -101,7 +107,7 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, g
     entry for stepping and sampling (each entry loaded from numba's cache costs a run's start tens
     of milliseconds).
 
-    ``every`` > 0: up to ``n_frames`` calls of ``advance`` (``group`` as there) of ``every`` steps each, the first from
+    ``every`` > 0: up to ``n_frames`` runs of ``steps`` (``group`` as there) of ``every`` steps each, the first from
     step ``n0`` of a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the
     time the run's own state would carry), the state after call ``f`` copied into ``Y[f]`` (n,) and
     ``charts[f]``, its time into ``ts[f]`` and, while ``sampled[0]`` (given as 1) is not cleared,
@@ -120,26 +126,24 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, g
     the first state whose evaluation fails; projecting, (0, 0, the projection's status)."""
     if every < 0:
         return 0, 0, project(t0, y, chart, m, v, w, rows)
-    if every == 0:
-        for f in range(n_frames):
-            if not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies, ydot, r, R, vW,
-                                wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
-                return f, 0, SINGULAR
-        return n_frames, 0, OK
     for f in range(n_frames):
-        done, status = advance(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, group, max_speed, m,
-                               v, w, forces, rows, memories, k, yi)
-        if status != OK:
-            return f, done, status
-        for j in range(y.shape[0]):
-            Y[f, j] = y[j]
-        for b in range(chart.shape[0]):
-            for i in range(3):
-                for c in range(3):
-                    charts[f, b, i, c] = chart[b, i, c]
-        ts[f] = t0 + (n0 + (f + 1) * every) * h
-        if sampled[0] == 1 and not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows, geometry, energies,
-                                                 ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap, T, V):
+        if every > 0:
+            done, status = steps(every, t0 + (n0 + f * every) * h, h, y, chart, switches, ta, tb, tc, group, max_speed,
+                                 m, v, w, forces, rows, memories, k, yi)
+            if status != OK:
+                return f, done, status
+            for j in range(y.shape[0]):
+                Y[f, j] = y[j]
+            for b in range(chart.shape[0]):
+                for i in range(3):
+                    for c in range(3):
+                        charts[f, b, i, c] = chart[b, i, c]
+            ts[f] = t0 + (n0 + (f + 1) * every) * h
+        if (every == 0 or sampled[0] == 1) and not sample_state(f, ts[f], Y[f], charts[f], m, v, w, forces, rows,
+                                                                geometry, energies, ydot, r, R, vW, wW, wB, eta,
+                                                                eta_dot, lam, C, J, gap, T, V):
+            if every == 0:
+                return f, 0, SINGULAR
             sampled[0] = 0
     return n_frames, every, OK
 
@@ -151,75 +155,6 @@ def _finite(y):
         if not math.isfinite(y[j]):
             return False
     return True
-
-
-@inline
-def _stage_point(h, y, ta, i, k, yi):
-    """``yi = y + h sum_l a_il k_l`` over the stages before ``i`` (zero coefficients skipped)."""
-    for j in range(y.shape[0]):
-        acc = y[j]
-        for l in range(i):
-            if ta[i, l] != 0.0:
-                acc += h * ta[i, l] * k[l, j]
-        yi[j] = acc
-
-
-@inline
-def _stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
-    """Stages ``first`` to the last of a step from ``(t, y)`` into ``k`` (the rows before ``first``
-    given); the status of the first failed evaluation, ``OK`` when none."""
-    for i in range(first, ta.shape[0]):
-        _stage_point(h, y, ta, i, k, yi)
-        status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-        if status != OK:
-            return status
-    return OK
-
-
-@inline
-def _increment(coef, s, h, k, i0):
-    """``h sum_l coef[l] K_l`` over the first ``s`` stages, ``K_l = k[l, i0:i0 + 3]``: a frame's
-    body-frame rotation increment [rad] (``_group_stages`` keeps its ``K`` there)."""
-    u1 = u2 = u3 = 0.0
-    for l in range(s):
-        if coef[l] != 0.0:
-            u1 += h * coef[l] * k[l, i0]
-            u2 += h * coef[l] * k[l, i0 + 1]
-            u3 += h * coef[l] * k[l, i0 + 2]
-    return u1, u2, u3
-
-
-@inline
-def _group_stages(t, h, y, chart, ta, tc, first, m, v, w, forces, rows, k, yi):
-    """The stages of a Munthe-Kaas step (``viz3d.integrators.explicit_rk.ExplicitRK``) into ``k``:
-    each frame's Euler parameters at stage ``i`` are ``y``'s turned by ``u_i = h sum_l a_il K_l``
-    (``turn_quaternion``), the rest of ``yi`` as in ``_stages``; after the evaluation, the frame's
-    ``k[i]`` entries of ``p_dot`` hold ``K_i = dexpinv(u_i, B_omega_i)`` (``viz3d.dynamics.dexpinv``)
-    and 0. Rows before ``first`` are given (their ``p_dot`` turned into ``K`` all the same). The status of
-    the first failed evaluation, ``OK`` when none."""
-    nf = m.frame_body.shape[0]
-    for i in range(ta.shape[0]):
-        _stage_point(h, y, ta, i, k, yi)
-        for f in range(nf):
-            i0 = 7 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
-            for c in range(4):
-                yi[i0 + c] = y[i0 + c]
-            turn_quaternion(yi, i0, u1, u2, u3)
-        if i >= first:
-            status = evaluate(t + tc[i] * h, yi, chart, m, v, w, forces, rows, k[i])
-            if status != OK:
-                return status
-        for f in range(nf):
-            i0, o = 7 * f + 3, m.n_q + 6 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
-            w1, w2, w3 = yi[o], yi[o + 1], yi[o + 2]
-            c1, c2, c3 = u2 * w3 - u3 * w2, u3 * w1 - u1 * w3, u1 * w2 - u2 * w1
-            k[i, i0] = w1 + 0.5 * c1 + (u2 * c3 - u3 * c2) / 12.0
-            k[i, i0 + 1] = w2 + 0.5 * c2 + (u3 * c1 - u1 * c3) / 12.0
-            k[i, i0 + 2] = w3 + 0.5 * c3 + (u1 * c2 - u2 * c1) / 12.0
-            k[i, i0 + 3] = 0.0
-    return OK
 
 
 @inline
@@ -274,6 +209,12 @@ def _check_frames(nq, n_rot, switching, frame_body, centre, centre_R, R, y, char
 
 @entry
 def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
+    """``step``, called from Python."""
+    return step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err)
+
+
+@inline
+def step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, rows, k, yi, y1, err):
     """One step of the tableau ``(ta, tb, tc)`` from ``y`` (what ``viz3d.integrators.explicit_rk``
     does, for adaptive runs and steps taken one at a time): the stages into ``k`` (stages, n), with
     ``f0`` as the first one when ``use_f0``; ``y1 = y + h sum b_i k_i`` and ``err = h sum e_i k_i``
@@ -281,20 +222,17 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
     ``k`` holds the stages' rates ``p_dot`` again at the end (``_stage_rates``). Returns the status of
     the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
-    turns = group == 1 and m.n_rot == 4
+    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
     n_turned = 7 * m.frame_body.shape[0] if turns else 0
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    if turns:
-        status = _group_stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
-    else:
-        status = _stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, m, v, w, forces, rows, k, yi)
+    status = stages(t, h, y, chart, ta, tc, np.int64(1 if use_f0 else 0), turns, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
     for f in range(n_turned // 7):
         i0 = 7 * f + 3
-        u1, u2, u3 = _increment(tb, tb.shape[0], h, k, i0)
+        u1, u2, u3 = rotation_increment(tb, tb.shape[0], h, k, i0)
         for c in range(4):
             y1[i0 + c] = y[i0 + c]
         turn_quaternion(y1, i0, u1, u2, u3)
@@ -319,13 +257,13 @@ def rk_step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, 
 @inline
 def _stage_rates(h, y, ta, m, k, yi):
     """``k``'s Euler-parameter entries of a group step back from ``K`` to the stages' ``p_dot``, as
-    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``_group_stages`` built them,
+    ``evaluate`` gave them: each stage's ``p`` and ``B_omega`` rebuilt as ``stages`` built them,
     last stage first (stage ``i``'s ``p`` needs the ``K`` of the stages before it)."""
     nf = m.frame_body.shape[0]
     for i in range(ta.shape[0] - 1, -1, -1):
         for f in range(nf):
             i0, o = 7 * f + 3, m.n_q + 6 * f + 3
-            u1, u2, u3 = _increment(ta[i], i, h, k, i0)
+            u1, u2, u3 = rotation_increment(ta[i], i, h, k, i0)
             for c in range(4):
                 yi[i0 + c] = y[i0 + c]
             turn_quaternion(yi, i0, u1, u2, u3)
