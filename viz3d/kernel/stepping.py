@@ -52,11 +52,11 @@ def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v
     s = tb.shape[0]
     turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
-    for step in range(n_steps):
+    for n_done in range(n_steps):
         # (np.int64(0), not a literal 0: numba would compile stages apart for it)
-        status = stages(t0 + step * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)
+        status = stages(t0 + n_done * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)
         if status != OK:
-            return step, status
+            return n_done, status
         for f in range(n_turned // 7):
             u1, u2, u3 = rotation_increment(tb, s, h, k, 7 * f + 3)
             turn_quaternion(y, 7 * f + 3, u1, u2, u3)
@@ -69,21 +69,21 @@ def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v
                     acc += h * tb[i] * k[i, j]
             y[j] = acc
         if not _finite(y):
-            return step + 1, NONFINITE
+            return n_done + 1, NONFINITE
         if m.projects == 1 and m.row_body.shape[0] > 0:  # (a call passing the model costs, even with no rows)
-            status = project(t0 + (step + 1) * h, y, chart, m, v, w, rows)
+            status = project(t0 + (n_done + 1) * h, y, chart, m, v, w, rows)
             if status == SINGULAR:
-                return step, status
+                return n_done, status
             if status != OK:
-                return step + 1, status
+                return n_done + 1, status
             if not _finite(y):
-                return step + 1, NONFINITE
+                return n_done + 1, NONFINITE
         status = _check_frames(m.n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y, chart,
                                switches, h, max_speed)
         if status != OK:
-            return step + 1, status
+            return n_done + 1, status
         if m.remembers == 1:
-            renew(t0 + (step + 1) * h, m, v, w, y, chart, memories)
+            renew(t0 + (n_done + 1) * h, m, v, w, y, chart, memories)
     return n_steps, OK
 
 
