@@ -51,6 +51,10 @@ class ForceElement(ABC):
     #: Its non-potential power is a loss (dampers, stops, drag, contact damping and friction): the
     #: energy ledger books it as dissipated, not as (negative) work in (``viz3d.dynamics.aux_rates``).
     dissipative: ClassVar[bool] = False
+    #: Its packed data (``compiled``) holds what a run writes (shape contacts: narrow-phase scratch,
+    #: stick anchors), so the kernel packs it for each run instead of once per system
+    #: (``viz3d.kernel.model.per_run``).
+    packed_per_run: ClassVar[bool] = False
 
     @abstractmethod
     def wrench(self, cfg: Configuration) -> tuple[FloatArray, FloatArray, FloatArray | None]:

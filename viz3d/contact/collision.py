@@ -398,6 +398,7 @@ class Collisions(ForceElement):
     """
 
     type_name: ClassVar[str] = "collisions"
+    packed_per_run: ClassVar[bool] = True  # (viz3d.kernel.collisions: scratch and anchors in the packed data)
     dissipative: ClassVar[bool] = True
     #: Frame scalars this element adds (``scalars``), saved as trajectory fields (``viz3d.extras``).
     scalar_names: ClassVar[tuple[str, ...]] = ("collision/contacts", "collision/max_depth", "collision/normal_force")

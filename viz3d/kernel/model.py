@@ -300,8 +300,8 @@ def pack(system, formulation) -> KernelData:
 
 def per_run(system) -> bool:
     """True when ``system``'s packed data holds what a run writes, so that each run needs its own
-    packing: shape contacts' scratch and stick anchors (``viz3d.kernel.collisions``)."""
-    return any(getattr(e, "type_name", None) == "collisions" for e in system.forces)
+    packing (a force element's ``packed_per_run``: shape contacts' scratch and stick anchors)."""
+    return any(e.packed_per_run for e in system.forces)
 
 
 def _anchors(forces, parts: dict[type, list]) -> tuple:
