@@ -22,8 +22,11 @@ UNUSED_SCIPY = ("scipy.sparse", "scipy.optimize", "scipy.integrate", "scipy.spec
 #: The modules of the other kinds of scene (a multibody scene's run needs none of them).
 OTHER_KINDS = ("viz3d.hydro", "viz3d.scene.hydro")
 #: Imported by numba's target refresh (the typing and lowering of all numba supports), which compiling
-#: needs and loading viz3d's kernel from the cache does not (``viz3d.compiled.LoadingCache``).
-NUMBA_TARGET = ("numba.np.linalg", "numba.np.arraymath", "numba.typed.typeddict", "numba.np.random.generator_core")
+#: needs and loading viz3d's kernel from the cache does not (``viz3d.compiled.LoadingCache``); and
+#: ``numba.np.arrayobj`` (33 ms), the module of an implementation the kernel inlines, which unpickling
+#: its environment imported (``LoadingCache``'s environments of modules not imported).
+NUMBA_TARGET = ("numba.np.linalg", "numba.np.arraymath", "numba.typed.typeddict", "numba.np.random.generator_core",
+                "numba.np.arrayobj")
 
 
 def loaded_after(code: str) -> set[str]:
