@@ -24,7 +24,8 @@ covered rigid system, through the kernel's one entry for a run, ``advance_frames
 cache; before that entry took the sampling and projection too, the initial projection loaded an entry of
 its own); the kernel's first call, one step through ``advance_frames`` (loading it, on trees where the
 build did not); the rest of the run (the steps and their sampling, whose entry earlier trees loaded
-here, the output). Wall and CPU time, median of ``--repeat``.
+here, the output). Wall and CPU time, median of ``--repeat``. The process is set up as the ``viz3d``
+command sets its own up (``viz3d.process``: OpenBLAS on one thread), where the tree has that module.
 The load average (``uptime``'s) is quoted before and after.
 """
 
@@ -61,6 +62,11 @@ CLOCKS = ("wall", "CPU")
 PHASE_NAMES = ("import numpy", "import numba", "import viz3d's modules", "load and build", "kernel from cache", "run")
 #: One run split into phases (printed as JSON: wall and CPU seconds of each).
 PHASES = """
+try:  # the process settings of the viz3d command (viz3d.__main__), where the tree has them
+    from viz3d.process import single_threaded_blas
+    single_threaded_blas()
+except ImportError:
+    pass
 import time
 def now():
     return time.perf_counter(), time.process_time()

@@ -32,7 +32,7 @@ LAYERS = {
                 "viz3d.studies.*", "viz3d.sweep",
                 "viz3d.frames", "viz3d.trajectory", "viz3d.outputs", "viz3d.extras", "viz3d.sink", "viz3d.interrupts", "viz3d.columns"],
     "view": ["viz3d.viz.*"],
-    "cli": ["viz3d", "viz3d.cli", "viz3d.__main__"],  # the package's public API is at the top
+    "cli": ["viz3d", "viz3d.cli", "viz3d.__main__", "viz3d.process"],  # the package's public API is at the top
 }
 
 

@@ -22,8 +22,11 @@ UNUSED_SCIPY = ("scipy.sparse", "scipy.optimize", "scipy.integrate", "scipy.spec
 #: The modules of the other kinds of scene (a multibody scene's run needs none of them).
 OTHER_KINDS = ("viz3d.hydro", "viz3d.scene.hydro")
 #: Imported by numba's target refresh (the typing and lowering of all numba supports), which compiling
-#: needs and loading viz3d's kernel from the cache does not (``viz3d.compiled.LoadingCache``).
-NUMBA_TARGET = ("numba.np.linalg", "numba.np.arraymath", "numba.typed.typeddict", "numba.np.random.generator_core")
+#: needs and loading viz3d's kernel from the cache does not (``viz3d.compiled.LoadingCache``); and
+#: ``numba.np.arrayobj`` (33 ms), the module of an implementation the kernel inlines, which unpickling
+#: its environment imported (``LoadingCache``'s environments of modules not imported).
+NUMBA_TARGET = ("numba.np.linalg", "numba.np.arraymath", "numba.typed.typeddict", "numba.np.random.generator_core",
+                "numba.np.arrayobj")
 
 
 def loaded_after(code: str) -> set[str]:
@@ -145,3 +148,32 @@ stepper.sample(np.array([0.002, 0.004, 0.006]), Y, charts, ())
     modules = loaded_after(code)
     assert "viz3d.kernel.stepping" in modules
     assert not offending(modules, ("scipy.linalg", "scipy.linalg.cython_lapack", "scipy.sparse")), "the kernel needs LAPACK"
+
+
+def test_the_command_starts_blas_on_one_thread_unless_the_user_chose_a_count():
+    """``viz3d.__main__`` (the ``viz3d`` command) chooses OpenBLAS's thread count before numpy is
+    imported (numpy starts the pool as it is imported): one thread, unless one of the variables
+    OpenBLAS reads is set. Library users and ``cli.main`` keep their own."""
+    from viz3d.process import BLAS_THREADS, single_threaded_blas
+
+    env = {}
+    single_threaded_blas(env)
+    assert env == {"OPENBLAS_NUM_THREADS": "1"}
+    for name in BLAS_THREADS:
+        env = {name: "3"}
+        single_threaded_blas(env)
+        assert env == {name: "3"}
+    probe = ("import os, sys\n"
+             "seen = []\n"
+             "class Probe:\n"
+             "    def find_spec(self, name, path=None, target=None):\n"
+             "        if name == 'numpy' and not seen:\n"
+             "            seen.append(os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+             "sys.meta_path.insert(0, Probe())\n"
+             "import viz3d.__main__\n"
+             "print(seen)\n")
+    clean = {k: v for k, v in __import__("os").environ.items() if k not in BLAS_THREADS}
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=clean, capture_output=True, text=True,
+                         timeout=600, check=True)
+    assert out.stdout.split() == ["['1']"]
+

@@ -54,6 +54,7 @@ import contextlib
 import functools
 import hashlib
 import inspect
+import sys
 from pathlib import Path
 from typing import NamedTuple
 
@@ -401,10 +402,16 @@ def _loading_cache():
     * parsing the bitcode a loaded entry keeps for linking into other libraries (megabytes for the
       kernel's entries, 0.1 s of a run's start), which a call from Python never needs: when a later
       compilation links the entry (``LinkLaterLibrary``). The names the entry defines, which numba
-      reads from that bitcode, are stored with it (``LinkLaterImpl.reduce``).
+      reads from that bitcode, are stored with it (``LinkLaterImpl.reduce``);
+    * importing the module of every compiled function's environment as the entry is unpickled
+      (``numba.core.environment._rebuild_env``): the kernel inlines a few of numba's own
+      implementations (``normalize_reshape_value`` of ``numba.np.arrayobj``, 33 ms to import, and
+      three smaller), and their environments' globals are read only by object-mode code, which
+      viz3d's compiled code has none of (``_lazy_env``).
     """
     try:
         from llvmlite import binding as ll
+        from numba.core import environment
         from numba.core.caching import CompileResultCacheImpl, FunctionCache
         from numba.core.codegen import JITCodeLibrary, JITCPUCodegen, JitEngine
     except ImportError:  # pragma: no cover
@@ -412,10 +419,24 @@ def _loading_cache():
     needs = {FunctionCache: ("_load_overload", "_guard_against_spurious_io_errors"),
              JITCodeLibrary: ("_get_module_for_linking", "_set_compiled_object", "enable_object_caching",
                               "_finalize_final_module"),
-             JitEngine: ("is_symbol_defined", "_load_defined_symbols")}  # the latter fills ``_defined_symbols``
+             JitEngine: ("is_symbol_defined", "_load_defined_symbols"),  # the latter fills ``_defined_symbols``
+             environment: ("_rebuild_env", "lookup_environment", "Environment")}
     if JITCPUCodegen._library_class is not JITCodeLibrary or not all(
             hasattr(cls, m) for cls, names in needs.items() for m in names):
         return None  # pragma: no cover
+    rebuild_env = environment._rebuild_env
+
+    def _lazy_env(modname, consts, env_name):
+        """numba's ``_rebuild_env`` without importing ``modname``: an environment of a module not
+        imported yet gets globals holding only its ``__name__`` (what numba's ``can_cache`` and
+        pickling read); nopython code reads only the constants."""
+        if modname in sys.modules or environment.lookup_environment(env_name) is not None:
+            return rebuild_env(modname, consts, env_name)
+        env = environment.Environment({"__name__": modname})
+        env.consts[:] = consts
+        env.env_name = env_name
+        environment.Environment._memo[env_name] = env
+        return env
 
     class LinkLaterLibrary(JITCodeLibrary):
         """A library loaded from the cache (object code), its module for linking parsed on demand."""
@@ -478,8 +499,14 @@ def _loading_cache():
             return getattr(self, name)
 
         def load_overload(self, sig, target_context):
-            with self._guard_against_spurious_io_errors():
-                return self._load_overload(sig, target_context)
+            # Under numba's compiler lock (``Dispatcher.compile``): the entry is unpickled here,
+            # pickle reading ``environment._rebuild_env`` as it meets each environment.
+            environment._rebuild_env = _lazy_env
+            try:
+                with self._guard_against_spurious_io_errors():
+                    return self._load_overload(sig, target_context)
+            finally:
+                environment._rebuild_env = rebuild_env
 
     return LoadingCache
 

@@ -53,6 +53,16 @@ def test_time_scale_of_a_contact_pressed_by_a_load_alone():
     assert contact_time_scale(law, 0.0329, 0.0) == np.inf  # nothing presses: no time scale
 
 
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_a_contact_the_joints_hold_has_no_time_scale(name):
+    """An infinite effective mass (``ContactEvents.effective_mass`` of a contact whose normal the
+    joints hold, its mobility zero up to round-off of either sign): no time scale, whatever the load
+    or speed, and no nan from ``inf * 0`` on the way."""
+    with np.errstate(all="raise"):
+        assert contact_time_scale(EXAMPLES[name], np.inf, 0.0, force=1e3) == np.inf
+        assert contact_time_scale(EXAMPLES[name], np.inf, V0) == np.inf
+
+
 def test_admissible_indentation_closed_forms():
     E = 0.5 * M_EFF * V0**2
     hertz, linear = EXAMPLES["hertz"], EXAMPLES["linear"]

@@ -307,6 +307,25 @@ def test_a_run_without_sinks_takes_its_frames_in_batches_with_the_same_result(sc
         assert "gimbal lock" in a.status
 
 
+def test_an_entry_that_accepted_its_arguments_is_found_without_typing_them(monkeypatch):
+    """A dispatcher holding one signature that has just taken the arguments: that signature is theirs,
+    found without numba's typing (``_typed_entry``: which imports numpy.ma and took some 10 ms of a
+    run's start); holding two, the arguments are typed, and each finds its own."""
+    numba = pytest.importorskip("numba")
+    total = numba.njit(lambda a: a.sum())
+    x, k = np.arange(3.0), np.arange(3)
+    assert K._typed_entry(total, (x,), accepted=True) is total  # nothing compiled or loaded yet
+    total(x)
+    monkeypatch.setattr(total, "typeof_pyval", lambda a: pytest.fail("typed"))
+    assert K._typed_entry(total, (x,), accepted=True)(x) == 3.0
+    monkeypatch.undo()
+    total(k)
+    for a in (x, k):
+        entry = K._typed_entry(total, (a,), accepted=True)
+        assert entry is total.overloads[(numba.typeof(a),)].entry_point
+    assert K._typed_entry(total, (x,), accepted=True) is not K._typed_entry(total, (k,), accepted=True)
+
+
 def test_compiled_entries_are_found_once_per_argument_types_and_are_the_right_ones(monkeypatch):
     """Runs of scenes interleaved (a top on RK4; a spring on gen_alpha, whose run calls other compiled
     entries): after the first run of each, their compiled entries are found without numba's typing,
@@ -317,10 +336,10 @@ def test_compiled_entries_are_found_once_per_argument_types_and_are_the_right_on
     runs = [viz3d.simulate(s, t_end=0.05) for s in scenes]
     typed = []
     typeof = K._typed_entry
-    monkeypatch.setattr(K, "_typed_entry", lambda d, a: typed.append(d) or typeof(d, a))
+    monkeypatch.setattr(K, "_typed_entry", lambda d, a, accepted=False: typed.append(d) or typeof(d, a, accepted))
     again = [viz3d.simulate(s, t_end=0.05) for s in scenes]
     assert typed == []
-    monkeypatch.setattr(K, "_entry_point", lambda d, a, fingerprint=None: d)  # numba's own dispatch at every call
+    monkeypatch.setattr(K, "_entry_point", lambda d, a, fingerprint=None, accepted=False: d)  # numba's own dispatch
     direct = [viz3d.simulate(s, t_end=0.05) for s in scenes]
     for a, b, c in zip(runs, again, direct):
         for name in ("position", "rotation", "omega", "reaction_force"):

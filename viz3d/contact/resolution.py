@@ -90,7 +90,8 @@ def contact_time_scale(law: NormalLaw, m_eff: float, speed: float, memory: Conta
     secant stiffness is ``k = F(alpha_m, v) / (alpha_m - alpha_r)``, with the rate term of the
     law at the approach speed (stiffer, so the estimate errs short), and ``t = pi sqrt(m_eff / k)``.
     Linear law: the exact contact duration ``pi sqrt(m/K)``; Hertz: ``pi sqrt(4/5) alpha_m / v =
-    2.81 alpha_m / v`` against the exact 2.9433 alpha_m / v. ``inf`` when nothing presses.
+    2.81 alpha_m / v`` against the exact 2.9433 alpha_m / v. ``inf`` when nothing presses, and for
+    an infinite ``m_eff`` (the joints hold the bodies along the normal: nothing moves into the contact).
 
     Parameters
     ----------
@@ -104,6 +105,8 @@ def contact_time_scale(law: NormalLaw, m_eff: float, speed: float, memory: Conta
     force : float
         Force the loads press the surfaces together with [N] (0 if none).
     """
+    if m_eff == np.inf:
+        return np.inf
     crater = 0.0 if memory is None else float(memory.alpha_residual)
     alpha_m = max(admissible_indentation(law, 0.5 * m_eff * speed**2, memory),
                   quasi_static_indentation(law, force, memory))

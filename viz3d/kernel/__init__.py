@@ -304,7 +304,7 @@ def _c(a: np.ndarray) -> np.ndarray:
 _ENTRIES: dict = {}
 
 
-def _entry_point(dispatcher, args, fingerprint=None):
+def _entry_point(dispatcher, args, fingerprint=None, accepted: bool = False):
     """The compiled entry of ``dispatcher`` for these argument types (skips the per-call type
     dispatch, a few microseconds for tuples of arrays); the dispatcher itself if unavailable.
 
@@ -312,24 +312,34 @@ def _entry_point(dispatcher, args, fingerprint=None):
     costs about a millisecond for the packed model's tuples of arrays, 6 of a small run's 8 ms
     before this cache. The key is numba's fingerprint of each argument (``fingerprint(a)``, numba's
     ``compute_fingerprint`` unless given), the key numba's dispatcher caches its own typing under
-    (so equal fingerprints mean equal types)."""
+    (so equal fingerprints mean equal types). ``accepted``: ``dispatcher`` has just been called with
+    ``args`` (``_typed_entry``)."""
     try:
         key = (dispatcher, tuple(map(fingerprint or compute_fingerprint, args)))
     except (NameError, TypeError, ValueError, NotImplementedError):  # no fingerprint: type them each time
         return _typed_entry(dispatcher, args)
     entry = _ENTRIES.get(key)
     if entry is None:
-        entry = _typed_entry(dispatcher, args)
+        entry = _typed_entry(dispatcher, args, accepted)
         if entry is not dispatcher:  # (not compiled nor loaded in this process yet: look again after a call)
             _ENTRIES[key] = entry
     return entry
 
 
-def _typed_entry(dispatcher, args):
-    """``_entry_point`` by numba's typing of ``args``."""
+def _typed_entry(dispatcher, args, accepted: bool = False):
+    """``_entry_point`` by numba's typing of ``args``; without it when the dispatcher holds no
+    signature yet (the call compiles or loads one) or holds one and has ``accepted`` these
+    arguments (then that one is theirs). The typing imports ``numpy.ma`` (numba's ``typeof`` of an
+    array asks whether it is masked) and takes about 10 ms for the packed model: 20 ms of a run's
+    start, before these two cases."""
+    overloads = getattr(dispatcher, "overloads", None)
+    if not overloads:
+        return dispatcher
+    if accepted and len(overloads) == 1:
+        return next(iter(overloads.values())).entry_point
     try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
-        return dispatcher.overloads[sig].entry_point
+        return overloads[sig].entry_point
     except (AttributeError, KeyError):
         return dispatcher
 
@@ -382,7 +392,7 @@ class KernelStepper:
             fn = _entry_point(dispatcher, args, self._fingerprint)
             if fn is dispatcher:
                 result = dispatcher(*args)
-                entries[dispatcher] = _entry_point(dispatcher, args, self._fingerprint)
+                entries[dispatcher] = _entry_point(dispatcher, args, self._fingerprint, accepted=True)
                 return result
             entries[dispatcher] = fn
         return fn(*args)
