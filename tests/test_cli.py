@@ -38,25 +38,6 @@ def test_run_writes_the_documented_trajectory_file(tmp_path, capsys):
     assert set(ARRAY_FIELDS) >= set(CONTRACT) - {"status", "scene_json"}
 
 
-@pytest.mark.parametrize("compiled", [True, False])
-def test_a_run_ends_at_t_end_when_dt_does_not_divide_it(compiled, tmp_path, capsys):
-    """t_end 0.05 s with dt 0.003 s: 17 equal steps of 0.05/17 s end at t_end (before, the 17th step of
-    0.003 s ended at 0.051 s); the header says the step was shortened, the trajectory records the step
-    taken; a dt that divides t_end is kept to the bit. Kernel and NumPy path alike."""
-    out = tmp_path / "top.npz"
-    args = ["run", str(SCENES / "heavy_top.toml"), "--t-end", "0.05", "--out", str(out), "--no-progress",
-            "--set", f"sim.compiled={str(compiled).lower()}"]
-    assert main([*args, "--dt", "0.003"]) == 0
-    assert "17 steps of rk4, dt = 0.00294118 s (sim.dt = 0.003 s shortened" in capsys.readouterr().out
-    traj = viz3d.Trajectory.load(out)
-    assert traj.n_steps == 17 and traj.scene["run"]["dt"] == 0.05 / 17
-    assert abs(traj.t[-1] - 0.05) <= 4 * np.finfo(float).eps * 0.05  # (17 products t0 + n h, each rounded once)
-    assert main([*args, "--dt", "0.001"]) == 0
-    assert "shortened" not in capsys.readouterr().out
-    traj = viz3d.Trajectory.load(out)
-    assert traj.scene["run"]["dt"] == 0.001 and traj.n_steps == 50 and traj.t[-1] == pytest.approx(0.05, abs=1e-15)
-
-
 def test_run_with_overrides_and_bad_override(tmp_path, capsys):
     out = tmp_path / "c.npz"
     assert main(["run", str(SCENES / "chain.toml"), "--set", "chain.n=4", "--t-end", "0.01", "--out", str(out)]) == 0

@@ -598,11 +598,9 @@ def run_header(scene) -> str:
         how = (f"adaptive {sim['integrator']}{events}, rtol = {sim['rtol']:g}, "
                f"output every {sim.get('output_dt', sim['dt']):g} s")
     else:
-        from viz3d.simulate import run_interval
+        import math
 
-        n, h = run_interval(sim)
-        shortened = "" if h == sim["dt"] else f" (sim.dt = {sim['dt']:g} s shortened: {n} equal steps end at t_end)"
-        how = f"{n} steps of {sim['integrator']}, dt = {h:g} s{shortened}"
+        how = f"{math.ceil(sim['t_end'] / sim['dt'] - 1e-9)} steps of {sim['integrator']}, dt = {sim['dt']:g} s"
     return f"running     {scene.name} to t = {sim['t_end']:g} s: {how}"
 
 

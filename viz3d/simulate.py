@@ -919,7 +919,7 @@ def simulate_built(scene: Scene, system: System, state: State, progress: bool = 
     start once their models are built)."""
     sim_cfg = scene.data["sim"]
     try:
-        sim = Simulation(system, state, make_integrator_from(sim_cfg), make_formulation(sim_cfg), run_interval(sim_cfg)[1],
+        sim = Simulation(system, state, make_integrator_from(sim_cfg), make_formulation(sim_cfg), sim_cfg["dt"],
                          sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"])
     except MethodError as exc:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
@@ -964,17 +964,6 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
     return check, goal is not None or any(limited for _, _, limited in limits.values())
 
 
-def run_interval(sim_cfg: dict) -> tuple[int, float]:
-    """``(n, h)``: a run of ``sim_cfg`` (a scene's ``sim`` table) takes ``n`` equal intervals of ``h`` [s]
-    to ``t_end``: fixed steps, or on adaptive runs (``rtol``) the instants its states are returned at.
-    ``h`` is ``dt`` when ``n dt`` is ``t_end`` to 1e-9 of a step, else ``dt`` shortened to ``t_end / n``,
-    ``n = ceil(t_end / dt)``: the run ends at ``t_end``, not up to a step after it (0.05 s with dt 0.003
-    s: 17 steps of 2.94e-3 s, not 0.051 s)."""
-    t_end, dt = sim_cfg["t_end"], sim_cfg["dt"]
-    n = max(1, math.ceil(t_end / dt - 1e-9))
-    return n, (dt if abs(n * dt - t_end) <= 1e-9 * dt else t_end / n)
-
-
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:
     """Drive ``sim`` to ``sim.t_end``: the states every ``output_dt`` into the trajectory, and to the
     ``sinks`` the frames of the finer instants they ask for (``Sink.frame_dt``) and the events, in
@@ -982,9 +971,8 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
     (``Simulation.output_states``), at the finest interval anyone needs; their frames are computed
     a chunk at a time (``viz3d.columns.StateLog``) and checked before the sinks get them."""
     cfg = scene.data["sim"]
-    dt = sim.dt  # (run_interval's, from simulate_built)
-    n_steps = max(1, math.ceil(cfg["t_end"] / dt - 1e-9))
-    every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, dt)) / dt))
+    n_steps = max(1, math.ceil(cfg["t_end"] / cfg["dt"] - 1e-9))
+    every = max(1, round(cfg.get("output_dt", max(DEFAULT_OUTPUT_DT, cfg["dt"])) / cfg["dt"]))
     sim.t_end = min(sim.t_end, sim.t0 + (sim.n_samples + n_steps) * sim.dt)  # the last sample's time, as stepped to
     bar = ProgressBar(n_steps) if progress else None
     status, wall0, internal, failure = "ok", time.perf_counter(), None, None
@@ -994,9 +982,9 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
         log = emitter.start(check)
         try:
             emitter.open(scene)
-            fine = emitter.interval(every, dt)  # steps between the instants anyone needs (divides every)
+            fine = emitter.interval(every, cfg["dt"])  # steps between the instants anyone needs (divides every)
             if has_goal:  # a run that may end at a goal checks its frames every GOAL_CHECK_INTERVAL of simulated time
-                log.chunk = max(1, round(GOAL_CHECK_INTERVAL / (fine * dt)))
+                log.chunk = max(1, round(GOAL_CHECK_INTERVAL / (fine * cfg["dt"])))
             else:
                 log.chunk = chunk_length(sim.system, fine)
             log.record(sim.state)
@@ -1166,7 +1154,7 @@ def scene_json(scene: Scene, sim: Simulation) -> str:
     from viz3d import __version__
 
     cfg = scene.data["sim"]
-    meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": sim.dt,
+    meta = {"viz3d_version": __version__, "integrator": cfg["integrator"], "dt": cfg["dt"],
             "formulation": cfg["formulation"], "rotation": cfg["rotation"], "source": str(scene.path),
             "overrides": list(scene.overrides),
             "conservative": sim.system.conservative, "kernel": sim.kernel_note}
