@@ -356,10 +356,6 @@ def _check_stepping(system) -> None:
         raise Unsupported("ALI3-P with flexible bodies")
     if system.contacts:
         raise Unsupported("ALI3-P with contacts")
-    if not all(e.smooth for e in system.forces):
-        raise Unsupported("ALI3-P with shape contacts (forces not smooth in the positions)")
-    if any(e.branches for e in system.forces):  # (viz3d.ali3p holds them within a step; the kernel does not yet)
-        raise Unsupported("ALI3-P with force branches held within a step (joint stops)")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
