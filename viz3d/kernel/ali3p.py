@@ -14,9 +14,10 @@ Python takes that one for its diagnosis. In the call:
   of the old angles, as ``viz3d.coordinates.EulerZXZ.advance``), and forces, gyroscopic terms,
   constraint rows ``C``, ``C_v`` and ``gamma`` are evaluated by the field's own stages
   (``viz3d.kernel.field``);
-* matrices over the velocity unknowns are in LAPACK's band storage, in body order, of
-  half-bandwidth ``bw = 6 d + 5`` where ``d`` is the largest distance in body order of two coupled
-  bodies (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. Column ``j`` of a band
+* matrices over the velocity unknowns are in LAPACK's band storage, the bodies in body order or in
+  reverse Cuthill-McKee's where that narrows the band (``_band_order``), of half-bandwidth
+  ``bw = 6 d + 5`` where ``d`` is the largest distance in that order of two coupled bodies
+  (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. Column ``j`` of a band
   matrix ``A`` (n, n) is row ``j`` of a C array ``ab`` (n, 3 bw + 1), ``A[i, j] = ab[j, 2 bw + i - j]``
   (Fortran's ``AB`` of ``gbtrf`` with ``LDAB = 3 bw + 1``; the first ``bw`` entries of a column
   room for the LU's fill). ``C_v^T C_v`` is assembled from the rows' (2, 6) blocks, the
@@ -203,24 +204,30 @@ def _band_factor(ab, bw, piv, ints):
 
 
 @jit
-def _band_solve(ab, bw, piv, b, ints, trans):
-    """``b = A^-1 b`` in place from ``_band_factor``'s ``ab``, ``piv`` (``dgbtrs``; ``trans`` the
-    character 'N' as a uint8 array)."""
+def _band_solve(s, ab, bw, piv, b):
+    """``b = A^-1 b`` (n,) in place from ``_band_factor``'s ``ab``, ``piv`` (``dgbtrs``), ``A`` in the band's
+    order (``s.perm``), ``b`` in the unknowns'."""
+    ints, bp = s.ints, s.bp
+    for i in range(b.shape[0]):
+        bp[s.perm[i]] = b[i]
     ints[0], ints[1], ints[2], ints[3], ints[4] = ab.shape[0], bw, ab.shape[1], 0, 1
-    _dgbtrs(trans.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ints[4:].ctypes, ab.ctypes, ints[2:].ctypes,
-            piv.ctypes, b.ctypes, ints.ctypes, ints[3:].ctypes)
+    _dgbtrs(s.trans.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ints[4:].ctypes, ab.ctypes, ints[2:].ctypes,
+            piv.ctypes, bp.ctypes, ints.ctypes, ints[3:].ctypes)
+    for i in range(b.shape[0]):
+        b[i] = bp[s.perm[i]]
 
 
 @jit
-def _band_times(ab, bw, x, out):
-    """``out = A x`` (n,) for ``A`` in band storage."""
+def _band_times(s, ab, bw, x, out):
+    """``out = A x`` (n,) for ``A`` in band storage in the band's order (``s.perm``), ``x`` and ``out`` in
+    the unknowns'."""
     n = x.shape[0]
     for i in range(n):
         out[i] = 0.0
     for j in range(n):
-        xj = x[j]
-        for i in range(max(0, j - bw), min(n, j + bw + 1)):
-            out[i] += ab[j, 2 * bw + i - j] * xj
+        xj, pj = x[j], s.perm[j]
+        for pi in range(max(0, pj - bw), min(n, pj + bw + 1)):
+            out[s.inv[pi]] += ab[pj, 2 * bw + pi - pj] * xj
 
 
 @jit
@@ -271,7 +278,9 @@ class Scratch(NamedTuple):
     constant parts first.
 
     M : (n, L) the mass matrix, band storage [kg, kg m^2]
-    col : (n_c, 2) int64 the rows' bodies' first velocity columns (-1: ground)
+    col, bcol : (n_c, 2) int64 the rows' bodies' first velocity columns (-1: ground), in the unknowns' and
+        in the band's order
+    perm, inv : (n,) int64 each unknown's position in the band (``_band_order``) and its inverse
     group_ptr, group_col : (G + 1,), (n,) int64 the columns differenced together (group g:
         ``group_col[group_ptr[g]:group_ptr[g + 1]]``, ``viz3d.sparsity.sparse_fd_plan``)
     row_ptr, row_idx : (n + 1,), int64 the rows each column reaches (column c:
@@ -282,13 +291,17 @@ class Scratch(NamedTuple):
     y, yp, f, qp : (n_y,) the trial point ``[q1, v1]``, perturbed points, a field evaluation, the
         predictor's point (where the branches are held, ``_attempts``)
     a1, ap, Q, Qp, Q0 : (n,) accelerations and forces at the trial and perturbed points
-    dx, ddx, x, res, rp, ma, r1, dx0, last : (n,) the increment, its update, a perturbed one, residuals,
-        products, the increment an iteration started from (``_solve``), the line search's last update
+    dx, ddx, x, res, rp, ma, r1, dx0, last, bp : (n,) the increment, its update, a perturbed one, residuals,
+        products, the increment an iteration started from (``_solve``), the line search's last update, a
+        right-hand side in the band's order
     cx : (n_c,) scratch
     """
 
     M: np.ndarray
     col: np.ndarray
+    bcol: np.ndarray
+    perm: np.ndarray
+    inv: np.ndarray
     group_ptr: np.ndarray
     group_col: np.ndarray
     row_ptr: np.ndarray
@@ -316,6 +329,7 @@ class Scratch(NamedTuple):
     r1: np.ndarray
     dx0: np.ndarray
     last: np.ndarray
+    bp: np.ndarray
     cx: np.ndarray
 
 
@@ -337,7 +351,7 @@ def _residual(h, alpha, s, bw, J, C, lam, a1, Q, out):
     ``out`` (n_v,) [N s^2], from the point's rows ``J``, ``C``, accelerations ``a1`` and forces ``Q``."""
     for r in range(C.shape[0]):
         s.cx[r] = alpha * C[r] + lam[r]
-    _band_times(s.M, bw, a1, s.ma)
+    _band_times(s, s.M, bw, a1, s.ma)
     _rows_transposed_times(s.col, J, s.cx, out)
     scale = 0.25 * h * h
     for i in range(out.shape[0]):
@@ -348,13 +362,14 @@ def _residual(h, alpha, s, bw, J, C, lam, a1, Q, out):
 def _scatter(s, bw, g, step_floor, x0, d, d0, sign, out):
     """The columns of group ``g`` of a forward-difference Jacobian into the band ``out``: column c's
     rows r get ``sign (d[r] - d0[r]) / step_c``, ``step_c = FD_REL max(|x0[c]|, step_floor)``
-    (``viz3d.sparsity.grouped_fd_jacobian``'s steps)."""
+    (``viz3d.sparsity.grouped_fd_jacobian``'s steps), in the band's order (``s.perm``)."""
     for k in range(s.group_ptr[g], s.group_ptr[g + 1]):
         c = s.group_col[k]
+        pc = s.perm[c]
         step = FD_REL * max(abs(x0[c]), step_floor)
         for e in range(s.row_ptr[c], s.row_ptr[c + 1]):
             r = s.row_idx[e]
-            out[c, 2 * bw + r - c] = sign * ((d[r] - d0[r]) / step)
+            out[pc, 2 * bw + s.perm[r] - pc] = sign * ((d[r] - d0[r]) / step)
 
 
 @jit
@@ -417,25 +432,25 @@ def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a
     rule. Returns the outcome."""
     n_q, n, scale = m.n_q, m.n_v, 0.25 * h * h * alpha
     lu, piv = s.lu[0], s.piv[0]
-    _iteration_matrix(s.W, s.col, v.J, scale, bw, lu)
+    _iteration_matrix(s.W, s.bcol, v.J, scale, bw, lu)
     if _band_factor(lu, bw, piv, s.ints) != 0:
         return SINGULAR_LU
     for i in range(n_q + n):
         y1[i] = s.y[i]
     _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # C_t at (q1, v1)
     _rows_transposed_times(s.col, v.J, v.Ct, s.r1)
-    _band_times(s.W, bw, s.y[n_q:n_q + n], s.ma)
+    _band_times(s, s.W, bw, s.y[n_q:n_q + n], s.ma)
     for i in range(n):
         s.ma[i] -= scale * s.r1[i]
-    _band_solve(lu, bw, piv, s.ma, s.ints, s.trans)
+    _band_solve(s, lu, bw, piv, s.ma)
     for i in range(n):
         y1[n_q + i] = s.ma[i]
     _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # gamma at (q1, v)
     _rows_transposed_times(s.col, v.J, v.gam, s.r1)
-    _band_times(s.W, bw, s.a1, a_out)
+    _band_times(s, s.W, bw, s.a1, a_out)
     for i in range(n):
         a_out[i] += scale * s.r1[i]
-    _band_solve(lu, bw, piv, a_out, s.ints, s.trans)
+    _band_solve(s, lu, bw, piv, a_out)
     n_aux = w0.shape[0]
     if n_aux:
         for k in range(n_aux):
@@ -479,7 +494,7 @@ def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m
         prev = step
         _residual(h, alpha, s, bw, v.J, v.C, lam, s.a1, s.Q, s.res)
         if not have_lu:
-            _iteration_matrix(s.W, s.col, v.J, scale, bw, s.lu[cur])
+            _iteration_matrix(s.W, s.bcol, v.J, scale, bw, s.lu[cur])
             if _band_factor(s.lu[cur], bw, s.piv[cur], s.ints) != 0:
                 return SINGULAR_LU, evals, step, C_max, cur
             have_lu = True
@@ -494,7 +509,7 @@ def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m
                 exact_ok = False
         for i in range(n):
             s.ddx[i] = -s.res[i]
-        _band_solve(s.lu[cur], bw, s.piv[cur], s.ddx, s.ints, s.trans)
+        _band_solve(s, s.lu[cur], bw, s.piv[cur], s.ddx)
         if search and exact and _max_abs(s.ddx) > SLOW_RATE * step and cuts < MAX_CUTS:
             # the exact tangent's update overshot: back half-way along the update that led here
             for i in range(n):
@@ -569,7 +584,7 @@ def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, 
         evals += 1
         for i in range(n):
             s.r1[i] = 0.25 * h * h * (s.Q[i] - s.Qp[i])
-        _band_solve(s.lu[cur], bw, s.piv[cur], s.r1, s.ints, s.trans)
+        _band_solve(s, s.lu[cur], bw, s.piv[cur], s.r1)
         shift = _max_abs(s.r1)
         if shift <= tol or changed == 0:
             return CONVERGED, evals, step, C_max, cur
@@ -692,6 +707,25 @@ def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed,
 # ---------------------------------------------------------------------------- from Python
 
 
+def _band_order(A: np.ndarray, frame_of: np.ndarray, n_frames: int) -> np.ndarray:
+    """Each floating frame's position in the band (n_frames,): reverse Cuthill-McKee's order of the
+    bodies' adjacency ``A`` (nb, nb) where it narrows the band (a windlass first in body order and joined
+    to the chain's last link made the hoist's band full: 131 of 138), else body order; ``frame_of`` (nb,)
+    each body's frame."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    i, j = np.nonzero(A)
+    keep = (frame_of[i] >= 0) & (frame_of[j] >= 0)
+    fi, fj = frame_of[i][keep], frame_of[j][keep]
+    F = csr_matrix((np.ones(fi.size), (fi, fj)), shape=(n_frames, n_frames))
+    order = np.empty(n_frames, np.int64)
+    order[reverse_cuthill_mckee(F, symmetric_mode=True)] = np.arange(n_frames)
+    natural = np.arange(n_frames, dtype=np.int64)
+    width = lambda o: np.max(np.abs(o[fi] - o[fj]), initial=0)  # noqa: E731
+    return order if width(order) < width(natural) else natural
+
+
 class KernelALI3P:
     """ALI3-P's steps in the kernel for one packed system (``stepper``: its
     ``viz3d.kernel.KernelStepper``; ``system``: covered, see ``viz3d.kernel.model._check_stepping``),
@@ -710,30 +744,37 @@ class KernelALI3P:
         self.branches = tuple(x for x in d.forces if type(x) in registered(hold_piece))  # (the same arrays)
         A = body_adjacency(system)
         frame_of = m.body_frame[: m.nb]
+        order = _band_order(A, frame_of, m.frame_body.shape[0])
         i, j = np.nonzero(A)
-        self.bw = bw = int(6 * np.max(np.abs(frame_of[i] - frame_of[j]), initial=0) + 5)
+        at = np.where(frame_of >= 0, order[np.maximum(frame_of, 0)], frame_of)  # each body's place in the band
+        self.bw = bw = int(6 * np.max(np.abs(at[i] - at[j]), initial=0) + 5)
         L, n_c, n_y = 3 * bw + 1, m.row_body.shape[0], m.n_q + m.n_v + m.n_aux
-        col = np.where(m.body_frame[m.row_body] >= 0, 6 * m.body_frame[m.row_body], -1).astype(np.int64)
+        frame_row = m.body_frame[m.row_body]
+        col = np.where(frame_row >= 0, 6 * frame_row, -1).astype(np.int64)
+        bcol = np.where(frame_row >= 0, 6 * order[frame_row], -1).astype(np.int64)
+        perm = (6 * np.repeat(order, 6) + np.tile(np.arange(6), order.size)).astype(np.int64)
         groups, rows_of = sparse_fd_plan(system)
         ptr = lambda parts: np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)  # noqa: E731
         cat = lambda parts: np.concatenate([np.asarray(p, np.int64) for p in parts] or [np.zeros(0, np.int64)])  # noqa: E731
         z = np.zeros
-        self.s = Scratch(self._mass(m, bw), np.ascontiguousarray(col), ptr(groups), cat(groups), ptr(rows_of),
+        self.s = Scratch(self._mass(m, bw, perm), np.ascontiguousarray(col), np.ascontiguousarray(bcol), perm,
+                         np.argsort(perm).astype(np.int64), ptr(groups), cat(groups), ptr(rows_of),
                          cat(rows_of), np.frombuffer(b"N", np.uint8).copy(), z((n, L)), z((2, n, L)),
-                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(14)),
+                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(15)),
                          z(n_c))
 
     @staticmethod
-    def _mass(m, bw: int) -> np.ndarray:
-        """``diag(m I3, I)`` per rigid body (constant), band storage (n_v, 3 bw + 1)."""
+    def _mass(m, bw: int, perm: np.ndarray) -> np.ndarray:
+        """``diag(m I3, I)`` per rigid body (constant), band storage (n_v, 3 bw + 1) in the band's order ``perm``."""
         M = np.zeros((m.n_v, 3 * bw + 1))
         for k, b in enumerate(m.frame_body):
             block = np.zeros((6, 6))
             block[:3, :3] = np.eye(3) / m.mass_inv[b]
             block[3:, 3:] = m.inertia[b]
+            p = perm[6 * k]
             for i in range(6):
                 for j in range(6):
-                    M[6 * k + j, 2 * bw + i - j] = block[i, j]
+                    M[p + j, 2 * bw + i - j] = block[i, j]
         return M
 
     def step(self, system, formulation, state: State, h: float, memory) -> tuple[State, object, Status]:
