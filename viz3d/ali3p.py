@@ -42,7 +42,8 @@ The method is written here, on NumPy: the reference. When the compiled kernel co
 ``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``: the attempts of
 a step (``_one_step``) are one compiled call of the same iteration (the same stopping tests,
 ``small_update``, ``too_slow`` and ``refresh_tangent`` compiled from this module, the same tangents
-and counts of evaluations) on band matrices in body order and LAPACK's banded LU, and a run's steps
+and counts of evaluations, the same held branches, check and re-solve: ``hold_piece``) on band
+matrices in an order of the bodies that narrows the band and LAPACK's banded LU, and a run's steps
 from one output frame to the next are one call too (``KernelALI3P.frames``); a step that fails
 comes back here for its halvings and diagnosis.
 """
