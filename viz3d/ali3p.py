@@ -42,7 +42,8 @@ The method is written here, on NumPy: the reference. When the compiled kernel co
 ``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``: the attempts of
 a step (``_one_step``) are one compiled call of the same iteration (the same stopping tests,
 ``small_update``, ``too_slow`` and ``refresh_tangent`` compiled from this module, the same tangents
-and counts of evaluations) on band matrices in body order and LAPACK's banded LU, and a run's steps
+and counts of evaluations, the same held branches, check and re-solve: ``hold_piece``) on band
+matrices in an order of the bodies that narrows the band and LAPACK's banded LU, and a run's steps
 from one output frame to the next are one call too (``KernelALI3P.frames``); a step that fails
 comes back here for its halvings and diagnosis.
 """
@@ -268,8 +269,23 @@ def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
         if not change:  # the same branches, the held contacts' depths those found to the narrow phase's
             return result, evals  # resolution (a face on a face: which witness points is arbitrary)
         dx, lam, held = result.dx, result.lam, _held(system, state, result.dx, h)
-    return (f"the contact set did not settle in {MAX_SET_UPDATES} updates at t = {state.t + h:.6g} s: {change}, "
-            f"moving the solution by {np.max(np.abs(shift)):.2e}"), evals
+    return _unsettled(state.t + h, change, np.max(np.abs(shift))), evals
+
+
+def _unsettled(t1: float, change: str, shift: float) -> str:
+    """The reason of an attempt whose held branches did not settle (``_solve``) by ``t1`` [s]: what
+    changed (``_change``) and by how much it moved the solution [m, rad]."""
+    return (f"the contact set did not settle in {MAX_SET_UPDATES} updates at t = {t1:.6g} s: {change}, "
+            f"moving the solution by {shift:.2e}")
+
+
+def not_settled(system: System, formulation, state: State, h: float, dx_held: FloatArray, dx: FloatArray,
+                shift: float) -> str:
+    """``_unsettled`` of an attempt (the compiled kernel's) whose last iteration held the branches found
+    at the trial point of the increment ``dx_held`` (n_v,) and converged to ``dx`` (n_v,), where those
+    found moved the solution by ``shift`` [m, rad]."""
+    held = _held(system, state, dx_held, h)
+    return _unsettled(state.t + h, _change(system, state, dx, h, held, ROUND_OFF_FACTOR * formulation.tol), shift)
 
 
 def _change(system: System, state: State, dx: FloatArray, h: float, held: tuple, tol: float) -> str:
@@ -411,16 +427,6 @@ def _factor(A):
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
     return splu(sp.csc_matrix(A)) if sp.issparse(A) else _DenseLU(A)
-
-
-def smooth_forces(system: System) -> bool:
-    """Are the applied forces smooth in the positions? Not with shape contacts (a force element with
-    ``smooth = False``): their contact sets change between nearby configurations, and a difference
-    tangent taken across such a change sends Newton's iterate anywhere (through a thin triangle
-    surface, where the residual has a spurious root). Here their contacts are held fixed during an
-    iteration (``_held``, ``_solve``), which may then take the exact tangent; the compiled steps
-    take only smooth systems without branches."""
-    return all(e.smooth for e in system.forces)
 
 
 @entry

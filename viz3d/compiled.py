@@ -10,13 +10,18 @@ written next to its NumPy code and registered here for one of its **targets** (`
 * ``row_piece(d, t, v)``: a row provider (joint set, kinematic contacts) fills its constraint rows;
 * ``gap_piece(d, v, out)``: contacts write their indentation, its rate (the event functions), normal,
   separation and contact point;
-* ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max)``: a normal law's magnitude
-  (its parameters in ``d.f[k, p0:]``);
+* ``normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip)``: a normal law's magnitude
+  (its parameters in ``d.f[k, p0:]``), clipped at zero (``NormalLaw.force``) or not (``force_unclipped``);
 * ``energy_piece(d, v, V)``: force elements with a potential energy add it to ``V`` (output frames;
   a force element whose ``potential_energy`` is its own must have one, or frames take the NumPy path);
 * ``after_step_piece(d, t, v)``: force elements with a memory (``ForceElement.has_memory``) renew it
   after each accepted step of the kernel's fixed-step loop, from the state in ``v`` at its end
-  (``memory_after_step``); the memory lives in arrays of ``d``, fixed during a step.
+  (``memory_after_step``); the memory lives in arrays of ``d``, fixed during a step;
+* ``hold_piece(d, t, v, mode, tol)``: force elements with branches (``ForceElement.branches``) hold
+  them as they are at the kinematics in ``v`` (``HOLD``: ``ForceElement.frozen``), evaluate with their
+  own again (``RELEASE``), or count those found in ``v`` that differ from the held ones beyond
+  positions within ``tol`` [m] (``CHANGE``: ``ForceElement.frozen_change``); what is held lives in
+  arrays of ``d`` (the compiled ALI3-P's steps, ``viz3d.kernel.ali3p``).
 
 ``d`` is the element's packed data: an instance of its own ``Items`` subclass (a named tuple of an
 int64 table ``i`` and a float64 table ``f``, one row per item; the columns are the piece's
@@ -222,9 +227,9 @@ def gap_piece(d, v, out):
     raise NotImplementedError
 
 
-def normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
-    """Normal force magnitude of contact ``k`` of ``d`` (``viz3d.contact.laws``) [N], >= 0, the law's
-    parameters in ``d.f[k, p0:]``."""
+def normal_force(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
+    """Normal force magnitude of contact ``k`` of ``d`` (``viz3d.contact.laws``) [N], >= 0 when ``clip``
+    (else the formula, which may pull: ``NormalLaw.force_unclipped``), the law's parameters in ``d.f[k, p0:]``."""
     raise NotImplementedError
 
 
@@ -241,8 +246,18 @@ def after_step_piece(d, t, v):
     raise NotImplementedError
 
 
+#: ``hold_piece``'s modes (module docstring).
+HOLD, RELEASE, CHANGE = 0, 1, 2
+
+
+def hold_piece(d, t, v, mode, tol):
+    """Hold, release or compare the branches of the elements ``d`` at the kinematics in ``v``
+    (``mode``: ``HOLD``, ``RELEASE``, ``CHANGE``); the number of branches that differ (``CHANGE``), else 0."""
+    raise NotImplementedError
+
+
 #: Targets in order: a data class registered for several belongs to the first (its packing group).
-TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece, after_step_piece)
+TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece, after_step_piece, hold_piece)
 
 #: Registered data classes per target, in registration order.
 REGISTRY: dict[str, list[type[Items]]] = {t.__name__: [] for t in TARGETS}

@@ -18,7 +18,8 @@ from typing import ClassVar
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
-from viz3d.compiled import Items, compiled_piece, cross3, dot3, energy_piece, force_piece, inline, items, matvec3
+from viz3d.compiled import (HOLD, RELEASE, Items, compiled_piece, cross3, dot3, energy_piece, force_piece, hold_piece,
+                            inline, items, matvec3)
 from viz3d.joints import DISTANCE_Z, coordinate, coordinate_of
 from viz3d.kinematics import Configuration
 from viz3d.points import BodyPoints, apply_force, apply_pair, rigid_points, scatter
@@ -580,17 +581,28 @@ class JointStop(JointCoordinateForce):
 
     def compiled(self, pack) -> Items:
         n = len(self.names)
-        return self._pack(pack, JointStopItems, np.zeros((n, 0), int),
+        return self._pack(pack, JointStopItems, np.full((n, 1), NOT_HELD),
                           np.column_stack([self.lower, self.upper, self.stiffness, self.damping]))
 
 
+#: ``JointStopItems.i[:, 3]`` of a stop whose side is not held (``effort``); held: the side of ``frozen``.
+NOT_HELD = 2
+
+
 class JointStopItems(Items):
-    """i: [point 1, point 2, coordinate code]; f: [A1, A2 (18), lower, upper, stiffness, damping]."""
+    """i: [point 1, point 2, coordinate code, held side (``frozen``: +1, -1, 0; ``NOT_HELD``)];
+    f: [A1, A2 (18), lower, upper, stiffness, damping]."""
 
 
 @inline
-def _stop_effort(f, q, q_dot):
-    """``(force, spring force)`` of ``JointStop.effort`` for one item (its row ``f``)."""
+def _stop_effort(f, q, q_dot, side):
+    """``(force, spring force)`` of ``JointStop.effort`` for one item (its row ``f``), or of
+    ``held_effort`` with the stop held on ``side`` (not ``NOT_HELD``)."""
+    if side != NOT_HELD:
+        if side == 0:
+            return 0.0, 0.0
+        spring = -f[20] * (q - (f[19] if side > 0 else f[18]))
+        return spring - f[21] * q_dot, spring
     if q > f[19]:
         delta = q - f[19]
     elif q < f[18]:
@@ -612,7 +624,7 @@ def _joint_stop(d, t, v, power):
     for k in range(d.i.shape[0]):
         p1, p2 = d.i[k, 0], d.i[k, 1]
         q, q_dot = coordinate_of(v, d.f[k], d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
-        force, spring = _stop_effort(d.f[k], q, q_dot)
+        force, spring = _stop_effort(d.f[k], q, q_dot, d.i[k, 3])
         if force != 0.0 or spring != 0.0:
             _coordinate_force(v, d, k, force, u, v.v3[25])
             power[power.shape[0] - 2] -= (force - spring) * q_dot  # (dissipated: the dampers' slot)
@@ -624,9 +636,29 @@ def _joint_stop_energy(d, v, V):
     for k in range(d.i.shape[0]):
         p1, p2 = d.i[k, 0], d.i[k, 1]
         q, _ = coordinate_of(v, d.f[k], d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
-        _, spring = _stop_effort(d.f[k], q, 0.0)
+        _, spring = _stop_effort(d.f[k], q, 0.0, NOT_HELD)
         if d.f[k, 20] > 0.0:
             V[1] += 0.5 * spring * spring / d.f[k, 20]
+
+
+@compiled_piece(hold_piece, JointStopItems)
+def _joint_stop_hold(d, t, v, mode, tol):
+    """``JointStop.frozen`` (the sides of the stops whose clipped force is not zero) held (``HOLD``),
+    released, or the stops whose side differs from the held one counted (``frozen_change``)."""
+    u, changed = v.v3[24], 0
+    for k in range(d.i.shape[0]):
+        if mode == RELEASE:
+            d.i[k, 3] = NOT_HELD
+            continue
+        p1, p2 = d.i[k, 0], d.i[k, 1]
+        q, q_dot = coordinate_of(v, d.f[k], d.i[k, 2], v.pt_i[p1, 0], v.pt_i[p2, 0], p1, p2, u)
+        force, _ = _stop_effort(d.f[k], q, q_dot, NOT_HELD)
+        side = 0 if force == 0.0 else (1 if q > d.f[k, 19] else -1)
+        if mode == HOLD:
+            d.i[k, 3] = side
+        elif side != d.i[k, 3]:
+            changed += 1
+    return changed
 
 
 @dataclass(frozen=True)

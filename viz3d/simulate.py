@@ -391,7 +391,7 @@ class Simulation:
 
     def _own_kernel_ready(self) -> bool:
         """Steps of a formulation that steps itself (ALI3-P) that the kernel takes, several in one
-        call (never with contacts or force elements that remember: the kernel does not cover them)."""
+        call (never with the law contacts of ``System.contacts``: the kernel does not cover them)."""
         return self.formulation.integrator is not None and self._kernel is not None and self._contacts is None
 
     def _own_memory(self):

@@ -65,7 +65,7 @@ def _pieces(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
     """``normal_force`` of contact ``k`` at each ``(alpha, alpha_dot)`` [N]."""
     out = np.empty(alpha.size)
     for j in range(alpha.size):
-        out[j] = normal_force(d, k, p0, alpha[j], alpha_dot[j], approach_speed, alpha_max)
+        out[j] = normal_force(d, k, p0, alpha[j], alpha_dot[j], approach_speed, alpha_max, True)
     return out
 
 

@@ -102,3 +102,29 @@ def test_a_change_of_the_held_contacts_is_named(tmp_path):
     assert collisions.frozen_change(cfg_at(R - 2e-3), touching) == ""
     assert collisions.frozen_change(cfg_at(R + 1e-3), touching) == f"contacts {name} ended"
     assert collisions.frozen_change(cfg_at(R - 1e-3), apart) == f"contacts {name} began"
+
+
+def test_the_compiled_steps_hold_the_contacts_as_the_numpy_steps_do(tmp_path):
+    """The compiled ALI3-P (``viz3d.kernel.ali3p``, the contacts held in the kernel's packed data:
+    ``viz3d.kernel.collisions``' ``hold_piece``) takes the steps of the touch-down and the lift-off as the
+    NumPy path does: each height within ``TOL`` of the oracle, the states within ``ali3p_agreement_bound``
+    of the NumPy path's, as many evaluations."""
+    from kernel_runs import ali3p_agreement_bound, run
+
+    from viz3d.integrators import make_integrator
+    from viz3d.simulate import Simulation
+
+    system, state = _sphere(tmp_path, R + 0.5 * V0 * H)
+    formulation, n = ALI3P(alpha=1e9, tol=TOL), 6
+    sim = Simulation(system, state, make_integrator("trapezoidal"), formulation, H)
+    assert sim.kernel_note == "compiled kernel"
+    for _ in range(n):
+        z0, v0 = sim.state.q[2], sim.state.v[2]
+        a0 = sim._own_memory().v_dot[2]
+        sim.output_states(1, 1)  # (ali3p_frames, the kernel's run of steps, as growth's runs: one compiled entry)
+        assert abs(sim.state.q[2] - _oracle(z0, v0, a0)) <= TOL, f"mismatch: z1 at t = {sim.state.t:.4f} s"
+    numpy = run(system, state, formulation, n, H, compiled=False, method="trapezoidal")
+    bound = ali3p_agreement_bound(system, state, formulation, n, H)
+    diff = np.abs(sim.state.y - numpy.state.y).max()
+    assert diff <= bound, f"y after {n} steps: {diff:.2e} > {bound:.2e}"
+    assert sim.n_rhs == numpy.n_rhs

@@ -12,12 +12,15 @@ from kernel_runs import ali3p_agreement_bound, run
 import viz3d
 from viz3d import kernel as K
 from viz3d.diagnosis import SimulationFailure
+from viz3d.dynamics import body_state
 from viz3d.integrators import make_integrator
 from viz3d.scene.build import make_formulation
 from viz3d.simulate import Simulation
 
 from conftest import SCENES
 
+#: Standard gravity [m/s^2] (the scenes' default).
+G = 9.81
 #: Steps compared (the NumPy path costs 1-30 ms a step).
 N_STEPS = 40
 
@@ -111,3 +114,55 @@ def test_a_run_of_compiled_steps_in_one_call_takes_the_single_steps(name, overri
     np.testing.assert_array_equal(batched.chart_switches, single.chart_switches)
     assert batched.chart_switches.sum() == (1 if name == "top_through_vertical" else 0)
     np.testing.assert_array_equal(batched._memory.lam, single._memory.lam)
+
+
+#: The pendulum on a stop: a rod (m, length L, radius r) hinged at its top on the y axis, released at rest at
+#: THETA0 from hanging; its stop at STOP (spring k [N m/rad], critical damping) is met 0.12 s later.
+ROD_M, ROD_L, ROD_R, THETA0, STOP, STOP_K = 1.2, 0.6, 0.02, np.radians(-36.0), np.radians(-30.0), 1e3
+
+
+def _pendulum_on_a_stop(tmp_path):
+    I_O = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12 + ROD_M * (ROD_L / 2) ** 2  # about the hinge
+    u = np.array([-np.sin(THETA0), 0.0, -np.cos(THETA0)])  # the rod's axis from the hinge, R_y(THETA0) (0, 0, -1)
+    I_t = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12
+    vec = lambda x: "[" + ", ".join(repr(float(c)) for c in x) + "]"  # noqa: E731
+    path = tmp_path / "stop.toml"
+    path.write_text(  # body z along the rod: ZXZ (90, THETA0, -90) deg is R_y(THETA0)
+        f'[sim]\nt_end = 1.0\ndt = 1e-3\nformulation = "ali3p"\nintegrator = "trapezoidal"\n'
+        f'[[bodies]]\nname = "rod"\nshape = {{ type = "cylinder", radius = {ROD_R}, height = {ROD_L} }}\n'
+        f"mass = {ROD_M}\ninertia = {vec([I_t, I_t, ROD_M * ROD_R**2 / 2])}\nposition = {vec(0.5 * ROD_L * u)}\n"
+        f"euler_deg = {vec([90.0, np.degrees(THETA0), -90.0])}\n"
+        '[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]\n'
+        f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nupper = {STOP - THETA0}\n'
+        f"stiffness = {STOP_K}\ndamping = {2 * np.sqrt(STOP_K * I_O)}\n")
+    scene = viz3d.load_scene(path)
+    system, state = viz3d.build(scene)
+    return system, state, make_formulation(scene.data["sim"]), scene.data["sim"]["dt"], I_O
+
+
+def test_compiled_ali3p_holds_a_stop_as_the_numpy_steps_do(tmp_path):
+    """A pendulum falls onto a joint stop (its side held within a step, ``JointStop.frozen``; the stop engages
+    within a step, which the check at the converged point finds and re-solves): the compiled steps take the
+    NumPy path's (states within ``ali3p_agreement_bound``, as many evaluations), and the stop holds: the
+    rod enters it by less than the undamped bound ``w / omega_n`` (``w`` the rate at the stop from the
+    weight's work, ``omega_n = sqrt(k / I_O)``) plus twice the static deflection ``m g (L/2) sin|STOP| / k`` (the peak of an
+    undamped oscillator under a constant load)."""
+    system, state, form, dt, I_O = _pendulum_on_a_stop(tmp_path)
+    n = 200
+    compiled = run(system, state, form, n, dt, compiled=True, method="trapezoidal")
+    assert compiled.kernel_note == "compiled kernel"
+    numpy = run(system, state, form, n, dt, compiled=False, method="trapezoidal")
+    bound = ali3p_agreement_bound(system, state, form, n, dt)
+    diff = np.abs(compiled.state.y - numpy.state.y).max()
+    assert diff <= bound, f"y after {n} steps: {diff:.2e} > {bound:.2e}"
+    assert abs(compiled.n_rhs - numpy.n_rhs) <= max(2, 0.02 * numpy.n_rhs), (compiled.n_rhs, numpy.n_rhs)
+    stop = next(e for e in system.forces if e.branches)
+    sim = Simulation(system, state, make_integrator("trapezoidal"), form, dt)
+    q = []
+    for _ in range(n):
+        sim.step()
+        q.append(stop.coordinates(body_state(system, sim.state.q, sim.state.v, sim.state.chart, sim.state.t))[0][0])
+    d = ROD_L / 2
+    w = np.sqrt(2 * ROD_M * G * d * (np.cos(STOP) - np.cos(THETA0)) / I_O)
+    depth = max(q) - (STOP - THETA0)
+    assert 0.0 < depth <= w / np.sqrt(STOP_K / I_O) + 2 * ROD_M * G * d * np.sin(-STOP) / STOP_K, depth

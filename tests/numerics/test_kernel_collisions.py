@@ -289,14 +289,28 @@ def test_rk4_run_equals_numpy_on_the_anchor_hoist():
         _anchors_equal(a.element_memory[k], b.element_memory[k], f"t = {a.t}", max(ANCHOR_TOL, tol_y))
 
 
-# ---------------------------------------------------------------------------- what stays on NumPy
+# ---------------------------------------------------------------------------- ALI3-P, and what stays on NumPy
 
 
-def test_ali3p_with_shape_contacts_takes_the_numpy_path_and_says_why(tmp_path):
+def test_ali3p_holds_the_shape_contacts_and_renews_the_anchors_in_the_kernel(tmp_path):
+    """ALI3-P with shape contacts and bristles runs in the kernel (``viz3d.kernel.ali3p``: the contacts held
+    within a step, the anchors renewed after each step of its output frames): after two frames of five
+    steps the state is within ``ali3p_agreement_bound`` of the NumPy path's, with the same anchors."""
+    from kernel_runs import ali3p_agreement_bound
+
     scene, system, state = _load(tmp_path, _scene(0.0, BRISTLE, 0.01, method="ali3p"))
+    cfg = scene.data["sim"]
     sim = _simulation(scene, system, state, compiled=True)
-    assert sim.kernel_note.startswith("NumPy path") and "ALI3-P with shape contacts" in sim.kernel_note
-    sim.steps(5)  # and it runs
+    assert sim.kernel_note == "compiled kernel" and sim.batches_frames
+    end = sim.output_states(2, 5)[-1]
+    ref = _simulation(scene, system, state, compiled=False)
+    ref.steps(10)
+    bound = ali3p_agreement_bound(system, state, make_formulation(cfg), 10, cfg["dt"])
+    diff = np.abs(end.y - ref.state.y).max()
+    assert diff <= bound, f"y after 10 steps: {diff:.2e} > {bound:.2e}"
+    k, _ = _collisions(system)
+    assert end.element_memory[k].n > 0
+    _anchors_equal(end.element_memory[k], ref.state.element_memory[k], f"t = {end.t}", max(ANCHOR_TOL, bound))
 
 
 def test_shape_pairs_without_a_compiled_narrow_phase_take_the_numpy_path_and_say_why(tmp_path):

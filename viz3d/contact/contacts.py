@@ -567,7 +567,7 @@ def _law_contacts(d, t, v, power):
         acting = v.mem[kg, 0] == 1.0 if d.i[k, 4] == 1 else alpha > 0.0
         if not acting or alpha <= 0.0:
             continue
-        elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2])
+        elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2], True)
         F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
         for c in range(3):
             f[c] = F * n[c]

@@ -229,11 +229,17 @@ class LinearItems(Items):
 Linear.compiled_items = LinearItems
 
 
+@jit
+def _clipped(F, clip):
+    """``max(F, 0)`` (``NormalLaw.force``) when ``clip``, else ``F`` (``force_unclipped``): the pieces' last step."""
+    return max(F, 0.0) if clip else F
+
+
 @compiled_piece(normal_force, LinearItems)
-def _linear(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _linear(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
-    return max(d.f[k, p0] * alpha + d.f[k, p0 + 1] * alpha_dot, 0.0)
+    return _clipped(d.f[k, p0] * alpha + d.f[k, p0 + 1] * alpha_dot, clip)
 
 
 @dataclass(frozen=True)
@@ -286,7 +292,7 @@ Hertz.compiled_items = HertzItems
 
 
 @compiled_piece(normal_force, HertzItems)
-def _hertz(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _hertz(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
     return d.f[k, p0] * alpha ** d.f[k, p0 + 1]
@@ -356,15 +362,15 @@ HysteresisLaw.compiled_items = HysteresisItems
 
 
 @compiled_piece(normal_force, HysteresisItems)
-def _hysteresis(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _hysteresis(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
     if d.f[k, p0 + 3] > 0.0:
-        return max(d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 3] * alpha_dot), 0.0)
+        return _clipped(d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 3] * alpha_dot), clip)
     if not approach_speed > 0.0:
         return math.nan  # no onset in the memory: the step's health check reports it
     F = d.f[k, p0] * alpha ** d.f[k, p0 + 1] * (1.0 + d.f[k, p0 + 2] * alpha_dot / approach_speed)
-    return max(F, 0.0)
+    return _clipped(F, clip)
 
 
 @dataclass(frozen=True)
@@ -522,15 +528,15 @@ YigitChristoforou.compiled_items = YigitChristoforouItems
 
 
 @compiled_piece(normal_force, YigitChristoforouItems)
-def _yigit_christoforou(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _yigit_christoforou(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
     K_h, alpha_Y, F_Y, K_Y = d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3]
     if alpha >= alpha_max:
-        return max(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), 0.0)
+        return _clipped(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), clip)
     # below alpha_m (> alpha > 0): the Hertz curve shifted by F_m - K_h alpha_m^1.5 <= 0 (eq. 7.10)
     offset = _yield_then_linear(alpha_max, K_h, alpha_Y, F_Y, K_Y) - K_h * alpha_max**1.5
-    return max(offset + K_h * alpha**1.5, 0.0)
+    return _clipped(offset + K_h * alpha**1.5, clip)
 
 
 @dataclass(frozen=True)
@@ -600,15 +606,15 @@ LinearPlastic.compiled_items = LinearPlasticItems
 
 
 @compiled_piece(normal_force, LinearPlasticItems)
-def _linear_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _linear_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
     K_h, alpha_Y, F_Y, K_Y = d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3]
     if alpha >= alpha_max:
-        return max(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), 0.0)
+        return _clipped(_yield_then_linear(alpha, K_h, alpha_Y, F_Y, K_Y), clip)
     K_u = d.f[k, p0 + 4] if alpha_max > alpha_Y else K_h
     F_m = _yield_then_linear(alpha_max, K_h, alpha_Y, F_Y, K_Y)
-    return max(_hertzian_unloading(alpha, alpha_max, F_m, K_u), 0.0)
+    return _clipped(_hertzian_unloading(alpha, alpha_max, F_m, K_u), clip)
 
 
 @dataclass(frozen=True)
@@ -702,19 +708,19 @@ def _power_plastic_unloading_stiffness(alpha_m, F_m, alpha_Y, alpha_fp, E_star, 
 
 
 @compiled_piece(normal_force, PowerPlasticItems)
-def _power_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max):
+def _power_plastic(d, k, p0, alpha, alpha_dot, approach_speed, alpha_max, clip):
     if alpha <= 0.0:
         return 0.0
     K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n = (d.f[k, p0], d.f[k, p0 + 1], d.f[k, p0 + 2], d.f[k, p0 + 3],
                                              d.f[k, p0 + 4], d.f[k, p0 + 5])
     if alpha >= alpha_max:
-        return max(_yield_then_power(alpha, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n), 0.0)
+        return _clipped(_yield_then_power(alpha, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n), clip)
     F_m = _yield_then_power(alpha_max, K_h, alpha_Y, F_Y, K_hY, n, alpha_Y_n)
     if alpha_max > alpha_Y:
         K_u = _power_plastic_unloading_stiffness(alpha_max, F_m, alpha_Y, d.f[k, p0 + 6], d.f[k, p0 + 7], d.f[k, p0 + 8])
     else:
         K_u = K_h  # never yielded: R* = R, Hertz both ways
-    return max(_hertzian_unloading(alpha, alpha_max, F_m, K_u), 0.0)
+    return _clipped(_hertzian_unloading(alpha, alpha_max, F_m, K_u), clip)
 
 
 NORMAL_LAWS: dict[str, type[NormalLaw]] = {

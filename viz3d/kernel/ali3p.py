@@ -14,9 +14,10 @@ Python takes that one for its diagnosis. In the call:
   of the old angles, as ``viz3d.coordinates.EulerZXZ.advance``), and forces, gyroscopic terms,
   constraint rows ``C``, ``C_v`` and ``gamma`` are evaluated by the field's own stages
   (``viz3d.kernel.field``);
-* matrices over the velocity unknowns are in LAPACK's band storage, in body order, of
-  half-bandwidth ``bw = 6 d + 5`` where ``d`` is the largest distance in body order of two coupled
-  bodies (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. Column ``j`` of a band
+* matrices over the velocity unknowns are in LAPACK's band storage, the bodies in body order or in
+  reverse Cuthill-McKee's where that narrows the band (``_band_order``), of half-bandwidth
+  ``bw = 6 d + 5`` where ``d`` is the largest distance in that order of two coupled bodies
+  (``viz3d.sparsity.body_adjacency``): 11 on a chain of any length. Column ``j`` of a band
   matrix ``A`` (n, n) is row ``j`` of a C array ``ab`` (n, 3 bw + 1), ``A[i, j] = ab[j, 2 bw + i - j]``
   (Fortran's ``AB`` of ``gbtrf`` with ``LDAB = 3 bw + 1``; the first ``bw`` entries of a column
   room for the LU's fill). ``C_v^T C_v`` is assembled from the rows' (2, 6) blocks, the
@@ -26,9 +27,18 @@ Python takes that one for its diagnosis. In the call:
   called from compiled code): O(N) per step on a chain. (A banded LU with partial pivoting written
   in numba took 1.1-1.4x LAPACK's time at 2-200 links on random band matrices that need pivoting.)
 
-Covered: rigid bodies, every joint and force element with a compiled piece. Not covered (the run
-keeps the NumPy path and says why, ``viz3d.kernel.model._check_stepping``): flexible bodies, contacts, force elements that
-remember (shape contacts' anchors).
+Force elements with branches (joint stops, shape contacts) are held within a step as ``viz3d.ali3p._solve``
+holds them: at the predictor (``_branches``, their ``hold_piece``: a stop's side, the shape contacts as
+material points against tangent planes with an active set and their anchors' matches, in their packed
+data), the fresh force tangents taken there, then checked at the converged point and re-solved from
+there (``_solve``, ``MAX_SET_UPDATES``); a step whose set does not settle comes back to Python for the
+reason (``viz3d.ali3p.not_settled``, naming what changed). Force elements that remember (the stick
+anchors) are loaded at each call and renewed after each step of ``ali3p_frames`` (their
+``after_step_piece``), one frame per call so that each state carries its own.
+
+Covered: rigid bodies, every joint and force element with a compiled piece, joint stops and shape
+contacts included. Not covered (the run keeps the NumPy path and says why,
+``viz3d.kernel.model._check_stepping``): flexible bodies, the law contacts of ``System.contacts``.
 """
 
 from __future__ import annotations
@@ -40,23 +50,26 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.ali3p import (
+    MAX_CUTS,
     MAX_ITER,
+    MAX_SET_UPDATES,
     NONFINITE_STATE,
+    ROUND_OFF_FACTOR,
     SINGULAR_MATRIX,
     SLOW_RATE,
     failure,
     no_convergence,
+    not_settled,
     refresh_tangent,
     small_update,
-    smooth_forces,
     too_slow,
 )
-from viz3d.compiled import entry, jit, numba
+from viz3d.compiled import CHANGE, HOLD, RELEASE, entry, hold_piece, jit, numba, registered
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
 from viz3d.kernel import _c
 from viz3d.kernel.field import NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces, turn_quaternion
-from viz3d.kernel.stepping import _check_frames, state_ok
+from viz3d.kernel.stepping import _check_frames, renew, state_ok
 from viz3d.points import kinematics
 from viz3d.rotations import GIMBAL_EPS
 from viz3d.system import State
@@ -69,8 +82,8 @@ except ImportError:  # pragma: no cover
 
 #: Outcomes of ``ali3p_step``: converged (the step is done), the iteration did not converge within
 #: ``MAX_ITER``, a trial point was not finite, an iteration matrix was singular, the index-1 field
-#: (the ledger's work rates) failed at the new state.
-CONVERGED, NOT_CONVERGED, NONFINITE_POINT, SINGULAR_LU, WORK_RATES = 0, 1, 2, 3, 4
+#: (the ledger's work rates) failed at the new state, the branches held did not settle (``_solve``).
+CONVERGED, NOT_CONVERGED, NONFINITE_POINT, SINGULAR_LU, WORK_RATES, NOT_SETTLED = 0, 1, 2, 3, 4, 6
 
 
 # ---------------------------------------------------------------------------- compiled pieces
@@ -191,24 +204,30 @@ def _band_factor(ab, bw, piv, ints):
 
 
 @jit
-def _band_solve(ab, bw, piv, b, ints, trans):
-    """``b = A^-1 b`` in place from ``_band_factor``'s ``ab``, ``piv`` (``dgbtrs``; ``trans`` the
-    character 'N' as a uint8 array)."""
+def _band_solve(s, ab, bw, piv, b):
+    """``b = A^-1 b`` (n,) in place from ``_band_factor``'s ``ab``, ``piv`` (``dgbtrs``), ``A`` in the band's
+    order (``s.perm``), ``b`` in the unknowns'."""
+    ints, bp = s.ints, s.bp
+    for i in range(b.shape[0]):
+        bp[s.perm[i]] = b[i]
     ints[0], ints[1], ints[2], ints[3], ints[4] = ab.shape[0], bw, ab.shape[1], 0, 1
-    _dgbtrs(trans.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ints[4:].ctypes, ab.ctypes, ints[2:].ctypes,
-            piv.ctypes, b.ctypes, ints.ctypes, ints[3:].ctypes)
+    _dgbtrs(s.trans.ctypes, ints.ctypes, ints[1:].ctypes, ints[1:].ctypes, ints[4:].ctypes, ab.ctypes, ints[2:].ctypes,
+            piv.ctypes, bp.ctypes, ints.ctypes, ints[3:].ctypes)
+    for i in range(b.shape[0]):
+        b[i] = bp[s.perm[i]]
 
 
 @jit
-def _band_times(ab, bw, x, out):
-    """``out = A x`` (n,) for ``A`` in band storage."""
+def _band_times(s, ab, bw, x, out):
+    """``out = A x`` (n,) for ``A`` in band storage in the band's order (``s.perm``), ``x`` and ``out`` in
+    the unknowns'."""
     n = x.shape[0]
     for i in range(n):
         out[i] = 0.0
     for j in range(n):
-        xj = x[j]
-        for i in range(max(0, j - bw), min(n, j + bw + 1)):
-            out[i] += ab[j, 2 * bw + i - j] * xj
+        xj, pj = x[j], s.perm[j]
+        for pi in range(max(0, pj - bw), min(n, pj + bw + 1)):
+            out[s.inv[pi]] += ab[pj, 2 * bw + pi - pj] * xj
 
 
 @jit
@@ -259,7 +278,9 @@ class Scratch(NamedTuple):
     constant parts first.
 
     M : (n, L) the mass matrix, band storage [kg, kg m^2]
-    col : (n_c, 2) int64 the rows' bodies' first velocity columns (-1: ground)
+    col, bcol : (n_c, 2) int64 the rows' bodies' first velocity columns (-1: ground), in the unknowns' and
+        in the band's order
+    perm, inv : (n,) int64 each unknown's position in the band (``_band_order``) and its inverse
     group_ptr, group_col : (G + 1,), (n,) int64 the columns differenced together (group g:
         ``group_col[group_ptr[g]:group_ptr[g + 1]]``, ``viz3d.sparsity.sparse_fd_plan``)
     row_ptr, row_idx : (n + 1,), int64 the rows each column reaches (column c:
@@ -267,14 +288,20 @@ class Scratch(NamedTuple):
     trans : (1,) uint8 'N' for ``dgbtrs``
     W : (n, L) ``M + h/2 D + h^2/4 K``
     lu : (2, n, L), piv : (2, n) int32 the current and a new factorisation; ints : (5,) int32
-    y, yp, f : (n_y,) the trial point ``[q1, v1]``, perturbed points, a field evaluation
+    y, yp, f, qp : (n_y,) the trial point ``[q1, v1]``, perturbed points, a field evaluation, the
+        predictor's point (where the branches are held, ``_attempts``)
     a1, ap, Q, Qp, Q0 : (n,) accelerations and forces at the trial and perturbed points
-    dx, ddx, x, res, rp, ma, r1 : (n,) the increment, its update, a perturbed one, residuals, products
+    dx, ddx, x, res, rp, ma, r1, dx0, last, bp : (n,) the increment, its update, a perturbed one, residuals,
+        products, the increment an iteration started from (``_solve``), the line search's last update, a
+        right-hand side in the band's order
     cx : (n_c,) scratch
     """
 
     M: np.ndarray
     col: np.ndarray
+    bcol: np.ndarray
+    perm: np.ndarray
+    inv: np.ndarray
     group_ptr: np.ndarray
     group_col: np.ndarray
     row_ptr: np.ndarray
@@ -287,6 +314,7 @@ class Scratch(NamedTuple):
     y: np.ndarray
     yp: np.ndarray
     f: np.ndarray
+    qp: np.ndarray
     a1: np.ndarray
     ap: np.ndarray
     Q: np.ndarray
@@ -299,6 +327,9 @@ class Scratch(NamedTuple):
     rp: np.ndarray
     ma: np.ndarray
     r1: np.ndarray
+    dx0: np.ndarray
+    last: np.ndarray
+    bp: np.ndarray
     cx: np.ndarray
 
 
@@ -320,7 +351,7 @@ def _residual(h, alpha, s, bw, J, C, lam, a1, Q, out):
     ``out`` (n_v,) [N s^2], from the point's rows ``J``, ``C``, accelerations ``a1`` and forces ``Q``."""
     for r in range(C.shape[0]):
         s.cx[r] = alpha * C[r] + lam[r]
-    _band_times(s.M, bw, a1, s.ma)
+    _band_times(s, s.M, bw, a1, s.ma)
     _rows_transposed_times(s.col, J, s.cx, out)
     scale = 0.25 * h * h
     for i in range(out.shape[0]):
@@ -331,13 +362,14 @@ def _residual(h, alpha, s, bw, J, C, lam, a1, Q, out):
 def _scatter(s, bw, g, step_floor, x0, d, d0, sign, out):
     """The columns of group ``g`` of a forward-difference Jacobian into the band ``out``: column c's
     rows r get ``sign (d[r] - d0[r]) / step_c``, ``step_c = FD_REL max(|x0[c]|, step_floor)``
-    (``viz3d.sparsity.grouped_fd_jacobian``'s steps)."""
+    (``viz3d.sparsity.grouped_fd_jacobian``'s steps), in the band's order (``s.perm``)."""
     for k in range(s.group_ptr[g], s.group_ptr[g + 1]):
         c = s.group_col[k]
+        pc = s.perm[c]
         step = FD_REL * max(abs(x0[c]), step_floor)
         for e in range(s.row_ptr[c], s.row_ptr[c + 1]):
             r = s.row_idx[e]
-            out[c, 2 * bw + r - c] = sign * ((d[r] - d0[r]) / step)
+            out[pc, 2 * bw + s.perm[r] - pc] = sign * ((d[r] - d0[r]) / step)
 
 
 @jit
@@ -400,25 +432,25 @@ def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a
     rule. Returns the outcome."""
     n_q, n, scale = m.n_q, m.n_v, 0.25 * h * h * alpha
     lu, piv = s.lu[0], s.piv[0]
-    _iteration_matrix(s.W, s.col, v.J, scale, bw, lu)
+    _iteration_matrix(s.W, s.bcol, v.J, scale, bw, lu)
     if _band_factor(lu, bw, piv, s.ints) != 0:
         return SINGULAR_LU
     for i in range(n_q + n):
         y1[i] = s.y[i]
     _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # C_t at (q1, v1)
     _rows_transposed_times(s.col, v.J, v.Ct, s.r1)
-    _band_times(s.W, bw, s.y[n_q:n_q + n], s.ma)
+    _band_times(s, s.W, bw, s.y[n_q:n_q + n], s.ma)
     for i in range(n):
         s.ma[i] -= scale * s.r1[i]
-    _band_solve(lu, bw, piv, s.ma, s.ints, s.trans)
+    _band_solve(s, lu, bw, piv, s.ma)
     for i in range(n):
         y1[n_q + i] = s.ma[i]
     _forces_and_rows(t1, y1, chart, m, v, w, forces, rows, s.Qp)  # gamma at (q1, v)
     _rows_transposed_times(s.col, v.J, v.gam, s.r1)
-    _band_times(s.W, bw, s.a1, a_out)
+    _band_times(s, s.W, bw, s.a1, a_out)
     for i in range(n):
         a_out[i] += scale * s.r1[i]
-    _band_solve(lu, bw, piv, a_out, s.ints, s.trans)
+    _band_solve(s, lu, bw, piv, a_out)
     n_aux = w0.shape[0]
     if n_aux:
         for k in range(n_aux):
@@ -432,25 +464,23 @@ def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a
 
 
 @jit
-def _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, exact_ok, K, D, m, v, w, forces, rows, s,
-             y1, a_out, lam, w_dot1):
-    """One attempt with the force tangents ``K``, ``D`` (``viz3d.ali3p._iterate``, the same tests in the
-    same order): ``(outcome, evaluations, last update, max |C|)``; ``lam`` the multipliers."""
-    t1, n, n_c = t0 + h, m.n_v, lam0.shape[0]
+def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, s, lam):
+    """One iteration with the force tangents ``K``, ``D`` from the increment ``s.dx`` and multipliers
+    ``lam`` (both in place; ``viz3d.ali3p._iterate``, the same tests in the same order; ``search``: its
+    line search on the exact tangent): ``(outcome, evaluations, last update, max |C|, cur)``; converged,
+    the point in ``s.y``, ``s.a1``, ``s.Q`` and the rows in ``v``, its iteration matrix's factors in
+    ``s.lu[cur]``."""
+    t1, n, n_c = t0 + h, m.n_v, lam.shape[0]
     scale = 0.25 * h * h * alpha
     for j in range(n):
         for i in range(s.W.shape[1]):
             s.W[j, i] = s.M[j, i] + 0.5 * h * D[j, i] + 0.25 * h * h * K[j, i]
-    for r in range(n_c):
-        lam[r] = lam0[r]
-    for i in range(n):
-        s.dx[i] = h * v0[i] + 0.5 * h * h * a0[i]  # predictor: a1 = a0
-    cur, have_lu, step, prev, exact, evals, C_max = 0, False, np.inf, np.inf, False, 0, 0.0
+    cur, have_lu, step, prev, exact, evals, C_max, cuts = 0, False, np.inf, np.inf, False, 0, 0.0, 0
     for it in range(MAX_ITER):
         status = _trial_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, s.y, s.a1, s.Q)
         evals += 1
         if status != OK:
-            return NONFINITE_POINT, evals, step, np.nan
+            return NONFINITE_POINT, evals, step, np.nan, cur
         C_max = 0.0
         for r in range(n_c):
             C_max = max(C_max, abs(v.C[r]))
@@ -460,14 +490,13 @@ def _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, exact_o
                 lam[r] += alpha * v.C[r]
             rate = step / prev if math.isfinite(prev) else np.inf
             if small_update(step, rate, tol) and C_max <= tol:
-                outcome = _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a_out, w_dot1)
-                return outcome, evals, step, C_max
+                return CONVERGED, evals, step, C_max, cur
         prev = step
         _residual(h, alpha, s, bw, v.J, v.C, lam, s.a1, s.Q, s.res)
         if not have_lu:
-            _iteration_matrix(s.W, s.col, v.J, scale, bw, s.lu[cur])
+            _iteration_matrix(s.W, s.bcol, v.J, scale, bw, s.lu[cur])
             if _band_factor(s.lu[cur], bw, s.piv[cur], s.ints) != 0:
-                return SINGULAR_LU, evals, step, C_max
+                return SINGULAR_LU, evals, step, C_max, cur
             have_lu = True
         elif (exact_ok and (exact or it >= 3) and rate > SLOW_RATE
               and (exact or too_slow(step, rate, tol, MAX_ITER - it))):
@@ -478,48 +507,144 @@ def _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, exact_o
                 cur, exact = new, True
             else:  # a singular difference tangent: go on with the approximate one
                 exact_ok = False
-        step = 0.0
         for i in range(n):
             s.ddx[i] = -s.res[i]
-        _band_solve(s.lu[cur], bw, s.piv[cur], s.ddx, s.ints, s.trans)
+        _band_solve(s, s.lu[cur], bw, s.piv[cur], s.ddx)
+        if search and exact and _max_abs(s.ddx) > SLOW_RATE * step and cuts < MAX_CUTS:
+            # the exact tangent's update overshot: back half-way along the update that led here
+            for i in range(n):
+                s.ddx[i], s.last[i] = -0.5 * s.last[i], 0.5 * s.last[i]
+            cuts += 1
+        else:
+            for i in range(n):
+                s.last[i] = s.ddx[i]
+            cuts = 0
+        step = _max_abs(s.ddx)
         for i in range(n):
-            step = max(step, abs(s.ddx[i]))
             s.dx[i] = s.dx[i] + s.ddx[i]
-    return NOT_CONVERGED, evals, step, C_max
-
-
-@entry
-def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
-               w, forces, rows, s, y1, a_out, lam, w_dot1):
-    """``_attempts`` callable from Python (a step that ``viz3d.ali3p`` takes, halvings included)."""
-    return _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
-                     w, forces, rows, s, y1, a_out, lam, w_dot1)
+    return NOT_CONVERGED, evals, step, C_max, cur
 
 
 @jit
-def _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, smooth, K, D, K_new, D_new, m, v,
-              w, forces, rows, s, y1, a_out, lam, w_dot1):
+def _max_abs(x):
+    """``max |x|`` (0 for an empty ``x``)."""
+    out = 0.0
+    for i in range(x.shape[0]):
+        out = max(out, abs(x[i]))
+    return out
+
+
+@jit
+def _branches(t1, q0, v0, dx, h, chart, m, v, w, branches, y, mode, tol):
+    """``hold_piece`` of the elements with branches, at the trial point of the increment ``dx`` (n_v,)
+    (set up in ``y`` and ``v``; not for ``RELEASE``): ``viz3d.ali3p._held`` (``HOLD``), ``_change``
+    (``CHANGE``: the number of branches that differ, positions within ``tol`` [m])."""
+    if mode != RELEASE:
+        _retract(m, q0, dx, y)
+        for i in range(m.n_v):
+            y[m.n_q + i] = 2.0 / h * dx[i] - v0[i]
+        frames(m, v, w, y, chart)
+        kinematics(m, v, w)
+    changed = 0
+    for d in literal_unroll(branches):
+        if d.i.shape[0] > 0:
+            changed += hold_piece(d, t1, v, mode, tol)
+    return changed
+
+
+@jit
+def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, branches,
+           s, lam):
+    """``viz3d.ali3p._solve`` from the predictor, the branches held there (``search``; none: one
+    ``_iterate``): at the converged point the difference of the Newton updates with the forces held and
+    found (``s.Q``, ``s.Qp``) within ``tol``, or no branch changed, settles it; else the iteration goes
+    on from there with the branches found there, ``MAX_SET_UPDATES`` times at most (then
+    ``NOT_SETTLED``, the last update the shift; ``s.dx0``: where the last held branches were taken).
+    Returns ``_iterate``'s tuple; converged, the forces are released."""
+    t1, n = t0 + h, m.n_v
+    for r in range(lam.shape[0]):
+        lam[r] = lam0[r]
+    _predictor(h, v0, a0, s.dx)
+    evals = 0
+    for update in range(MAX_SET_UPDATES + 1):
+        for i in range(n):
+            s.dx0[i] = s.dx[i]
+        outcome, k, step, C_max, cur = _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v,
+                                                w, forces, rows, s, lam)
+        evals += k
+        if outcome != CONVERGED or not search:
+            return outcome, evals, step, C_max, cur
+        for i in range(n):
+            s.ddx[i] = s.dx[i] - s.dx0[i]
+        if update > 0 and _max_abs(s.ddx) <= tol:
+            break  # the branches found at the last solution moved it by less than tol
+        changed = _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, CHANGE, ROUND_OFF_FACTOR * tol)
+        _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, RELEASE, 0.0)
+        _trial_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, s.yp, s.ap, s.Qp)  # (rows: s.dx's)
+        evals += 1
+        for i in range(n):
+            s.r1[i] = 0.25 * h * h * (s.Q[i] - s.Qp[i])
+        _band_solve(s, s.lu[cur], bw, s.piv[cur], s.r1)
+        shift = _max_abs(s.r1)
+        if shift <= tol or changed == 0:
+            return CONVERGED, evals, step, C_max, cur
+        if update == MAX_SET_UPDATES:
+            return NOT_SETTLED, evals, shift, C_max, cur
+        _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, HOLD, 0.0)
+    _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, RELEASE, 0.0)
+    return CONVERGED, evals, step, C_max, cur
+
+
+@jit
+def _predictor(h, v0, a0, dx):
+    """The increment (n_v,) of the trapezoidal rule with ``a1 = a0`` (``viz3d.ali3p._predictor``)."""
+    for i in range(dx.shape[0]):
+        dx[i] = h * v0[i] + 0.5 * h * h * a0[i]
+
+
+@entry
+def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m, v,
+               w, forces, rows, branches, s, y1, a_out, lam, w_dot1):
+    """``_attempts`` callable from Python (a step that ``viz3d.ali3p`` takes, halvings included)."""
+    return _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m,
+                     v, w, forces, rows, branches, s, y1, a_out, lam, w_dot1)
+
+
+@jit
+def _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m, v,
+              w, forces, rows, branches, s, y1, a_out, lam, w_dot1):
     """One step of ``viz3d.ali3p._one_step``: with the kept force tangents ``K``, ``D`` when ``have_K``,
-    then (or else only) with fresh ones written into ``K_new``, ``D_new``. On convergence ``y1``
-    (n_q + n_v + n_aux,) holds the new state, ``a_out`` its accelerations, ``lam`` the multipliers,
-    ``w_dot1`` the work rates. Returns ``(outcome, evaluations, evaluations of the last attempt,
-    fresh tangents built, last update, max |C|)`` (``NaN`` max |C| when a point was not finite)."""
+    then (or else only) with fresh ones written into ``K_new``, ``D_new``; with ``search``, the forces'
+    branches held as at the predictor (``_branches``), the fresh tangents taken there. On convergence
+    ``y1`` (n_q + n_v + n_aux,) holds the new state, ``a_out`` its accelerations, ``lam`` the
+    multipliers, ``w_dot1`` the work rates. Returns ``(outcome, evaluations, evaluations of the last
+    attempt, fresh tangents built, last update, max |C|)`` (``NaN`` max |C| when a point was not
+    finite; the last update: the shift of ``NOT_SETTLED``). The branches are released on return."""
+    t1, n_q, n = t0 + h, m.n_q, m.n_v
     total = 0
     built = False
     outcome, evals, step, C_max = NOT_CONVERGED, 0, np.inf, 0.0
     for attempt in range(2 if have_K else 1):
         fresh = attempt == 1 or not have_K
+        if search:
+            _predictor(h, v0, a0, s.dx)
+            _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.qp, HOLD, 0.0)
         if fresh:
-            total += _force_tangent(t0, q0, v0, chart, bw, m, v, w, forces, rows, s, K_new, D_new)
+            if search:  # where the branches were taken: a contact that begins within the step has no stiffness at t0
+                total += _force_tangent(t1, s.qp[:n_q], s.qp[n_q:n_q + n], chart, bw, m, v, w, forces, rows, s, K_new,
+                                        D_new)
+            else:
+                total += _force_tangent(t0, q0, v0, chart, bw, m, v, w, forces, rows, s, K_new, D_new)
             built = True
-            outcome, evals, step, C_max = _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, smooth,
-                                                   K_new, D_new, m, v, w, forces, rows, s, y1, a_out, lam, w_dot1)
-        else:
-            outcome, evals, step, C_max = _iterate(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, False,
-                                                   K, D, m, v, w, forces, rows, s, y1, a_out, lam, w_dot1)
+        outcome, evals, step, C_max, _ = _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, fresh, search,
+                                                K_new if fresh else K, D_new if fresh else D, m, v, w, forces, rows,
+                                                branches, s, lam)
         total += evals
-        if outcome == CONVERGED or outcome == WORK_RATES:
+        if outcome == CONVERGED:
+            outcome = _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a_out, w_dot1)
             break
+    if search:
+        _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.qp, RELEASE, 0.0)
     return outcome, total, evals, built, step, C_max
 
 
@@ -529,11 +654,12 @@ UNHEALTHY = 5
 
 @entry
 def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed, a0, lam, w_dot0, Ks, Ds, carry, alpha,
-                 tol, bw, smooth, m, v, w, forces, rows, s, y1, a1, lam1, w_dot1, Y, charts):
+                 tol, bw, search, m, v, w, forces, rows, branches, memories, s, y1, a1, lam1, w_dot1, Y, charts):
     """Up to ``n_frames`` times ``every`` steps (``_attempts``) of the state ``y = [q, v, w]`` (n_y,) and
     ``chart`` in place, from step ``n0`` of a run started at ``t_start`` [s], each followed by what
     ``viz3d.simulate.Simulation`` does between steps (health checks, normalised Euler parameters,
-    chart switches counted per body in ``switches``: ``viz3d.kernel.stepping``); the state after frame
+    chart switches counted per body in ``switches``, the force elements' memory renewed:
+    ``viz3d.kernel.stepping``); the state after frame
     ``f`` into ``Y[f]``, ``charts[f]``. The memory is carried in place: accelerations ``a0``,
     multipliers ``lam``, work rates ``w_dot0``, force tangents ``Ks[carry[0]]``, ``Ds[carry[0]]``
     (the other buffer takes fresh ones), ``carry[1]`` 1 while they are kept, ``carry[2]`` the
@@ -544,10 +670,11 @@ def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed,
     for f in range(n_frames):
         for k in range(every):
             cur = carry[0]
+            t0 = t_start + (n0 + f * every + k) * h
             outcome, evals, last, built, _, _ = _attempts(
-                t_start + (n0 + f * every + k) * h, h, y[:n_q], y[n_q:n_q + n_v], a0, lam, y[n_q + n_v:], w_dot0, chart,
-                alpha, tol, bw, carry[1] == 1, smooth, Ks[cur], Ds[cur], Ks[1 - cur], Ds[1 - cur], m, v, w, forces, rows,
-                s, y1, a1, lam1, w_dot1)
+                t0, h, y[:n_q], y[n_q:n_q + n_v], a0, lam, y[n_q + n_v:], w_dot0, chart, alpha, tol, bw, carry[1] == 1,
+                search, Ks[cur], Ds[cur], Ks[1 - cur], Ds[1 - cur], m, v, w, forces, rows, branches, s, y1, a1, lam1,
+                w_dot1)
             if outcome != CONVERGED:
                 return f, k, outcome
             if not state_ok(n_q, n_v, m.n_rot, m.switching, m.frame_body.shape[0], y1, h, max_speed):
@@ -556,6 +683,8 @@ def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed,
                           h, max_speed)
             for i in range(n_y):
                 y[i] = y1[i]
+            if m.remembers == 1:
+                renew(t0 + h, m, v, w, y, chart, memories)
             for i in range(n_v):
                 a0[i] = a1[i]
             for r in range(lam.shape[0]):
@@ -578,6 +707,25 @@ def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed,
 # ---------------------------------------------------------------------------- from Python
 
 
+def _band_order(A: np.ndarray, frame_of: np.ndarray, n_frames: int) -> np.ndarray:
+    """Each floating frame's position in the band (n_frames,): reverse Cuthill-McKee's order of the
+    bodies' adjacency ``A`` (nb, nb) where it narrows the band (a windlass first in body order and joined
+    to the chain's last link made the hoist's band full: 131 of 138), else body order; ``frame_of`` (nb,)
+    each body's frame."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    i, j = np.nonzero(A)
+    keep = (frame_of[i] >= 0) & (frame_of[j] >= 0)
+    fi, fj = frame_of[i][keep], frame_of[j][keep]
+    F = csr_matrix((np.ones(fi.size), (fi, fj)), shape=(n_frames, n_frames))
+    order = np.empty(n_frames, np.int64)
+    order[reverse_cuthill_mckee(F, symmetric_mode=True)] = np.arange(n_frames)
+    natural = np.arange(n_frames, dtype=np.int64)
+    width = lambda o: np.max(np.abs(o[fi] - o[fj]), initial=0)  # noqa: E731
+    return order if width(order) < width(natural) else natural
+
+
 class KernelALI3P:
     """ALI3-P's steps in the kernel for one packed system (``stepper``: its
     ``viz3d.kernel.KernelStepper``; ``system``: covered, see ``viz3d.kernel.model._check_stepping``),
@@ -592,33 +740,41 @@ class KernelALI3P:
         self.stepper, d = stepper, stepper.data
         m = d.model
         self.m, n = m, m.n_v
-        self.smooth = smooth_forces(system)
+        self.search = any(e.branches for e in system.forces)
+        self.branches = tuple(x for x in d.forces if type(x) in registered(hold_piece))  # (the same arrays)
         A = body_adjacency(system)
         frame_of = m.body_frame[: m.nb]
+        order = _band_order(A, frame_of, m.frame_body.shape[0])
         i, j = np.nonzero(A)
-        self.bw = bw = int(6 * np.max(np.abs(frame_of[i] - frame_of[j]), initial=0) + 5)
+        at = np.where(frame_of >= 0, order[np.maximum(frame_of, 0)], frame_of)  # each body's place in the band
+        self.bw = bw = int(6 * np.max(np.abs(at[i] - at[j]), initial=0) + 5)
         L, n_c, n_y = 3 * bw + 1, m.row_body.shape[0], m.n_q + m.n_v + m.n_aux
-        col = np.where(m.body_frame[m.row_body] >= 0, 6 * m.body_frame[m.row_body], -1).astype(np.int64)
+        frame_row = m.body_frame[m.row_body]
+        col = np.where(frame_row >= 0, 6 * frame_row, -1).astype(np.int64)
+        bcol = np.where(frame_row >= 0, 6 * order[frame_row], -1).astype(np.int64)
+        perm = (6 * np.repeat(order, 6) + np.tile(np.arange(6), order.size)).astype(np.int64)
         groups, rows_of = sparse_fd_plan(system)
         ptr = lambda parts: np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)  # noqa: E731
         cat = lambda parts: np.concatenate([np.asarray(p, np.int64) for p in parts] or [np.zeros(0, np.int64)])  # noqa: E731
         z = np.zeros
-        self.s = Scratch(self._mass(m, bw), np.ascontiguousarray(col), ptr(groups), cat(groups), ptr(rows_of),
+        self.s = Scratch(self._mass(m, bw, perm), np.ascontiguousarray(col), np.ascontiguousarray(bcol), perm,
+                         np.argsort(perm).astype(np.int64), ptr(groups), cat(groups), ptr(rows_of),
                          cat(rows_of), np.frombuffer(b"N", np.uint8).copy(), z((n, L)), z((2, n, L)),
-                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(12)),
+                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(15)),
                          z(n_c))
 
     @staticmethod
-    def _mass(m, bw: int) -> np.ndarray:
-        """``diag(m I3, I)`` per rigid body (constant), band storage (n_v, 3 bw + 1)."""
+    def _mass(m, bw: int, perm: np.ndarray) -> np.ndarray:
+        """``diag(m I3, I)`` per rigid body (constant), band storage (n_v, 3 bw + 1) in the band's order ``perm``."""
         M = np.zeros((m.n_v, 3 * bw + 1))
         for k, b in enumerate(m.frame_body):
             block = np.zeros((6, 6))
             block[:3, :3] = np.eye(3) / m.mass_inv[b]
             block[3:, 3:] = m.inertia[b]
+            p = perm[6 * k]
             for i in range(6):
                 for j in range(6):
-                    M[6 * k + j, 2 * bw + i - j] = block[i, j]
+                    M[p + j, 2 * bw + i - j] = block[i, j]
         return M
 
     def step(self, system, formulation, state: State, h: float, memory) -> tuple[State, object, Status]:
@@ -630,16 +786,20 @@ class KernelALI3P:
         y1, a, lam, w_dot = np.empty(n_q + n_v + m.n_aux), np.empty(n_v), np.empty(memory.lam.shape[0]), np.empty(m.n_aux)
         w0 = _c(state.w) if m.n_aux else np.zeros(0)
         v, w = st.ws
+        st.load(state.element_memory)
         outcome, evals, last, built, step, C_max = st._call(
             ali3p_step, state.t, h, _c(state.q), _c(state.v), _c(memory.v_dot), _c(memory.lam), w0,
             _c(memory.w_dot) if m.n_aux else np.zeros(0), _c(state.chart), float(formulation.alpha),
-            float(formulation.tol), self.bw, have_K, self.smooth, memory.K if have_K else K_new,
-            memory.D if have_K else D_new, K_new, D_new, d.model, v, w, d.forces, d.rows, self.s, y1, a, lam, w_dot)
+            float(formulation.tol), self.bw, have_K, self.search, memory.K if have_K else K_new,
+            memory.D if have_K else D_new, K_new, D_new, d.model, v, w, d.forces, d.rows, self.branches, self.s, y1, a,
+            lam, w_dot)
         K, D = (K_new, D_new) if built else (memory.K, memory.D)
         if outcome == WORK_RATES:
             raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
         if outcome != CONVERGED:
             reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX}.get(outcome)
+            if outcome == NOT_SETTLED:
+                reason = not_settled(system, formulation, state, h, self.s.dx0, self.s.dx, step)
             return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + evals), failure(
                 state, h, reason or no_convergence(step, C_max))
         new = State(state.t + h, y1[:n_q], y1[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
@@ -655,7 +815,23 @@ class KernelALI3P:
         (``ali3p_frames``), from step ``n0`` of a run started at ``t_start`` [s]: ``(states, memory,
         switches, done, ok)``, the states after each frame done, the memory and chart switches per
         body (n_bodies,) after the last; ``ok`` False when a step failed or its end state was not
-        healthy (that frame not done: ``viz3d.ali3p`` then takes it for the diagnosis). Inputs are copied."""
+        healthy (that frame not done: ``viz3d.ali3p`` then takes it for the diagnosis). Inputs are copied.
+        With force elements that remember (stick anchors), one call per frame: each state carries its own."""
+        if not self.stepper.data.anchors:
+            return self._frames(system, formulation, state, memory, n_frames, every, n0, t_start, h, max_speed)
+        states, switches = [], np.zeros(system.n_bodies, np.int64)
+        for f in range(n_frames):
+            got, memory, more, done, ok = self._frames(system, formulation, state, memory, 1, every, n0 + f * every,
+                                                       t_start, h, max_speed)
+            switches += more
+            if not ok:
+                return states, memory, switches, f, False
+            states, state = states + got, got[-1]
+        return states, memory, switches, n_frames, True
+
+    def _frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
+                h: float, max_speed: float):
+        """``frames`` in one compiled call (the force elements' memory of the last state on all)."""
         st, d, m = self.stepper, self.stepper.data, self.m
         n, L, n_q, n_v = m.n_v, 3 * self.bw + 1, m.n_q, m.n_v
         y, chart = np.array(state.y, dtype=float), np.array(state.chart, dtype=float)
@@ -670,12 +846,15 @@ class KernelALI3P:
         carry = np.array([0, int(have_K), 0], np.int64)
         Y, charts = np.empty((n_frames, y.size)), np.empty((n_frames, *chart.shape))
         v, w = st.ws
+        st._fresh(state.element_memory)
         done, _, status = st._call(
             ali3p_frames, n_frames, every, n0, t_start, h, y, chart, switches, float(max_speed), a0, lam, w_dot0, Ks,
-            Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.smooth, d.model, v, w,
-            d.forces, d.rows, self.s, np.empty(y.size), np.empty(n_v), np.empty(lam.size), np.empty(m.n_aux), Y, charts)
+            Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.search, d.model, v, w,
+            d.forces, d.rows, self.branches, d.memories, self.s, np.empty(y.size), np.empty(n_v), np.empty(lam.size),
+            np.empty(m.n_aux), Y, charts)
+        elements = st.stored(state.element_memory)
         states = [State(t_start + (n0 + (f + 1) * every) * h, Y[f, :n_q], Y[f, n_q:n_q + n_v], charts[f],
-                        Y[f, n_q + n_v:], state.memory, state.element_memory) for f in range(done)]
+                        Y[f, n_q + n_v:], state.memory, elements) for f in range(done)]
         kept = carry[1] == 1
         cur = int(carry[0])
         memory = replace(memory, v_dot=a0, lam=lam, w_dot=w_dot0 if m.n_aux else memory.w_dot,

@@ -43,10 +43,12 @@ from viz3d.compiled import (
     dot3,
     energy_piece,
     force_piece,
+    hold_piece,
     jit,
     normal_force,
     registered,
 )
+from viz3d.compiled import CHANGE, HOLD, RELEASE
 from viz3d.contact import narrowphase
 from viz3d.contact.collision import COPLANAR, StickAnchors, _all_pairs
 from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
@@ -71,8 +73,8 @@ DAMPING, HERTZ, ENERGY_C, ENERGY_P, FRICTION = 0, 1, 2, 3, 4
 #: ``CollisionItems.opts``: max_contacts, some law's friction keeps anchors (1/0), nb (ground's body index).
 MAX_CONTACTS, STATEFUL, GROUND = 0, 1, 2
 #: ``CollisionItems.count``: raw contacts, contacts, 1 when the contacts are those of the poses in
-#: ``last_sr``, ``last_sR`` (``_detect``).
-N_RAW, N_TOUCH, KNOWN = 0, 1, 2
+#: ``last_sr``, ``last_sR`` (``_detect``), contacts held (``h_*``), 1 while they are held (``hold_piece``).
+N_RAW, N_TOUCH, KNOWN, N_HELD, HELD = 0, 1, 2, 3, 4
 #: Most listed pairs the kernel's all-pairs broad phase takes (beyond it the run keeps the NumPy
 #: element's k-d trees): 5e4 pairs cost ~0.1 ms of bound tests per evaluation and their raw-contact
 #: scratch ~150 MB.
@@ -108,7 +110,8 @@ class _CollisionFields(NamedTuple):
         column 0.
     table : ShapeTable
         The shapes as the narrow phase reads them (``viz3d.contact.narrowphase``; the NumPy element's).
-    The rest is scratch and memory: shape poses, raw contacts, contacts, match, anchors.
+    The rest is scratch and memory: shape poses, raw contacts, contacts, match, anchors, the contacts
+    held within an ALI3-P step (``hold_piece``; while held, the contacts ``t_*`` are those held).
     """
 
     i: np.ndarray
@@ -159,6 +162,13 @@ class _CollisionFields(NamedTuple):
     b_anchor: np.ndarray
     b_mark: np.ndarray
     v3: np.ndarray  # scratch 3-vectors
+    h_shape: np.ndarray  # contacts held (``FrozenTouches``), count[N_HELD] of them: shapes A, B
+    h_law: np.ndarray
+    h_A: np.ndarray  # A's witness point in A's axes from its frame origin [m]
+    h_B: np.ndarray  # B's, in B's
+    h_n: np.ndarray  # the normal in B's axes
+    h_match: np.ndarray  # its anchor (-1: none)
+    h_active: np.ndarray  # 1: it pushes
 
 
 class CollisionItems(_CollisionFields, Items):
@@ -210,8 +220,10 @@ def pack_collisions(c, packer) -> CollisionItems:
         _z(R, dtype=np.int64), _z(MESH_CONTACTS, 3), _z(MESH_CONTACTS, 3), _z(MESH_CONTACTS),
         _z(T, 2, dtype=np.int64), _z(T, dtype=np.int64), _z(T, 3), _z(T, 3), _z(T), _z(T), _z(T), _z(T), _z(T, 3),
         _z(T, dtype=np.int64), _z(T * c.max_contacts, 2, dtype=np.int64), _z(T * c.max_contacts),
-        _z(A, dtype=np.int64), _z(3, dtype=np.int64), _z(A, 2, dtype=np.int64), _z(A, 3), _z(A, 2, 3),
-        _z(1, dtype=np.int64), _z(A, 2, dtype=np.int64), _z(A, 3), _z(A, 2, 3), _z(12, 3))
+        _z(A, dtype=np.int64), _z(5, dtype=np.int64), _z(A, 2, dtype=np.int64), _z(A, 3), _z(A, 2, 3),
+        _z(1, dtype=np.int64), _z(A, 2, dtype=np.int64), _z(A, 3), _z(A, 2, 3), _z(12, 3),
+        _z(T, 2, dtype=np.int64), _z(T, dtype=np.int64), _z(T, 3), _z(T, 3), _z(T, 3), _z(T, dtype=np.int64),
+        _z(T, dtype=np.int64))
 
 
 def _pairs(c, w) -> np.ndarray:
@@ -492,13 +504,14 @@ def _same_poses(d):
 
 
 @jit
-def _law_force(laws, slot, row, alpha, alpha_dot):
-    """The normal law's force of pair law (``slot``, ``row``) (``normal_force``; memoryless laws)."""
+def _law_force(laws, slot, row, alpha, alpha_dot, clip):
+    """The normal law's force of pair law (``slot``, ``row``) (``normal_force``; memoryless laws), clipped
+    at zero or not (``clip``)."""
     F = 0.0
     s = 0
     for ld in literal_unroll(laws):
         if s == slot:
-            F = normal_force(ld, row, 0, alpha, alpha_dot, 0.0, 0.0)
+            F = normal_force(ld, row, 0, alpha, alpha_dot, 0.0, 0.0, clip)
         s += 1
     return F
 
@@ -516,7 +529,8 @@ def _scale(d, t, k):
 @jit
 def _normal(d, v):
     """Per contact: indentation rate, slip velocity, normal force and its elastic part
-    (``Collisions._evaluate``)."""
+    (``Collisions._evaluate``; held contacts, ``count[HELD]``: the active ones' law unclipped, odd in the
+    depth, the others none)."""
     vA, vB, lever = d.v3[0], d.v3[1], d.v3[2]
     for t in range(d.count[N_TOUCH]):
         for side in range(2):
@@ -539,9 +553,17 @@ def _normal(d, v):
         scale = _scale(d, t, k)
         slot, row = d.law_slot[k, 0], d.law_slot[k, 1]
         d.t_ad[t] = alpha_dot
-        d.t_Fel[t] = scale * _law_force(d.laws, slot, row, d.t_d[t], 0.0)
-        d.t_F[t] = max(scale * _law_force(d.laws, slot, row, d.t_d[t], alpha_dot) + d.law_f[k, DAMPING] * alpha_dot,
-                       0.0)
+        d.t_Fel[t] = scale * _law_force(d.laws, slot, row, d.t_d[t], 0.0, True)
+        if d.count[HELD] == 0:
+            d.t_F[t] = max(scale * _law_force(d.laws, slot, row, d.t_d[t], alpha_dot, True)
+                           + d.law_f[k, DAMPING] * alpha_dot, 0.0)
+        elif d.h_active[t] == 1:
+            depth = d.t_d[t]
+            sign = 1.0 if depth > 0.0 else (-1.0 if depth < 0.0 else 0.0)
+            d.t_F[t] = (scale * sign * _law_force(d.laws, slot, row, abs(depth), alpha_dot, False)
+                        + d.law_f[k, DAMPING] * alpha_dot)
+        else:
+            d.t_F[t] = 0.0
 
 
 @jit
@@ -620,9 +642,12 @@ def _apply(d, v, t, f):
 
 @compiled_piece(force_piece, CollisionItems)
 def _collision_forces(d, t, v, power):
-    _detect(d, v)
+    if d.count[HELD] == 1:
+        _held_touches(d, v)
+    else:
+        _detect(d, v)
     _normal(d, v)
-    if d.opts[STATEFUL] == 1:
+    if d.opts[STATEFUL] == 1 and d.count[HELD] == 0:
         _match(d, v)
     s, ft, f = d.v3[3], d.v3[4], d.v3[5]
     for k in range(d.count[N_TOUCH]):
@@ -705,3 +730,126 @@ def _collision_after_step(d, t, v):
         for c in range(3):
             d.a_anchor[q, c] = d.b_anchor[q, c]
     d.a_n[0] = n
+
+
+# ---------------------------------------------------------------------------- compiled: contacts held
+
+
+@jit
+def _witness(d, v, e, side, out):
+    """Held contact ``e``'s witness point on ``side`` (0: A, 1: B) in world axes [m]."""
+    s = d.h_shape[e, side]
+    b, p = d.i[s, BODY], d.i[s, POINT]
+    x = d.h_A[e] if side == 0 else d.h_B[e]
+    for c in range(3):
+        out[c] = v.px[p, c] + v.R[b, c, 0] * x[0] + v.R[b, c, 1] * x[1] + v.R[b, c, 2] * x[2]
+
+
+@jit
+def _held_depth(d, v, e, pA, pB, n):
+    """Held contact ``e`` at the kinematics in ``v`` (``FrozenTouches.at``): its witness points ``pA``,
+    ``pB``, normal ``n`` (world) and depth ``(pB - pA) . n`` [m]."""
+    _witness(d, v, e, 0, pA)
+    _witness(d, v, e, 1, pB)
+    b = d.i[d.h_shape[e, 1], BODY]
+    for c in range(3):
+        n[c] = v.R[b, c, 0] * d.h_n[e, 0] + v.R[b, c, 1] * d.h_n[e, 1] + v.R[b, c, 2] * d.h_n[e, 2]
+    return (pB[0] - pA[0]) * n[0] + (pB[1] - pA[1]) * n[1] + (pB[2] - pA[2]) * n[2]
+
+
+@jit
+def _held_touches(d, v):
+    """The contacts ``t_*`` those held, at the kinematics in ``v`` (``FrozenTouches.at``): the point
+    their witness points' middle; no longer the last detection's (``KNOWN``)."""
+    pA, pB, n = d.v3[8], d.v3[9], d.v3[10]
+    for e in range(d.count[N_HELD]):
+        depth = _held_depth(d, v, e, pA, pB, n)
+        d.t_shape[e, 0], d.t_shape[e, 1] = d.h_shape[e, 0], d.h_shape[e, 1]
+        d.t_law[e] = d.h_law[e]
+        d.t_match[e] = d.h_match[e]
+        d.t_d[e] = depth
+        for c in range(3):
+            d.t_p[e, c] = 0.5 * (pA[c] + pB[c])
+            d.t_n[e, c] = n[c]
+    d.count[N_TOUCH] = d.count[N_HELD]
+    d.count[KNOWN] = 0
+
+
+@jit
+def _hold(d, v):
+    """The contacts at the kinematics in ``v`` held (``Collisions.frozen``): material points of A and B at
+    their witness points (the contact point -+ half the depth along the normal), the normal in B's axes,
+    their anchors, pushing or not (clipped force > 0)."""
+    d.count[HELD] = 0
+    _detect(d, v)
+    _normal(d, v)
+    if d.opts[STATEFUL] == 1:
+        _match(d, v)
+    x = d.v3[8]
+    for t in range(d.count[N_TOUCH]):
+        for side in range(2):
+            s = d.t_shape[t, side]
+            b, p = d.i[s, BODY], d.i[s, POINT]
+            half = (0.5 if side == 1 else -0.5) * d.t_d[t]
+            for c in range(3):
+                x[c] = d.t_p[t, c] + half * d.t_n[t, c] - v.px[p, c]
+            out = d.h_A[t] if side == 0 else d.h_B[t]
+            for c in range(3):
+                out[c] = v.R[b, 0, c] * x[0] + v.R[b, 1, c] * x[1] + v.R[b, 2, c] * x[2]
+            d.h_shape[t, side] = s
+        b = d.i[d.t_shape[t, 1], BODY]
+        for c in range(3):
+            d.h_n[t, c] = v.R[b, 0, c] * d.t_n[t, 0] + v.R[b, 1, c] * d.t_n[t, 1] + v.R[b, 2, c] * d.t_n[t, 2]
+        d.h_law[t] = d.t_law[t]
+        d.h_match[t] = d.t_match[t] if d.opts[STATEFUL] == 1 else -1
+        d.h_active[t] = 1 if d.t_F[t] > 0.0 else 0
+    d.count[N_HELD] = d.count[N_TOUCH]
+    d.count[HELD] = 1
+
+
+@jit
+def _changed(d, v, tol):
+    """1 when the contacts found at the kinematics in ``v`` differ from those held (``Collisions.frozen_change``):
+    a pair of shapes with another number of pushing contacts, or whose pushing contacts' depths sum to
+    more than ``tol`` [m] from the held ones'; else 0. The held contacts stay held."""
+    d.count[HELD] = 0
+    _detect(d, v)
+    _normal(d, v)
+    d.count[HELD] = 1
+    for t in range(d.count[N_TOUCH]):
+        if d.t_F[t] > 0.0 and _pair_differs(d, v, d.t_shape[t, 0], d.t_shape[t, 1], tol):
+            return 1
+    for e in range(d.count[N_HELD]):
+        if d.h_active[e] == 1 and _pair_differs(d, v, d.h_shape[e, 0], d.h_shape[e, 1], -1.0):
+            return 1
+    return 0
+
+
+@jit
+def _pair_differs(d, v, i, j, tol):
+    """The pair of shapes ``(i, j)`` has another number of pushing contacts found (``t_*``) than held, or
+    (``tol`` >= 0) their depths' sums differ by more than ``tol`` [m]."""
+    pA, pB, n = d.v3[8], d.v3[9], d.v3[10]
+    found, held, depth = 0, 0, 0.0
+    for t in range(d.count[N_TOUCH]):
+        if d.t_F[t] > 0.0 and d.t_shape[t, 0] == i and d.t_shape[t, 1] == j:
+            found += 1
+            depth += d.t_d[t]
+    for e in range(d.count[N_HELD]):
+        if d.h_active[e] == 1 and d.h_shape[e, 0] == i and d.h_shape[e, 1] == j:
+            held += 1
+            depth -= _held_depth(d, v, e, pA, pB, n)
+    return found != held or (tol >= 0.0 and abs(depth) > tol)
+
+
+@compiled_piece(hold_piece, CollisionItems)
+def _collision_hold(d, t, v, mode, tol):
+    """``Collisions.frozen`` held (``HOLD``), released, or compared (``CHANGE``: 1 if they differ)."""
+    if mode == HOLD:
+        _hold(d, v)
+    elif mode == RELEASE:
+        d.count[HELD] = 0
+        d.count[KNOWN] = 0
+    else:
+        return _changed(d, v, tol)
+    return 0

@@ -27,6 +27,7 @@ from viz3d.compiled import (
     energy_piece,
     force_piece,
     gap_piece,
+    hold_piece,
     items,
     registered,
     row_piece,
@@ -288,6 +289,8 @@ def pack(system, formulation) -> KernelData:
     parts, classes = _parts(list(system.forces) + list(system.contacts) + list(system.joints.joints), packer)
     if sum(getattr(e, "type_name", None) == "collisions" for e in system.forces) > 1:
         raise Unsupported("more than one shape-contact element")
+    if formulation.name in STEPPING:
+        _check_held(system.forces, classes)
     forces, rows, geometry, energies, memories = (_by_class(target, parts) for target in (
         force_piece, row_piece, gap_piece, energy_piece, after_step_piece))
     memories = memories or None  # (numba unrolls no empty tuple; the kernel skips None)
@@ -356,10 +359,13 @@ def _check_stepping(system) -> None:
         raise Unsupported("ALI3-P with flexible bodies")
     if system.contacts:
         raise Unsupported("ALI3-P with contacts")
-    if not all(e.smooth for e in system.forces):
-        raise Unsupported("ALI3-P with shape contacts (forces not smooth in the positions)")
-    if any(e.branches for e in system.forces):  # (viz3d.ali3p holds them within a step; the kernel does not yet)
-        raise Unsupported("ALI3-P with force branches held within a step (joint stops)")
+
+
+def _check_held(forces, classes: dict[int, list[type]]) -> None:
+    """Every force element with branches can hold them in the compiled ALI3-P (a ``hold_piece``)."""
+    for e in forces:
+        if e.branches and not any(c in registered(hold_piece) for c in classes.get(id(e), [])):
+            raise Unsupported(f"ALI3-P with {e.type_name!r}: its branches have no compiled hold_piece")
 
 
 def _parts(elements, packer) -> tuple[dict[type, list], dict[int, list[type]]]:
