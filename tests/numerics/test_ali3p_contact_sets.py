@@ -104,6 +104,7 @@ def test_a_change_of_the_held_contacts_is_named(tmp_path):
     assert collisions.frozen_change(cfg_at(R - 1e-3), apart) == f"contacts {name} began"
 
 
+@pytest.mark.slow  # its compiled signature (ALI3-P with shape contacts) takes ~124 s of CPU to compile cold
 def test_the_compiled_steps_hold_the_contacts_as_the_numpy_steps_do(tmp_path):
     """The compiled ALI3-P (``viz3d.kernel.ali3p``, the contacts held in the kernel's packed data:
     ``viz3d.kernel.collisions``' ``hold_piece``) takes the steps of the touch-down and the lift-off as the
