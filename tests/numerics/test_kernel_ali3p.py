@@ -13,6 +13,7 @@ import viz3d
 from viz3d import kernel as K
 from viz3d.diagnosis import SimulationFailure
 from viz3d.dynamics import body_state
+from viz3d.formulation import Index1
 from viz3d.integrators import make_integrator
 from viz3d.scene.build import make_formulation
 from viz3d.simulate import Simulation
@@ -138,6 +139,17 @@ def _pendulum_on_a_stop(tmp_path):
     scene = viz3d.load_scene(path)
     system, state = viz3d.build(scene)
     return system, state, make_formulation(scene.data["sim"]), scene.data["sim"]["dt"], I_O
+
+
+def test_stops_are_packed_for_each_ali3p_run_and_once_for_rk4(tmp_path):
+    """The compiled ALI3-P writes the stops' held sides into their packed data within each step
+    (``hold_piece``): under ALI3-P a system with stops is packed for each run (``model.per_run``), never
+    shared by two runs; under RK4, which writes nothing there, once for all its runs."""
+    system, _, form, _, _ = _pendulum_on_a_stop(tmp_path)
+    a, b = K.kernel_for(system, form), K.kernel_for(system, form)
+    assert a is not None and b is not None and a is not b
+    rk4 = Index1()
+    assert K.kernel_for(system, rk4) is K.kernel_for(system, rk4) is not None
 
 
 def test_compiled_ali3p_holds_a_stop_as_the_numpy_steps_do(tmp_path):

@@ -50,7 +50,7 @@ def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]
     a run writes to it (``model.per_run``): then packed anew for each caller."""
     if numba is None:
         return None, "numba is not installed"
-    if per_run(system):
+    if per_run(system, formulation):
         return _coverage(system, formulation)
     key = ("kernel", formulation)
     kept = system.derived.get(key)
@@ -72,7 +72,7 @@ def keep_packed(system, formulation) -> None:
     they can share it, with the fingerprints of its tuples (``type_prints``): what
     ``viz3d.scene.build.build`` does with the model it builds, as the run's clock starts once the
     model is built."""
-    if numba is not None and not per_run(system):
+    if numba is not None and not per_run(system, formulation):
         data = kernel_coverage(system, formulation)[0]
         if data is not None:
             type_prints(data)

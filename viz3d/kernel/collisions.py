@@ -36,6 +36,9 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.compiled import (
+    CHANGE,
+    HOLD,
+    RELEASE,
     Items,
     after_step_piece,
     compiled_piece,
@@ -48,7 +51,6 @@ from viz3d.compiled import (
     normal_force,
     registered,
 )
-from viz3d.compiled import CHANGE, HOLD, RELEASE
 from viz3d.contact import narrowphase
 from viz3d.contact.collision import COPLANAR, StickAnchors, _all_pairs
 from viz3d.contact.friction import FRICTION_PARAMS, friction_vector

@@ -301,10 +301,12 @@ def pack(system, formulation) -> KernelData:
                       energies, _energy_gap(system.forces, classes), memories, _anchors(system.forces, parts))
 
 
-def per_run(system) -> bool:
-    """True when ``system``'s packed data holds what a run writes, so that each run needs its own
-    packing (a force element's ``packed_per_run``: shape contacts' scratch and stick anchors)."""
-    return any(e.packed_per_run for e in system.forces)
+def per_run(system, formulation) -> bool:
+    """True when ``system``'s packed data for ``formulation`` holds what a run writes, so that each run
+    needs its own packing: a force element's ``packed_per_run`` (shape contacts' scratch and stick
+    anchors), or, under a formulation that steps itself (ALI3-P), the branches it holds within each
+    step in their elements' data (``hold_piece``: joint stops' sides)."""
+    return any(e.packed_per_run or (e.branches and formulation.name in STEPPING) for e in system.forces)
 
 
 def _anchors(forces, parts: dict[type, list]) -> tuple:
