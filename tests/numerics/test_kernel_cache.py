@@ -17,7 +17,7 @@ from viz3d.contact import contacts  # noqa: E402
 from viz3d.kernel import field, stepping  # noqa: E402
 
 
-@pytest.mark.parametrize("fn", [field.rhs, field.gaps, stepping.advance], ids=lambda f: f.py_func.__name__)
+@pytest.mark.parametrize("fn", [field.rhs, field.gaps, stepping.advance_frames], ids=lambda f: f.py_func.__name__)
 def test_kernel_entries_are_keyed_on_all_compiled_sources(fn):
     locator = fn._cache._impl.locator
     assert type(locator).__name__.startswith("Viz3d"), f"numba's own locator {type(locator).__name__} is in use"

@@ -34,7 +34,7 @@ except ImportError:  # pragma: no cover - no numba, or a numba without it: _entr
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, gaps, rhs
 from viz3d.kernel.model import KernelData, Unsupported, pack, per_run, workspace
 from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
-from viz3d.kernel.stepping import advance, advance_frames, rk_step, state_ok
+from viz3d.kernel.stepping import advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
            "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance",
@@ -362,6 +362,7 @@ class KernelStepper:
         n = data.model.n_q + data.model.n_v + data.model.n_aux
         stages = 0 if tableau is None else len(tableau.b)  # None: evaluations only (CompiledField)
         self._k, self._yi = np.empty((stages, n)), np.empty(n)
+        self._one = None  # ``step``'s buffers of one frame (``advance_frames``'s Y, charts, ts, samples)
 
     def view(self, memory: tuple):
         """The workspace's view with the contacts' memory ``memory`` (a ``State.memory``)."""
@@ -500,13 +501,17 @@ class KernelStepper:
         """``n_steps`` steps of ``y``, ``chart`` in place from the force elements' memory ``elements``
         (renewed after each step: ``stored`` gives it afterwards); returns (steps done, status code,
         ``OK`` = 0). On a failure ``y`` holds the failed step's result."""
-        tab, d = self.tableau, self.data
-        v, w = self.ws
         if _c(y) is not y or _c(chart) is not chart:
             raise ValueError("the kernel steps y and chart in place: they must be C-contiguous float64 arrays")
         self._fresh(elements)
-        return self._call(advance, n_steps, t, h, y, chart, switches, tab.a, tab.b, tab.c, int(not tab.embedded),
-                          max_speed, d.model, v, w, d.forces, d.rows, d.memories, self._k, self._yi)
+        if n_steps <= 0:  # (advance_frames' every = 0 samples given states instead)
+            return 0, OK
+        if self._one is None:  # (one frame's buffers, nothing sampled: advance_frames as the plain steps)
+            self._one = (np.empty((1, y.shape[0])), np.empty((1, *chart.shape)), np.empty(1), self._samples(0))
+        Y, charts, ts, out = self._one
+        _, done, status = self._frames_call(1, n_steps, 0, t, h, y, chart, switches, max_speed, Y, charts, ts,
+                                            np.zeros(1, np.int64), out, self.ws[0])
+        return done, status
 
     def _fresh(self, elements: tuple) -> None:
         """``elements`` loaded for steps that renew it in place (the packed data's memory is then

@@ -2,7 +2,7 @@
 step-size ``viz3d.integrators.adaptive.Controller`` (trial steps, the weighted RMS error norm,
 rejections, the next step's proposal and the orientation-turn limit), the accepted steps'
 continuous extension (``viz3d.integrators.tableaus.DenseOutput``) sampled at the output times, and
-between steps what ``viz3d.kernel.stepping.advance`` does (the ``projection`` formulation's
+between steps what ``viz3d.kernel.stepping.steps`` does (the ``projection`` formulation's
 projections, health checks, chart switches).
 
 A step over which an event function of the contacts changes sign is cut at the first event, as

@@ -30,7 +30,7 @@ except ImportError:  # pragma: no cover
     def literal_unroll(x):
         return x
 
-#: Status codes of ``evaluate``, ``viz3d.kernel.stepping.advance`` and ``viz3d.kernel.projection.project``
+#: Status codes of ``evaluate``, ``viz3d.kernel.stepping.steps`` and ``viz3d.kernel.projection.project``
 #: (``PROJECTION``: the position projection did not reach its tolerance).
 OK, NONFINITE, SINGULAR, SPEED, ROTATION, PROJECTION = 0, 1, 2, 3, 4, 5
 

@@ -26,12 +26,6 @@ except ImportError:  # pragma: no cover
         return x
 
 
-@entry
-def advance(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
-    """``steps``, called from Python."""
-    return steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi)
-
-
 @inline
 def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v, w, forces, rows, memories, k, yi):
     """Take up to ``n_steps`` steps of the tableau ``(ta, tb, tc)`` in place, with the stage scratch
@@ -104,8 +98,9 @@ def advance_frames(n_frames, every, n0, t0, h, y, chart, switches, ta, tb, tc, g
                    memories, k, yi, Y, charts, ts, sampled, geometry, energies, ydot, r, R, vW, wW, wB, eta, eta_dot, lam, C, J, gap,
                    T, V):
     """A run's output frames in one call, free of the per-frame Python overhead: its one compiled
-    entry for stepping and sampling (each entry loaded from numba's cache costs a run's start tens
-    of milliseconds).
+    entry for fixed steps and sampling (each entry loaded from numba's cache costs a run's start tens
+    of milliseconds, and each compiled on a cold cache a minute or more of CPU); plain steps are one
+    frame of ``every`` steps, sampled or not (``KernelStepper.step``).
 
     ``every`` > 0: up to ``n_frames`` runs of ``steps`` (``group`` as there) of ``every`` steps each, the first from
     step ``n0`` of a run that started at ``t0`` (call ``f`` starts at ``t0 + (n0 + f every) h``, the
