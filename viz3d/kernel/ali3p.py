@@ -635,7 +635,7 @@ def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, 
         if update >= 2:
             for i in range(n):
                 s.ddx[i] = s.dx[i] - s.before[i]
-            if _max_abs(s.ddx) <= tol:  # a cycle: the branches found here were held for the last solution
+            if _max_abs(s.ddx) <= ROUND_OFF_FACTOR * tol:  # a cycle: these branches were held for the last solution
                 outcome, k, step, C_max, cur = _filippov(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, K, D, m, v,
                                                          w, forces, rows, branches, s, lam)
                 return outcome, evals + k, step, C_max, cur
