@@ -36,7 +36,11 @@ contact set that changes between iterates stalls the iteration. A step therefore
 are at its predictor (``ForceElement.frozen``: contacts as material points against tangent planes,
 an active set, anchors fixed), iterates on that smooth problem, may take the exact tangent there,
 and checks the branches found at its converged point; where they move the solution by more than
-the tolerance, it iterates again from there with those (``_solve``, ``MAX_SET_UPDATES``).
+the tolerance, it iterates again from there with those (``_solve``, ``MAX_SET_UPDATES``). Where that
+cycles (each of two sets' solutions finds the other: the forces jump between them within the step,
+a stop's damper as the stop is reached, a face pressed on a face found at two or at four points),
+the solution is on the boundary between the two sets, with forces between theirs (Filippov's): a
+bisection on the blend of the two sets' forces finds it (``_filippov``).
 
 The method is written here, on NumPy: the reference. When the compiled kernel covers the system,
 ``viz3d.simulate.Simulation`` gives the memory a ``viz3d.kernel.ali3p.KernelALI3P``: the attempts of
@@ -84,6 +88,10 @@ NONFINITE_STATE, SINGULAR_MATRIX = "non-finite state", "singular iteration matri
 #: are at its predictor; where those found at the converged configuration move the solution by more
 #: than the tolerance, it is solved again with them, from there: at most this many times (``_solve``).
 MAX_SET_UPDATES = 3
+#: A held set that cycles (``_solve``: the solution of an update back within ``ROUND_OFF_FACTOR`` times
+#: the tolerance of the one two updates before) straddles a jump of the forces between two branch sets; the step's
+#: solution is then sought between them (``_filippov``) by at most this many bisections.
+MAX_BISECTIONS = 30
 #: Halvings of an update in a row that an iteration on the exact tangent may take where it overshoots
 #: (systems whose forces have branches: ``_iterate``'s line search).
 MAX_CUTS = 4
@@ -152,6 +160,16 @@ class _Converged:
     lam: FloatArray
     lu: object
     W: object
+
+
+@dataclass(frozen=True)
+class _Mix:
+    """Two held memories of the force elements (``_held``) whose forces are blended:
+    ``Q = (1 - theta) Q(a) + theta Q(b)`` (``_filippov``)."""
+
+    theta: float
+    a: tuple
+    b: tuple
 
 
 def init_memory(system: System, formulation, state: State, kernel=None) -> ALI3PMemory:
@@ -249,10 +267,14 @@ def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
     the branches found there held, until it moves the solution by less than the tolerance
     (``MAX_SET_UPDATES`` times at most; then the reason names what changed, and where). Branches found
     unchanged, with held contacts as deep as those found to ``ROUND_OFF_FACTOR * tol``, settle it too.
-    ``(result, evaluations)``, the result a ``_Converged`` or a reason string. An active-set strategy,
-    as implicit contact methods take it."""
+    A solution back within ``ROUND_OFF_FACTOR * tol`` of the one two updates before is a cycle (its
+    branches, held where they were found, are the same as then to the resolution ``_change`` grants
+    the narrow phase; m9 of the hoist's heel-5 ensemble: 3.7e-8 to 3.2e-7 m apart):
+    ``_filippov`` solves the step between its two sets. ``(result, evaluations)``, the result a ``_Converged`` or a
+    reason string. An active-set strategy, as implicit contact methods take it."""
     dx, lam, evals = _predictor(state, memory, h), memory.lam, 0
     search = held is not state.element_memory
+    solutions = []  # of the updates before
     for update in range(MAX_SET_UPDATES + 1):
         result, n = _iterate(system, formulation, state, h, memory, exact_ok, dx, lam, held, search)
         evals += n
@@ -268,8 +290,58 @@ def _solve(system, formulation, state, h, memory, held: tuple, exact_ok: bool):
         change = _change(system, state, result.dx, h, held, ROUND_OFF_FACTOR * formulation.tol)
         if not change:  # the same branches, the held contacts' depths those found to the narrow phase's
             return result, evals  # resolution (a face on a face: which witness points is arbitrary)
-        dx, lam, held = result.dx, result.lam, _held(system, state, result.dx, h)
+        here = _held(system, state, result.dx, h)
+        if len(solutions) >= 2 and np.max(np.abs(result.dx - solutions[-2].dx)) <= ROUND_OFF_FACTOR * formulation.tol:
+            # a cycle: the branches found here were held for the last solution, which found these (held
+            # where they were found: the same to the narrow phase's resolution, ``_change``)
+            out, n = _filippov(system, formulation, state, h, memory, exact_ok, held, here, result, solutions[-1])
+            return out, evals + n
+        solutions.append(result)
+        dx, lam, held = result.dx, result.lam, here
     return _unsettled(state.t + h, change, np.max(np.abs(shift))), evals
+
+
+def _filippov(system, formulation, state, h, memory, exact_ok: bool, held_a: tuple, held_b: tuple, lo: _Converged,
+              hi: _Converged):
+    """The step's solution where the held branches cycle (``_solve``): held as ``held_a`` the iteration
+    converges to ``lo``, where the branches ``held_b`` are found; held as those, to ``hi``, where
+    ``held_a``'s are found. The forces jump between the two sets and neither set's equations have a
+    solution that keeps it: the solution is on the boundary between them, where the forces take a
+    value between both (Filippov's convex combination, as a stop reached or a contact touched within
+    the step). The forces ``(1 - theta) Q(held_a) + theta Q(held_b)`` (``_Mix``) move the solution from
+    ``lo`` (theta = 0, ``held_b`` found) to ``hi`` (theta = 1, ``held_a`` found); bisection on theta
+    (``MAX_BISECTIONS``) keeps a solution on each side until the two are within ``ROUND_OFF_FACTOR *
+    tol`` (the resolution ``_change`` grants the narrow phase's contact depths, and ``small_update`` a
+    stalled iteration: the solutions along theta are not known closer). The accepted point (the
+    ``held_b`` side's) solves the equations of motion with forces in the convex hull of the two sets'
+    to the tolerance (constraints within ``tol``), within ``ROUND_OFF_FACTOR * tol`` of the boundary. Branches of a third
+    set found between them, or a bisection that does not close, fail the attempt with the reason.
+    ``(result, evaluations)`` as ``_solve``'s."""
+    tol, evals = formulation.tol, 0
+    t_lo, t_hi = 0.0, 1.0
+    for _ in range(MAX_BISECTIONS):
+        if np.max(np.abs(hi.dx - lo.dx)) <= ROUND_OFF_FACTOR * tol:
+            return lo, evals
+        theta = 0.5 * (t_lo + t_hi)
+        mid, n = _iterate(system, formulation, state, h, memory, exact_ok, 0.5 * (lo.dx + hi.dx),
+                          0.5 * (lo.lam + hi.lam), _Mix(theta, held_a, held_b), True)
+        evals += n
+        if not isinstance(mid, _Converged):
+            return mid, evals
+        if not _change(system, state, mid.dx, h, held_b, np.inf):
+            lo, t_lo = mid, theta
+        elif not _change(system, state, mid.dx, h, held_a, np.inf):
+            hi, t_hi = mid, theta
+        else:
+            return cycled(state.t + h), evals
+    return cycled(state.t + h), evals
+
+
+def cycled(t1: float) -> str:
+    """The reason of an attempt whose held branches cycled and whose bisection (``_filippov``) found
+    another set between the two, or did not close, by ``t1`` [s]."""
+    return (f"the contact set cycled at t = {t1:.6g} s and no boundary between its two sets was found in "
+            f"{MAX_BISECTIONS} bisections")
 
 
 def _unsettled(t1: float, change: str, shift: float) -> str:
@@ -321,12 +393,16 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool, dx: FloatArr
     (n_c,), the force elements evaluated with the memory ``elements``: ``(result, evaluations)``, the
     result a ``_Converged`` or a reason string if it fails. With ``exact_ok``, an iteration that would
     not converge within ``MAX_ITER`` at its present rate switches to the exact tangent; with
-    ``search`` (held branches, ``_solve``), an update on it that overshoots is halved (``MAX_CUTS``)."""
+    ``search`` (held branches, ``_solve``), an update on it after which the residual (max norm) is larger
+    than where the update was taken is halved back (``MAX_CUTS`` times in a row at most). (The test was the
+    size of the next update, more than ``SLOW_RATE`` times the last: where the exact tangent is poor, a
+    kink of forces not held, it backed off updates that had shrunk the residual, and the iteration
+    stalled: the hoist's jammed anchor, 40 iterations at an update of 1e-7 to 1e-6 m.)"""
     alpha, tol, t1 = formulation.alpha, formulation.tol, state.t + h
     M = mass_matrix(system, state)
     W = M + 0.5 * h * memory.D + 0.25 * h * h * memory.K
     lam = lam.copy()
-    lu, step, prev, exact, evals, last, cuts = None, np.inf, np.inf, False, 0, None, 0
+    lu, step, prev, exact, evals, last, cuts, base = None, np.inf, np.inf, False, 0, None, 0, np.inf
     for it in range(MAX_ITER):
         try:
             p = _point(system, state, memory.v_dot, dx, h, t1, M, elements)
@@ -359,12 +435,13 @@ def _iterate(system, formulation, state, h, memory, exact_ok: bool, dx: FloatArr
             except RuntimeError:  # a singular difference tangent: go on with the approximate one
                 exact_ok = False
         ddx = lu.solve(-residual)
-        if search and exact and np.max(np.abs(ddx)) > SLOW_RATE * step and cuts < MAX_CUTS:
-            # the exact tangent's update overshot (a friction law steep near sticking, a kink): back
-            # half-way along the update that led here (a backtracking line search)
+        size = np.max(np.abs(residual))
+        if search and exact and size > base and cuts < MAX_CUTS:
+            # the update that led here overshot: the residual grew (a friction law steep near sticking,
+            # a kink): back half-way along it (a backtracking line search on max |residual|)
             ddx, last, cuts = -0.5 * last, 0.5 * last, cuts + 1
         else:
-            last, cuts = ddx, 0
+            last, cuts, base = ddx, 0, size
         step = np.max(np.abs(ddx))
         dx = dx + ddx
     return no_convergence(step, np.max(np.abs(p.C), initial=0.0)), evals
@@ -492,10 +569,19 @@ def _point(system: System, state: State, a0, dx, h: float, t1: float, M, element
     cfg = body_state(system, q1, v1, state.chart, t1)
     C, J, Je = residual_and_jacobian(system.joints, cfg)
     C_v = (_dense(system) and dense_jacobian or sparse_jacobian)(system, J, Je)
-    Q = flat_velocity(system, *generalized_forces(system, cfg, elements=elements))
+    Q = _forces(system, cfg, elements)
     if system.n_elastic:
         M = (_dense(system) and dense_mass_matrix or sparse_mass_matrix)(system, cfg)
     return _Point(q1, v1, a1, C, C_v, Q, M)
+
+
+def _forces(system: System, cfg, elements) -> FloatArray:
+    """The applied and gyroscopic forces (n_v,) at ``cfg`` with the force elements' memory ``elements``,
+    or the blend of two (``_Mix``)."""
+    if isinstance(elements, _Mix):
+        return (1.0 - elements.theta) * _forces(system, cfg, elements.a) + elements.theta * _forces(system, cfg,
+                                                                                                  elements.b)
+    return flat_velocity(system, *generalized_forces(system, cfg, elements=elements))
 
 
 def _rows(system: System, q, v, chart, t: float):

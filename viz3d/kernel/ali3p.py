@@ -31,8 +31,10 @@ Force elements with branches (joint stops, shape contacts) are held within a ste
 holds them: at the predictor (``_branches``, their ``hold_piece``: a stop's side, the shape contacts as
 material points against tangent planes with an active set and their anchors' matches, in their packed
 data), the fresh force tangents taken there, then checked at the converged point and re-solved from
-there (``_solve``, ``MAX_SET_UPDATES``); a step whose set does not settle comes back to Python for the
-reason (``viz3d.ali3p.not_settled``, naming what changed). Force elements that remember (the stick
+there (``_solve``, ``MAX_SET_UPDATES``), a cycle of two sets solved between them by bisection on the
+blend of their forces (``_filippov``, each blended point holding the branches as at one set, then at
+the other: ``_mixed_point``); a step whose set does not settle comes back to Python for the reason
+(``viz3d.ali3p.not_settled``, naming what changed). Force elements that remember (the stick
 anchors) are loaded at each call and renewed after each step of ``ali3p_frames`` (their
 ``after_step_piece``), one frame per call so that each state carries its own.
 
@@ -50,6 +52,7 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.ali3p import (
+    MAX_BISECTIONS,
     MAX_CUTS,
     MAX_ITER,
     MAX_SET_UPDATES,
@@ -57,6 +60,7 @@ from viz3d.ali3p import (
     ROUND_OFF_FACTOR,
     SINGULAR_MATRIX,
     SLOW_RATE,
+    cycled,
     failure,
     no_convergence,
     not_settled,
@@ -82,8 +86,9 @@ except ImportError:  # pragma: no cover
 
 #: Outcomes of ``ali3p_step``: converged (the step is done), the iteration did not converge within
 #: ``MAX_ITER``, a trial point was not finite, an iteration matrix was singular, the index-1 field
-#: (the ledger's work rates) failed at the new state, the branches held did not settle (``_solve``).
-CONVERGED, NOT_CONVERGED, NONFINITE_POINT, SINGULAR_LU, WORK_RATES, NOT_SETTLED = 0, 1, 2, 3, 4, 6
+#: (the ledger's work rates) failed at the new state, the branches held did not settle (``_solve``), the
+#: branches held cycled and no boundary between the two sets was found (``_filippov``).
+CONVERGED, NOT_CONVERGED, NONFINITE_POINT, SINGULAR_LU, WORK_RATES, NOT_SETTLED, CYCLED = 0, 1, 2, 3, 4, 6, 7
 
 
 # ---------------------------------------------------------------------------- compiled pieces
@@ -294,7 +299,11 @@ class Scratch(NamedTuple):
     dx, ddx, x, res, rp, ma, r1, dx0, last, bp : (n,) the increment, its update, a perturbed one, residuals,
         products, the increment an iteration started from (``_solve``), the line search's last update, a
         right-hand side in the band's order
-    cx : (n_c,) scratch
+    before, xa, xb, lo, hi, Qa : (n,) the solution two updates before (``_solve``); where the two sets of a
+        cycle were held, the sides of its bisection, forces with the first set (``_filippov``)
+    cx, lam_hi, lam_lo : (n_c,) scratch; the multipliers an update started from, those of the
+        bisection's low side
+    yh : (n_y,) where branches are held for a blend (``_mixed_point``)
     """
 
     M: np.ndarray
@@ -330,7 +339,16 @@ class Scratch(NamedTuple):
     dx0: np.ndarray
     last: np.ndarray
     bp: np.ndarray
+    before: np.ndarray
+    xa: np.ndarray
+    xb: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    Qa: np.ndarray
     cx: np.ndarray
+    lam_hi: np.ndarray
+    lam_lo: np.ndarray
+    yh: np.ndarray
 
 
 @jit
@@ -343,6 +361,24 @@ def _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q):
         y[n_q + i] = 2.0 / h * dx[i] - v0[i]
         a1[i] = 4.0 / (h * h) * (dx[i] - h * v0[i]) - a0[i]
     return _forces_and_rows(t1, y, chart, m, v, w, forces, rows, Q)
+
+
+@jit
+def _mixed_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, branches, s, theta, y, a1, Q):
+    """``_trial_point`` with the branches as held (``theta < 0``), or with the forces
+    ``(1 - theta) Q(A) + theta Q(B)``, the branches held as at the increments ``s.xa`` (A) and ``s.xb``
+    (B) (``viz3d.ali3p._Mix``, ``_filippov``; B held on return)."""
+    if theta < 0.0:
+        return _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q)
+    _branches(t1, q0, v0, s.xa, h, chart, m, v, w, branches, s.yh, HOLD, 0.0)
+    status = _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q)
+    for i in range(Q.shape[0]):
+        s.Qa[i] = Q[i]
+    _branches(t1, q0, v0, s.xb, h, chart, m, v, w, branches, s.yh, HOLD, 0.0)
+    other = _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q)
+    for i in range(Q.shape[0]):
+        Q[i] = (1.0 - theta) * s.Qa[i] + theta * Q[i]
+    return other if status == OK else status
 
 
 @jit
@@ -412,13 +448,14 @@ def _force_tangent(t, q0, v0, chart, bw, m, v, w, forces, rows, s, K, D):
 
 
 @jit
-def _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, s, out):
+def _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, branches, s, theta, out):
     """``d residual / d dx`` at ``s.dx`` and fixed multipliers (band storage) by grouped forward
-    differences (``viz3d.ali3p._residual_tangent``), ``s.res`` the residual at ``s.dx``: G trial points."""
+    differences (``viz3d.ali3p._residual_tangent``), ``s.res`` the residual at ``s.dx``: G trial points
+    (``_mixed_point``'s, ``theta``)."""
     out[:, :] = 0.0
     for g in range(s.group_ptr.shape[0] - 1):
         _perturbed(s, g, 1.0, s.dx, s.x)
-        _trial_point(t1, q0, v0, a0, s.x, h, chart, m, v, w, forces, rows, s.yp, s.ap, s.Qp)
+        _mixed_point(t1, q0, v0, a0, s.x, h, chart, m, v, w, forces, rows, branches, s, theta, s.yp, s.ap, s.Qp)
         _residual(h, alpha, s, bw, v.J, v.C, lam, s.ap, s.Qp, s.rp)
         _scatter(s, bw, g, 1.0, s.dx, s.rp, s.res, 1.0, out)
     return s.group_ptr.shape[0] - 1
@@ -464,10 +501,12 @@ def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a
 
 
 @jit
-def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, s, lam):
+def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, branches, s,
+             lam, theta):
     """One iteration with the force tangents ``K``, ``D`` from the increment ``s.dx`` and multipliers
     ``lam`` (both in place; ``viz3d.ali3p._iterate``, the same tests in the same order; ``search``: its
-    line search on the exact tangent): ``(outcome, evaluations, last update, max |C|, cur)``; converged,
+    line search on the exact tangent; ``theta``: the forces of ``_mixed_point``):
+    ``(outcome, evaluations, last update, max |C|, cur)``; converged,
     the point in ``s.y``, ``s.a1``, ``s.Q`` and the rows in ``v``, its iteration matrix's factors in
     ``s.lu[cur]``."""
     t1, n, n_c = t0 + h, m.n_v, lam.shape[0]
@@ -475,9 +514,10 @@ def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m
     for j in range(n):
         for i in range(s.W.shape[1]):
             s.W[j, i] = s.M[j, i] + 0.5 * h * D[j, i] + 0.25 * h * h * K[j, i]
-    cur, have_lu, step, prev, exact, evals, C_max, cuts = 0, False, np.inf, np.inf, False, 0, 0.0, 0
+    cur, have_lu, step, prev, exact, evals, C_max, cuts, base = 0, False, np.inf, np.inf, False, 0, 0.0, 0, np.inf
     for it in range(MAX_ITER):
-        status = _trial_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, s.y, s.a1, s.Q)
+        status = _mixed_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, branches, s, theta, s.y, s.a1,
+                              s.Q)
         evals += 1
         if status != OK:
             return NONFINITE_POINT, evals, step, np.nan, cur
@@ -502,7 +542,8 @@ def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m
               and (exact or too_slow(step, rate, tol, MAX_ITER - it))):
             # slow: Newton on the exact tangent, rebuilt at every iterate while the contraction stays slow
             new = 1 - cur
-            evals += _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, s, s.lu[new])
+            evals += _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, branches, s,
+                                       theta, s.lu[new])
             if _band_factor(s.lu[new], bw, s.piv[new], s.ints) == 0:
                 cur, exact = new, True
             else:  # a singular difference tangent: go on with the approximate one
@@ -510,15 +551,16 @@ def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m
         for i in range(n):
             s.ddx[i] = -s.res[i]
         _band_solve(s, s.lu[cur], bw, s.piv[cur], s.ddx)
-        if search and exact and _max_abs(s.ddx) > SLOW_RATE * step and cuts < MAX_CUTS:
-            # the exact tangent's update overshot: back half-way along the update that led here
+        size = _max_abs(s.res)
+        if search and exact and size > base and cuts < MAX_CUTS:
+            # the update that led here overshot (the residual grew): back half-way along it
             for i in range(n):
                 s.ddx[i], s.last[i] = -0.5 * s.last[i], 0.5 * s.last[i]
             cuts += 1
         else:
             for i in range(n):
                 s.last[i] = s.ddx[i]
-            cuts = 0
+            cuts, base = 0, size
         step = _max_abs(s.ddx)
         for i in range(n):
             s.dx[i] = s.dx[i] + s.ddx[i]
@@ -569,8 +611,10 @@ def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, 
     for update in range(MAX_SET_UPDATES + 1):
         for i in range(n):
             s.dx0[i] = s.dx[i]
+        for r in range(lam.shape[0]):
+            s.lam_hi[r] = lam[r]
         outcome, k, step, C_max, cur = _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v,
-                                                w, forces, rows, s, lam)
+                                                w, forces, rows, branches, s, lam, -1.0)
         evals += k
         if outcome != CONVERGED or not search:
             return outcome, evals, step, C_max, cur
@@ -588,11 +632,74 @@ def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, 
         shift = _max_abs(s.r1)
         if shift <= tol or changed == 0:
             return CONVERGED, evals, step, C_max, cur
+        if update >= 2:
+            for i in range(n):
+                s.ddx[i] = s.dx[i] - s.before[i]
+            if _max_abs(s.ddx) <= ROUND_OFF_FACTOR * tol:  # a cycle: these branches were held for the last solution
+                outcome, k, step, C_max, cur = _filippov(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, K, D, m, v,
+                                                         w, forces, rows, branches, s, lam)
+                return outcome, evals + k, step, C_max, cur
         if update == MAX_SET_UPDATES:
             return NOT_SETTLED, evals, shift, C_max, cur
+        for i in range(n):
+            s.before[i] = s.dx0[i]
         _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, HOLD, 0.0)
     _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, RELEASE, 0.0)
     return CONVERGED, evals, step, C_max, cur
+
+
+@jit
+def _filippov(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, K, D, m, v, w, forces, rows, branches, s, lam):
+    """``viz3d.ali3p._filippov`` where ``_solve``'s held branches cycle: held as at ``s.dx0`` (A) the
+    iteration converged to ``s.dx`` with multipliers ``lam`` (the low side, theta = 0), where those
+    held as at ``s.dx`` (B) are found; ``s.dx0``, ``s.lam_hi``: the solution with B's, where A's are found
+    (the high side). Bisection on theta of ``_mixed_point``'s forces until the sides are within
+    ``ROUND_OFF_FACTOR * tol``; converged, the low side's point in ``s.dx``, ``lam``, ``s.y``, ``s.a1``
+    and the rows in ``v``, the branches released; else ``CYCLED``. Returns ``_iterate``'s tuple."""
+    t1, n, n_c = t0 + h, m.n_v, lam.shape[0]
+    for i in range(n):
+        s.xa[i], s.xb[i], s.lo[i], s.hi[i] = s.dx0[i], s.dx[i], s.dx[i], s.dx0[i]
+    for r in range(n_c):
+        s.lam_lo[r] = lam[r]
+    t_lo, t_hi, evals, step, C_max, cur = 0.0, 1.0, 0, 0.0, 0.0, 0
+    for _ in range(MAX_BISECTIONS):
+        for i in range(n):
+            s.ddx[i] = s.hi[i] - s.lo[i]
+        if _max_abs(s.ddx) <= ROUND_OFF_FACTOR * tol:
+            _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, RELEASE, 0.0)
+            for i in range(n):
+                s.dx[i] = s.lo[i]
+            for r in range(n_c):
+                lam[r] = s.lam_lo[r]
+            _trial_point(t1, q0, v0, a0, s.dx, h, chart, m, v, w, forces, rows, s.y, s.a1, s.Q)  # (the low side's)
+            return CONVERGED, evals, step, C_max, cur
+        theta = 0.5 * (t_lo + t_hi)
+        for i in range(n):
+            s.dx[i] = 0.5 * (s.lo[i] + s.hi[i])
+        for r in range(n_c):
+            lam[r] = 0.5 * (s.lam_lo[r] + s.lam_hi[r])
+        outcome, k, step, C_max, cur = _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, True, K, D, m, v,
+                                                w, forces, rows, branches, s, lam, theta)
+        evals += k
+        if outcome != CONVERGED:
+            return outcome, evals, step, C_max, cur
+        _branches(t1, q0, v0, s.xb, h, chart, m, v, w, branches, s.yh, HOLD, 0.0)
+        if _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, CHANGE, np.inf) == 0:
+            t_lo = theta
+            for i in range(n):
+                s.lo[i] = s.dx[i]
+            for r in range(n_c):
+                s.lam_lo[r] = lam[r]
+            continue
+        _branches(t1, q0, v0, s.xa, h, chart, m, v, w, branches, s.yh, HOLD, 0.0)
+        if _branches(t1, q0, v0, s.dx, h, chart, m, v, w, branches, s.yp, CHANGE, np.inf) != 0:
+            return CYCLED, evals, step, C_max, cur
+        t_hi = theta
+        for i in range(n):
+            s.hi[i] = s.dx[i]
+        for r in range(n_c):
+            s.lam_hi[r] = lam[r]
+    return CYCLED, evals, step, C_max, cur
 
 
 @jit
@@ -760,8 +867,8 @@ class KernelALI3P:
         self.s = Scratch(self._mass(m, bw, perm), np.ascontiguousarray(col), np.ascontiguousarray(bcol), perm,
                          np.argsort(perm).astype(np.int64), ptr(groups), cat(groups), ptr(rows_of),
                          cat(rows_of), np.frombuffer(b"N", np.uint8).copy(), z((n, L)), z((2, n, L)),
-                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(15)),
-                         z(n_c))
+                         z((2, n), np.int32), z(5, np.int32), z(n_y), z(n_y), z(n_y), z(n_y), *(z(n) for _ in range(21)),
+                         z(n_c), z(n_c), z(n_c), z(n_y))
 
     @staticmethod
     def _mass(m, bw: int, perm: np.ndarray) -> np.ndarray:
@@ -797,7 +904,7 @@ class KernelALI3P:
         if outcome == WORK_RATES:
             raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
         if outcome != CONVERGED:
-            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX}.get(outcome)
+            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX, CYCLED: cycled(state.t + h)}.get(outcome)
             if outcome == NOT_SETTLED:
                 reason = not_settled(system, formulation, state, h, self.s.dx0, self.s.dx, step)
             return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + evals), failure(
