@@ -118,6 +118,8 @@ HOIST_PANELS = ("Energy", "Drive effort", "Chain tension at the hawse", "flukes_
                 "Shape contacts: normal force")
 
 
+@pytest.mark.slow  # 21 s of the default suite's 10 minutes; its panels and their values are checked
+# headless in tests/viz/test_live_plots.py, and the smoke test above drives the viewer in Chromium
 def test_anchor_hoist_in_a_real_browser():
     """anchor_hoist in Chromium: the Forces toggle (contact arrows) switched on from the page, the
     hoist's plots drawn with their titles, the 3D canvas not blank."""
