@@ -173,6 +173,27 @@ def test_kernel_steps_equal_numpy_steps_through_chart_switches():
     assert np.abs(system.split_q(sim.state.q)[0] - system.split_q(y[: system.n_q])[0]).max() < STEP_TOL
 
 
+def test_no_steps_leave_the_state_as_it_was_and_repeated_calls_continue_one_run():
+    """``KernelStepper.step`` runs ``advance_frames`` as one frame of n steps: n = 0 steps nothing (that
+    entry's ``every = 0`` samples given states instead: called so, it wrote into empty sample buffers),
+    and a run taken in calls of 120 and 180 steps is the run of 300 taken at once, to the bit (the top is
+    autonomous: the steps' times, summed differently, do not enter)."""
+    _, system, state, form = _setup(SCENES / "top_through_vertical.toml")
+    data = K.kernel_for(system, form)
+    stepper = K.KernelStepper(data, RK4)
+    y, chart, switches = state.y.copy(), state.chart.copy(), np.zeros(system.n_bodies, np.int64)
+    assert stepper.step(0.0, 5e-4, y, chart, switches, 1e4, 0) == (0, K.OK)
+    np.testing.assert_array_equal(y, state.y)
+    np.testing.assert_array_equal(chart, state.chart)
+    assert stepper.step(0.0, 5e-4, y, chart, switches, 1e4, 120) == (120, K.OK)
+    assert stepper.step(120 * 5e-4, 5e-4, y, chart, switches, 1e4, 180) == (180, K.OK)
+    y1, chart1, switches1 = state.y.copy(), state.chart.copy(), np.zeros(system.n_bodies, np.int64)
+    assert K.kernel_advance(data, RK4, 300, 0.0, 5e-4, y1, chart1, switches1, 1e4) == (300, K.OK)
+    np.testing.assert_array_equal(y, y1)
+    np.testing.assert_array_equal(chart, chart1)
+    np.testing.assert_array_equal(switches, switches1)
+
+
 def test_kernel_reports_failures():
     _, system, state, form = _setup(SCENES / "top_through_vertical.toml", overrides={"sim.rotation": "euler_zxz"})
     data = K.kernel_for(system, form)
