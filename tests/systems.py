@@ -232,3 +232,34 @@ def drive_set(system, seed: int = 0, pick: dict | None = None):
     body = np.array([js.body[j] for js, j in zip(sets, index)])
     return JointDrive(tuple(f"d{i}" for i in range(len(sets))), body, tuple(sets), np.array(index), np.array(free), kind,
                       np.array([m == "velocity" for m, _ in chosen], np.int64), table)
+
+
+#: A rod (mass [kg], length [m], radius [m]) hinged at its top on the y axis, released at rest THETA0
+#: [rad] from hanging (``rod_on_a_stop``).
+ROD_M, ROD_L, ROD_R, THETA0 = 1.2, 0.6, 0.02, np.radians(-36.0)
+#: Its moment of inertia about the hinge [kg m^2] (a solid cylinder's about its centre, then Steiner).
+ROD_I_O = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12 + ROD_M * (ROD_L / 2) ** 2
+
+
+def rod_on_a_stop(tmp_path, upper: float, stiffness: float, damping: float, t_end: float, dt: float):
+    """The rod on ALI3-P with the trapezoidal rule, its hinge's ``joint_stop`` at ``upper`` [rad] from the
+    start (``stiffness`` [N m/rad], ``damping`` [N m s/rad]): ``(system, state, formulation, I_O)``,
+    ``I_O`` its moment of inertia about the hinge [kg m^2]."""
+    import viz3d
+    from viz3d.scene.build import make_formulation
+
+    I_t = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12
+    u = np.array([-np.sin(THETA0), 0.0, -np.cos(THETA0)])  # the rod's axis from the hinge, R_y(THETA0) (0, 0, -1)
+    vec = lambda x: "[" + ", ".join(repr(float(c)) for c in x) + "]"  # noqa: E731
+    path = tmp_path / "rod_on_a_stop.toml"
+    path.write_text(  # body z along the rod: ZXZ (90, THETA0, -90) deg is R_y(THETA0)
+        f'[sim]\nt_end = {t_end}\ndt = {dt}\nformulation = "ali3p"\nintegrator = "trapezoidal"\n'
+        f'[[bodies]]\nname = "rod"\nshape = {{ type = "cylinder", radius = {ROD_R}, height = {ROD_L} }}\n'
+        f"mass = {ROD_M}\ninertia = {vec([I_t, I_t, ROD_M * ROD_R**2 / 2])}\nposition = {vec(0.5 * ROD_L * u)}\n"
+        f"euler_deg = {vec([90.0, np.degrees(THETA0), -90.0])}\n"
+        '[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]\n'
+        f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nupper = {upper}\n'
+        f"stiffness = {stiffness}\ndamping = {damping}\n")
+    scene = viz3d.load_scene(path)
+    system, state = viz3d.build(scene)
+    return system, state, make_formulation(scene.data["sim"]), ROD_I_O

@@ -17,38 +17,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from kernel_runs import ali3p_agreement_bound, run
+from systems import ROD_L, ROD_M, THETA0, rod_on_a_stop
 
-import viz3d
 from viz3d.ali3p import ROUND_OFF_FACTOR
 from viz3d.dynamics import body_state
 from viz3d.integrators import make_integrator
-from viz3d.scene.build import make_formulation
 from viz3d.simulate import Simulation
 
-#: The rod, its start THETA0 from hanging, the stop's place, stiffness [N m/rad] and damping [N m s/rad].
-ROD_M, ROD_L, ROD_R, THETA0, STOP, STOP_K, STOP_C = 1.2, 0.6, 0.02, np.radians(-36.0), np.radians(-30.0), 1e3, 3e3
+#: The stop's place [rad], stiffness [N m/rad] and damping [N m s/rad] (the rod: ``systems.rod_on_a_stop``).
+STOP, STOP_K, STOP_C = np.radians(-30.0), 1e3, 3e3
 #: Standard gravity [m/s^2]; the step [s]; the stop's offset [rad] past STOP that puts the start of the
 #: step that reaches it 0.8 h w short of it (from the steps of this rod: 121 steps reach STOP - 1.8e-4 rad).
 G, H, OFFSET = 9.81, 1e-3, 1.15e-3
 
 
 def _rod_on_a_damped_stop(tmp_path):
-    I_t = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12
-    I_O = I_t + ROD_M * (ROD_L / 2) ** 2  # about the hinge
-    u = np.array([-np.sin(THETA0), 0.0, -np.cos(THETA0)])  # the rod's axis from the hinge, R_y(THETA0) (0, 0, -1)
-    vec = lambda x: "[" + ", ".join(repr(float(c)) for c in x) + "]"  # noqa: E731
-    path = tmp_path / "damped_stop.toml"
-    path.write_text(  # body z along the rod: ZXZ (90, THETA0, -90) deg is R_y(THETA0)
-        f'[sim]\nt_end = 0.2\ndt = {H}\nformulation = "ali3p"\nintegrator = "trapezoidal"\n'
-        f'[[bodies]]\nname = "rod"\nshape = {{ type = "cylinder", radius = {ROD_R}, height = {ROD_L} }}\n'
-        f"mass = {ROD_M}\ninertia = {vec([I_t, I_t, ROD_M * ROD_R**2 / 2])}\nposition = {vec(0.5 * ROD_L * u)}\n"
-        f"euler_deg = {vec([90.0, np.degrees(THETA0), -90.0])}\n"
-        '[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]\n'
-        f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nupper = {STOP - THETA0 + OFFSET}\n'
-        f"stiffness = {STOP_K}\ndamping = {STOP_C}\n")
-    scene = viz3d.load_scene(path)
-    system, state = viz3d.build(scene)
-    return system, state, make_formulation(scene.data["sim"]), I_O
+    return rod_on_a_stop(tmp_path, STOP - THETA0 + OFFSET, STOP_K, STOP_C, 0.2, H)
 
 
 def test_a_step_whose_stop_set_cycles_ends_on_the_stop_and_gives_no_energy_back(tmp_path):

@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 from kernel_runs import ali3p_agreement_bound, run
+from systems import ROD_I_O, ROD_L, ROD_M, THETA0, rod_on_a_stop
 
 import viz3d
 from viz3d import kernel as K
@@ -117,28 +118,15 @@ def test_a_run_of_compiled_steps_in_one_call_takes_the_single_steps(name, overri
     np.testing.assert_array_equal(batched._memory.lam, single._memory.lam)
 
 
-#: The pendulum on a stop: a rod (m, length L, radius r) hinged at its top on the y axis, released at rest at
-#: THETA0 from hanging; its stop at STOP (spring k [N m/rad], critical damping) is met 0.12 s later.
-ROD_M, ROD_L, ROD_R, THETA0, STOP, STOP_K = 1.2, 0.6, 0.02, np.radians(-36.0), np.radians(-30.0), 1e3
+#: The pendulum on a stop: ``systems.rod_on_a_stop`` with its stop at STOP (spring k [N m/rad], critical
+#: damping), met 0.12 s after the release.
+STOP, STOP_K, DT_STOP = np.radians(-30.0), 1e3, 1e-3
 
 
 def _pendulum_on_a_stop(tmp_path):
-    I_O = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12 + ROD_M * (ROD_L / 2) ** 2  # about the hinge
-    u = np.array([-np.sin(THETA0), 0.0, -np.cos(THETA0)])  # the rod's axis from the hinge, R_y(THETA0) (0, 0, -1)
-    I_t = ROD_M * (3 * ROD_R**2 + ROD_L**2) / 12
-    vec = lambda x: "[" + ", ".join(repr(float(c)) for c in x) + "]"  # noqa: E731
-    path = tmp_path / "stop.toml"
-    path.write_text(  # body z along the rod: ZXZ (90, THETA0, -90) deg is R_y(THETA0)
-        f'[sim]\nt_end = 1.0\ndt = 1e-3\nformulation = "ali3p"\nintegrator = "trapezoidal"\n'
-        f'[[bodies]]\nname = "rod"\nshape = {{ type = "cylinder", radius = {ROD_R}, height = {ROD_L} }}\n'
-        f"mass = {ROD_M}\ninertia = {vec([I_t, I_t, ROD_M * ROD_R**2 / 2])}\nposition = {vec(0.5 * ROD_L * u)}\n"
-        f"euler_deg = {vec([90.0, np.degrees(THETA0), -90.0])}\n"
-        '[[joints]]\nname = "hinge"\ntype = "revolute"\nbody1 = "rod"\npoint = [0.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]\n'
-        f'[[forces]]\ntype = "joint_stop"\nname = "stop"\njoint = "hinge"\nupper = {STOP - THETA0}\n'
-        f"stiffness = {STOP_K}\ndamping = {2 * np.sqrt(STOP_K * I_O)}\n")
-    scene = viz3d.load_scene(path)
-    system, state = viz3d.build(scene)
-    return system, state, make_formulation(scene.data["sim"]), scene.data["sim"]["dt"], I_O
+    system, state, form, I_O = rod_on_a_stop(tmp_path, STOP - THETA0, STOP_K, 2 * np.sqrt(STOP_K * ROD_I_O), 1.0,
+                                             DT_STOP)
+    return system, state, form, DT_STOP, I_O
 
 
 def test_stops_are_packed_for_each_ali3p_run_and_once_for_rk4(tmp_path):
