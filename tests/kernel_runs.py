@@ -77,3 +77,15 @@ def ali3p_agreement_bound(system, state, form, n: int, dt: float) -> float:
     step's difference, carried by the flow as in ``agreement_bound``."""
     per_step = 4.0 * form.tol / dt + ROUNDOFF_FACTOR * step_roundoff(system, state, form, dt, "trapezoidal")
     return n * growth(system, state, form, n, dt, "trapezoidal") * per_step
+
+
+def ali3p_runs_agree(system, state, form, n: int, dt: float) -> tuple[Simulation, Simulation]:
+    """``n`` ALI3-P steps of ``dt`` from ``state`` on the compiled kernel and on the NumPy path, checked to
+    take the kernel and to end within ``ali3p_agreement_bound``: ``(compiled, numpy)``."""
+    compiled = run(system, state, form, n, dt, compiled=True, method="trapezoidal")
+    assert compiled.kernel_note == "compiled kernel"
+    numpy = run(system, state, form, n, dt, compiled=False, method="trapezoidal")
+    bound = ali3p_agreement_bound(system, state, form, n, dt)
+    diff = np.abs(compiled.state.y - numpy.state.y).max()
+    assert diff <= bound, f"y after {n} steps: {diff:.2e} > {bound:.2e}"
+    return compiled, numpy

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from kernel_runs import ali3p_agreement_bound, run
+from kernel_runs import ali3p_runs_agree
 from systems import ROD_L, ROD_M, THETA0, rod_on_a_stop
 
 from viz3d.ali3p import ROUND_OFF_FACTOR
@@ -62,10 +62,5 @@ def test_the_compiled_steps_take_the_numpy_steps_through_a_cycle(tmp_path):
     ``ali3p_agreement_bound``, with as many evaluations."""
     system, state, form, _ = _rod_on_a_damped_stop(tmp_path)
     n = 130
-    compiled = run(system, state, form, n, H, compiled=True, method="trapezoidal")
-    assert compiled.kernel_note == "compiled kernel"
-    numpy = run(system, state, form, n, H, compiled=False, method="trapezoidal")
-    bound = ali3p_agreement_bound(system, state, form, n, H)
-    diff = np.abs(compiled.state.y - numpy.state.y).max()
-    assert diff <= bound, f"y after {n} steps: {diff:.2e} > {bound:.2e}"
+    compiled, numpy = ali3p_runs_agree(system, state, form, n, H)
     assert abs(compiled.n_rhs - numpy.n_rhs) <= max(2, 0.02 * numpy.n_rhs), (compiled.n_rhs, numpy.n_rhs)
