@@ -263,3 +263,9 @@ def rod_on_a_stop(tmp_path, upper: float, stiffness: float, damping: float, t_en
     scene = viz3d.load_scene(path)
     system, state = viz3d.build(scene)
     return system, state, make_formulation(scene.data["sim"]), ROD_I_O
+
+
+#: The anchor hoist (scenes/anchor_hoist.toml, on ALI3-P by default) on RK4 with Baumgarte's drift control
+#: at the step its links' Hertz contact on the rim allows: the comparison method, for the tests of RK4's
+#: own behaviour there (its ledger against the step, the compiled RK4 against NumPy).
+HOIST_RK4 = ("sim.formulation=baumgarte", "sim.integrator=rk4", "sim.dt=5e-4")

@@ -37,6 +37,7 @@ from viz3d.scene.build import build, make_formulation, make_integrator_from
 from viz3d.simulate import Simulation
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "physics"))
+from systems import HOIST_RK4  # noqa: E402
 from test_collision_bristle import K_STICK, V_STICK, _friction, _scene  # noqa: E402
 
 #: Bristle friction of the box scenes: mu 0.4, mu_s 0.6, the anchor's move keeping 0.8 of the cap (eq. 3.49).
@@ -171,7 +172,7 @@ def _hoist():
 
     from viz3d.forces import JointStop
 
-    scene = viz3d.load_scene(HOIST)
+    scene = viz3d.load_scene(HOIST, list(HOIST_RK4))  # (the compiled RK4 against NumPy)
     system, state = build(scene)
     forces = tuple(dataclasses.replace(e, upper=e.upper + STOP_SHIFT, lower=e.lower - STOP_SHIFT)
                    if isinstance(e, JointStop) else e for e in system.forces)
@@ -292,7 +293,6 @@ def test_rk4_run_equals_numpy_on_the_anchor_hoist():
 # ---------------------------------------------------------------------------- ALI3-P, and what stays on NumPy
 
 
-@pytest.mark.slow  # compiles ALI3-P with shape contacts (~2 min of CPU cold): over the default suite's budget
 def test_ali3p_holds_the_shape_contacts_and_renews_the_anchors_in_the_kernel(tmp_path):
     """ALI3-P with shape contacts and bristles runs in the kernel (``viz3d.kernel.ali3p``: the contacts held
     within a step, the anchors renewed after each step of its output frames): after two frames of five

@@ -10,6 +10,9 @@ scene's masses and geometry, not from the simulator's forces:
   static deflection of their own weight's moment (a suddenly applied load at most doubles it);
 * the full hauls (slow): the default ship seats, a pocket narrower than the flukes jams (its windlass
   stalls at its capacity, the run ending cleanly).
+
+The scene runs ALI3-P by default; the tests of RK4's own behaviour there (its ledger against the step,
+its ledger watch at too long a step) set RK4 (``systems.HOIST_RK4``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import pytest
 
 import viz3d
+from systems import HOIST_RK4
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "anchor_hoist.toml"
 G = 9.81
@@ -132,7 +136,7 @@ def test_the_energy_ledger_closes_as_the_step_shrinks():
     work): halving dt must divide it by at least 2 (order 1)."""
     errors = []
     for dt in (5e-4, 2.5e-4):
-        traj = viz3d.simulate(viz3d.load_scene(SCENE, [f"sim.dt={dt}", "sim.t_end=0.5", "sim.output_dt=0.01"]))
+        traj = viz3d.simulate(viz3d.load_scene(SCENE, [*HOIST_RK4, f"sim.dt={dt}", "sim.t_end=0.5", "sim.output_dt=0.01"]))
         assert traj.status == "ok", traj.status
         x = traj.extras
         assert x["energy_work_in"][-1] > 0.0 and traj.extras["collision_contacts"].max() > 0
@@ -161,13 +165,13 @@ def test_the_overload_time_outlasts_an_impact_of_the_anchor_on_the_hull():
 
 
 def test_a_step_that_does_not_resolve_the_contacts_fails_on_its_ledger_and_gives_no_verdict():
-    """At twice the scene's step the links' Hertz impacts on the rim (about 1 ms long at 1 m/s:
+    """On RK4 at twice its step for the hoist the links' Hertz impacts on the rim (about 1 ms long at 1 m/s:
     viz3d.contact.exact.hertz_impact) last one or two steps: the energy ledger stops balancing within
     the first frames and the run stops with its diagnosis; no verdict is drawn from it (a stowage
     study counts it as failed, not as jammed or seated)."""
     from viz3d.stowagestudy import StowageMeasure
 
-    scene = viz3d.load_scene(SCENE, ["sim.dt=1e-3", "sim.t_end=0.5"])
+    scene = viz3d.load_scene(SCENE, [*HOIST_RK4, "sim.dt=1e-3", "sim.t_end=0.5"])
     traj = viz3d.simulate(scene)
     assert "the energy ledger does not balance" in traj.status, traj.status
     assert "stowage_verdict" not in traj.extras
