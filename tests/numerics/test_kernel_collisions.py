@@ -279,6 +279,7 @@ def test_rk4_run_equals_numpy_while_contacts_start_and_end(tmp_path):
     assert ended, "no body left the plane during the run"
 
 
+@pytest.mark.slow  # RK4 is the hoist's comparison method; the box runs above check the compiled RK4 with shape contacts
 def test_rk4_run_equals_numpy_on_the_anchor_hoist():
     """The anchor hoist's first 0.2 s (400 steps), trajectory and stick anchors after every frame."""
     scene, system, state = _hoist()

@@ -2,12 +2,13 @@
 
 ``viz3d.ali3p`` holds the method (predictor, Newton iteration, multiplier updates, the switch to
 the exact tangent, projections, halvings) on NumPy: the reference. Here one compiled call
-(``ali3p_step``) takes the same attempt(s) of a step for a system the kernel covers, with the same
-stopping tests, tangents and counts of evaluations, so it takes the reference's iterates; the
-halvings of a failed step stay in ``viz3d.ali3p`` (they call it again). ``ali3p_frames`` takes a
-run's steps from one output frame to the next in one call, with what ``viz3d.simulate`` does
-between steps (health checks, normalisation, chart switches), and stops before a step that fails:
-Python takes that one for its diagnosis. In the call:
+(``ali3p_frames``) takes a run's steps from one output frame to the next, each the same attempt(s)
+of a step as the reference's (``_attempts``: the same stopping tests, tangents and counts of
+evaluations, so the reference's iterates), with what ``viz3d.simulate`` does between steps (health
+checks, normalisation, chart switches, the force elements' memory), and stops before a step that
+fails: Python takes that one for its diagnosis. A single step that ``viz3d.ali3p`` takes (its
+halvings stay there: they call it again) is the same call, one frame of one step without the work
+between steps, which Python then does (``KernelALI3P.step``). In the call:
 
 * a trial increment ``dx`` is retracted (``W_r + dW_r``; Euler parameters turned by
   ``turn_quaternion``; ZXZ Euler angles through ``R exp(skew(B_dphi))`` on the branch and turn
@@ -37,6 +38,12 @@ the other: ``_mixed_point``); a step whose set does not settle comes back to Pyt
 (``viz3d.ali3p.not_settled``, naming what changed). Force elements that remember (the stick
 anchors) are loaded at each call and renewed after each step of ``ali3p_frames`` (their
 ``after_step_piece``), one frame per call so that each state carries its own.
+
+The stages with one call site (``_attempts``, ``_solve``, ``_filippov``, ``_finish``,
+``_residual_tangent``) are inlined into their callers (``viz3d.compiled.inline``), and a single step
+is a call of ``ali3p_frames``, not an entry of its own: each compiled function of the kernel's tuples
+has a cost of its own to compile, more than these bodies' (the anchor hoist's ALI3-P, cold: 204 s of
+CPU before, 140 s after, 2026-11-28).
 
 Covered: rigid bodies, every joint and force element with a compiled piece, joint stops and shape
 contacts included. Not covered (the run keeps the NumPy path and says why,
@@ -68,10 +75,9 @@ from viz3d.ali3p import (
     small_update,
     too_slow,
 )
-from viz3d.compiled import CHANGE, HOLD, RELEASE, entry, hold_piece, jit, numba, registered
+from viz3d.compiled import CHANGE, HOLD, RELEASE, entry, hold_piece, inline, jit, numba, registered
 from viz3d.integrators.base import Status
 from viz3d.integrators.implicit import FD_REL
-from viz3d.kernel import _c
 from viz3d.kernel.field import NONFINITE, OK, clear, evaluate, fill_rows, force_piece, frames, generalized_forces, turn_quaternion
 from viz3d.kernel.stepping import _check_frames, renew, state_ok
 from viz3d.points import kinematics
@@ -84,7 +90,7 @@ except ImportError:  # pragma: no cover
     def literal_unroll(x):
         return x
 
-#: Outcomes of ``ali3p_step``: converged (the step is done), the iteration did not converge within
+#: Outcomes of a step (``_attempts``): converged (the step is done), the iteration did not converge within
 #: ``MAX_ITER``, a trial point was not finite, an iteration matrix was singular, the index-1 field
 #: (the ledger's work rates) failed at the new state, the branches held did not settle (``_solve``), the
 #: branches held cycled and no boundary between the two sets was found (``_filippov``).
@@ -279,7 +285,7 @@ def _iteration_matrix(W, col, J, scale, bw, out):
 
 
 class Scratch(NamedTuple):
-    """What ``ali3p_step`` works in (n = n_v, L = 3 bw + 1; ``n_y = n_q + n_v + n_aux``); the system's
+    """What ``_attempts`` works in (n = n_v, L = 3 bw + 1; ``n_y = n_q + n_v + n_aux``); the system's
     constant parts first.
 
     M : (n, L) the mass matrix, band storage [kg, kg m^2]
@@ -447,7 +453,7 @@ def _force_tangent(t, q0, v0, chart, bw, m, v, w, forces, rows, s, K, D):
     return 2 * (s.group_ptr.shape[0] - 1) + 1
 
 
-@jit
+@inline
 def _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces, rows, branches, s, theta, out):
     """``d residual / d dx`` at ``s.dx`` and fixed multipliers (band storage) by grouped forward
     differences (``viz3d.ali3p._residual_tangent``), ``s.res`` the residual at ``s.dx``: G trial points
@@ -461,7 +467,7 @@ def _residual_tangent(t1, q0, v0, a0, h, chart, alpha, lam, bw, m, v, w, forces,
     return s.group_ptr.shape[0] - 1
 
 
-@jit
+@inline
 def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a_out, w_dot1):
     """Velocities and accelerations projected (eqs. 3.27, 3.28; ``viz3d.ali3p._finish``) at the
     converged point (``s.y``, ``s.a1``, rows in ``v``) into ``y1 = [q1, v1, w1]`` and ``a_out``; the
@@ -594,7 +600,7 @@ def _branches(t1, q0, v0, dx, h, chart, m, v, w, branches, y, mode, tol):
     return changed
 
 
-@jit
+@inline
 def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, branches,
            s, lam):
     """``viz3d.ali3p._solve`` from the predictor, the branches held there (``search``; none: one
@@ -648,7 +654,7 @@ def _solve(t0, h, q0, v0, a0, lam0, chart, alpha, tol, bw, exact_ok, search, K, 
     return CONVERGED, evals, step, C_max, cur
 
 
-@jit
+@inline
 def _filippov(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, K, D, m, v, w, forces, rows, branches, s, lam):
     """``viz3d.ali3p._filippov`` where ``_solve``'s held branches cycle: held as at ``s.dx0`` (A) the
     iteration converged to ``s.dx`` with multipliers ``lam`` (the low side, theta = 0), where those
@@ -709,15 +715,7 @@ def _predictor(h, v0, a0, dx):
         dx[i] = h * v0[i] + 0.5 * h * h * a0[i]
 
 
-@entry
-def ali3p_step(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m, v,
-               w, forces, rows, branches, s, y1, a_out, lam, w_dot1):
-    """``_attempts`` callable from Python (a step that ``viz3d.ali3p`` takes, halvings included)."""
-    return _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m,
-                     v, w, forces, rows, branches, s, y1, a_out, lam, w_dot1)
-
-
-@jit
+@inline
 def _attempts(t0, h, q0, v0, a0, lam0, w0, w_dot0, chart, alpha, tol, bw, have_K, search, K, D, K_new, D_new, m, v,
               w, forces, rows, branches, s, y1, a_out, lam, w_dot1):
     """One step of ``viz3d.ali3p._one_step``: with the kept force tangents ``K``, ``D`` when ``have_K``,
@@ -761,7 +759,8 @@ UNHEALTHY = 5
 
 @entry
 def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed, a0, lam, w_dot0, Ks, Ds, carry, alpha,
-                 tol, bw, search, m, v, w, forces, rows, branches, memories, s, y1, a1, lam1, w_dot1, Y, charts):
+                 tol, bw, search, m, v, w, forces, rows, branches, memories, s, y1, a1, lam1, w_dot1, Y, charts, after,
+                 info):
     """Up to ``n_frames`` times ``every`` steps (``_attempts``) of the state ``y = [q, v, w]`` (n_y,) and
     ``chart`` in place, from step ``n0`` of a run started at ``t_start`` [s], each followed by what
     ``viz3d.simulate.Simulation`` does between steps (health checks, normalised Euler parameters,
@@ -771,26 +770,31 @@ def ali3p_frames(n_frames, every, n0, t_start, h, y, chart, switches, max_speed,
     multipliers ``lam``, work rates ``w_dot0``, force tangents ``Ks[carry[0]]``, ``Ds[carry[0]]``
     (the other buffer takes fresh ones), ``carry[1]`` 1 while they are kept, ``carry[2]`` the
     evaluations. Stops before a step that fails (``_attempts``' outcome) or whose end state is not
-    healthy (``UNHEALTHY``), state and memory as before it. Returns (frames done, steps done in the
-    next frame, status: ``CONVERGED`` when all were done)."""
+    healthy (``UNHEALTHY``), state and memory as before it. Without ``after``, none of the work
+    between steps (health checks, charts, the elements' memory: the caller's). ``info`` (4,) gets the
+    last step's evaluations (its attempts'), 1.0 if it built fresh tangents (into ``Ks[1 - carry[0]]``,
+    ``Ds[..]``), its last update [m, rad] and max |C| [m] (``_attempts``). Returns (frames done, steps
+    done in the next frame, status: ``CONVERGED`` when all were done)."""
     n_q, n_v, n_y = m.n_q, m.n_v, y.shape[0]
     for f in range(n_frames):
         for k in range(every):
             cur = carry[0]
             t0 = t_start + (n0 + f * every + k) * h
-            outcome, evals, last, built, _, _ = _attempts(
+            outcome, evals, last, built, step, C_max = _attempts(
                 t0, h, y[:n_q], y[n_q:n_q + n_v], a0, lam, y[n_q + n_v:], w_dot0, chart, alpha, tol, bw, carry[1] == 1,
                 search, Ks[cur], Ds[cur], Ks[1 - cur], Ds[1 - cur], m, v, w, forces, rows, branches, s, y1, a1, lam1,
                 w_dot1)
+            info[0], info[1], info[2], info[3] = evals, 1.0 if built else 0.0, step, C_max
             if outcome != CONVERGED:
                 return f, k, outcome
-            if not state_ok(n_q, n_v, m.n_rot, m.switching, m.frame_body.shape[0], y1, h, max_speed):
-                return f, k, UNHEALTHY
-            _check_frames(n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y1, chart, switches,
-                          h, max_speed)
+            if after:
+                if not state_ok(n_q, n_v, m.n_rot, m.switching, m.frame_body.shape[0], y1, h, max_speed):
+                    return f, k, UNHEALTHY
+                _check_frames(n_q, m.n_rot, m.switching, m.frame_body, m.centre, m.centre_R, w.m3[3], y1, chart,
+                              switches, h, max_speed)
             for i in range(n_y):
                 y[i] = y1[i]
-            if m.remembers == 1:
+            if after and m.remembers == 1:
                 renew(t0 + h, m, v, w, y, chart, memories)
             for i in range(n_v):
                 a0[i] = a1[i]
@@ -831,6 +835,35 @@ def _band_order(A: np.ndarray, frame_of: np.ndarray, n_frames: int) -> np.ndarra
     natural = np.arange(n_frames, dtype=np.int64)
     width = lambda o: np.max(np.abs(o[fi] - o[fj]), initial=0)  # noqa: E731
     return order if width(order) < width(natural) else natural
+
+
+class _Run(NamedTuple):
+    """What one ``ali3p_frames`` call left (``KernelALI3P._call``): the state ``y`` after its last step
+    done, the memory's parts (``a0``, ``lam``, ``w_dot0``, tangents ``Ks``, ``Ds`` and ``carry``), ``info``,
+    the chart switches per body, the frames' states ``Y``, ``charts``, frames done and the status."""
+
+    y: np.ndarray
+    a0: np.ndarray
+    lam: np.ndarray
+    w_dot0: np.ndarray
+    Ks: np.ndarray
+    Ds: np.ndarray
+    carry: np.ndarray
+    info: np.ndarray
+    switches: np.ndarray
+    Y: np.ndarray
+    charts: np.ndarray
+    done: int
+    status: int
+
+
+def _after(memory, run: _Run):
+    """``memory`` (an ``ALI3PMemory``) after the steps of ``run``: the kept tangents, or none (rebuilt
+    at the next step), and the evaluations counted."""
+    kept, cur = run.carry[1] == 1, int(run.carry[0])
+    return replace(memory, v_dot=run.a0, lam=run.lam, w_dot=run.w_dot0 if run.w_dot0.size else memory.w_dot,
+                   K=run.Ks[cur].copy() if kept else None, D=run.Ds[cur].copy() if kept else None,
+                   n_evals=memory.n_evals + int(run.carry[2]))
 
 
 class KernelALI3P:
@@ -885,36 +918,29 @@ class KernelALI3P:
         return M
 
     def step(self, system, formulation, state: State, h: float, memory) -> tuple[State, object, Status]:
-        """``viz3d.ali3p._one_step`` in one compiled call: ``(state, memory, status)``."""
-        st, d, m = self.stepper, self.stepper.data, self.m
-        n, L, n_q, n_v = m.n_v, 3 * self.bw + 1, m.n_q, m.n_v
-        K_new, D_new = np.empty((n, L)), np.empty((n, L))
-        have_K = memory.K is not None
-        y1, a, lam, w_dot = np.empty(n_q + n_v + m.n_aux), np.empty(n_v), np.empty(memory.lam.shape[0]), np.empty(m.n_aux)
-        w0 = _c(state.w) if m.n_aux else np.zeros(0)
-        v, w = st.ws
-        st.load(state.element_memory)
-        outcome, evals, last, built, step, C_max = st._call(
-            ali3p_step, state.t, h, _c(state.q), _c(state.v), _c(memory.v_dot), _c(memory.lam), w0,
-            _c(memory.w_dot) if m.n_aux else np.zeros(0), _c(state.chart), float(formulation.alpha),
-            float(formulation.tol), self.bw, have_K, self.search, memory.K if have_K else K_new,
-            memory.D if have_K else D_new, K_new, D_new, d.model, v, w, d.forces, d.rows, self.branches, self.s, y1, a,
-            lam, w_dot)
-        K, D = (K_new, D_new) if built else (memory.K, memory.D)
-        if outcome == WORK_RATES:
-            raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
-        if outcome != CONVERGED:
-            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX, CYCLED: cycled(state.t + h)}.get(outcome)
-            if outcome == NOT_SETTLED:
+        """``viz3d.ali3p._one_step`` in one compiled call (``ali3p_frames``: one frame of one step, without
+        the work between steps, which ``viz3d.simulate.Simulation`` does): ``(state, memory, status)``."""
+        m = self.m
+        n_q, n_v = m.n_q, m.n_v
+        self.stepper.load(state.element_memory)
+        run = self._call(formulation, state, memory, 1, 1, 0, state.t, h, math.inf, False)
+        if run.status != CONVERGED:
+            if run.status == WORK_RATES:
+                raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
+            fresh = 1 - int(run.carry[0])
+            K, D = (run.Ks[fresh], run.Ds[fresh]) if run.info[1] == 1.0 else (memory.K, memory.D)
+            step, C_max = float(run.info[2]), float(run.info[3])
+            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX,
+                      CYCLED: cycled(state.t + h)}.get(run.status)
+            if run.status == NOT_SETTLED:
                 reason = not_settled(system, formulation, state, h, self.s.dx0, self.s.dx, step)
-            return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + evals), failure(
+            return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + int(run.info[0])), failure(
                 state, h, reason or no_convergence(step, C_max))
-        new = State(state.t + h, y1[:n_q], y1[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
+        y = run.y
+        new = State(state.t + h, y[:n_q], y[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
         if m.n_aux:
-            new = new.replace(memory=state.memory, w=y1[n_q + n_v:])
-        keep = not refresh_tangent(last)
-        return new, replace(memory, v_dot=a, lam=lam, K=K if keep else None, D=D if keep else None,
-                            n_evals=memory.n_evals + evals + 1 + (1 if m.n_aux else 0), w_dot=w_dot), Status.OK
+            new = new.replace(memory=state.memory, w=y[n_q + n_v:])
+        return new, _after(memory, run), Status.OK
 
     def frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
                h: float, max_speed: float):
@@ -939,35 +965,38 @@ class KernelALI3P:
     def _frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
                 h: float, max_speed: float):
         """``frames`` in one compiled call (the force elements' memory of the last state on all)."""
+        n_q, n_v = self.m.n_q, self.m.n_v
+        self.stepper._fresh(state.element_memory)
+        run = self._call(formulation, state, memory, n_frames, every, n0, t_start, h, max_speed, True)
+        elements = self.stepper.stored(state.element_memory)
+        Y = run.Y
+        states = [State(t_start + (n0 + (f + 1) * every) * h, Y[f, :n_q], Y[f, n_q:n_q + n_v], run.charts[f],
+                        Y[f, n_q + n_v:], state.memory, elements) for f in range(run.done)]
+        return states, _after(memory, run), run.switches, run.done, run.status == CONVERGED
+
+    def _call(self, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float, h: float,
+              max_speed: float, after: bool) -> "_Run":
+        """``ali3p_frames`` from ``state`` and ``memory`` (copied; the elements' memory loaded by the caller),
+        with (``after``) or without the work between steps."""
         st, d, m = self.stepper, self.stepper.data, self.m
-        n, L, n_q, n_v = m.n_v, 3 * self.bw + 1, m.n_q, m.n_v
+        n, L = m.n_v, 3 * self.bw + 1
         y, chart = np.array(state.y, dtype=float), np.array(state.chart, dtype=float)
-        switches = np.zeros(system.n_bodies, np.int64)
         Ks, Ds = np.empty((2, n, L)), np.empty((2, n, L))
         have_K = memory.K is not None
         if have_K:
             Ks[0], Ds[0] = memory.K, memory.D
-        a0, lam, w_dot0 = np.array(memory.v_dot, dtype=float), np.array(memory.lam, dtype=float), np.zeros(m.n_aux)
-        if m.n_aux:
-            w_dot0[:] = memory.w_dot
-        carry = np.array([0, int(have_K), 0], np.int64)
+        a0, lam = np.array(memory.v_dot, dtype=float), np.array(memory.lam, dtype=float)
+        w_dot0 = np.array(memory.w_dot, dtype=float) if m.n_aux else np.zeros(0)
+        carry, info = np.array([0, int(have_K), 0], np.int64), np.zeros(4)
+        switches = np.zeros(m.nb, np.int64)
         Y, charts = np.empty((n_frames, y.size)), np.empty((n_frames, *chart.shape))
         v, w = st.ws
-        st._fresh(state.element_memory)
         done, _, status = st._call(
             ali3p_frames, n_frames, every, n0, t_start, h, y, chart, switches, float(max_speed), a0, lam, w_dot0, Ks,
-            Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.search, d.model, v, w,
-            d.forces, d.rows, self.branches, d.memories, self.s, np.empty(y.size), np.empty(n_v), np.empty(lam.size),
-            np.empty(m.n_aux), Y, charts)
-        elements = st.stored(state.element_memory)
-        states = [State(t_start + (n0 + (f + 1) * every) * h, Y[f, :n_q], Y[f, n_q:n_q + n_v], charts[f],
-                        Y[f, n_q + n_v:], state.memory, elements) for f in range(done)]
-        kept = carry[1] == 1
-        cur = int(carry[0])
-        memory = replace(memory, v_dot=a0, lam=lam, w_dot=w_dot0 if m.n_aux else memory.w_dot,
-                         K=Ks[cur].copy() if kept else None, D=Ds[cur].copy() if kept else None,
-                         n_evals=memory.n_evals + int(carry[2]))
-        return states, memory, switches, done, status == CONVERGED
+            Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.search, d.model, v, w, d.forces,
+            d.rows, self.branches, d.memories, self.s, np.empty(y.size), np.empty(n), np.empty(lam.size),
+            np.empty(m.n_aux), Y, charts, after, info)
+        return _Run(y, a0, lam, w_dot0, Ks, Ds, carry, info, switches, Y, charts, done, status)
 
     def work_rates(self, system, formulation, state) -> np.ndarray:
         """The ledger's work rates at ``state`` (n_aux,) [W]: the kernel's index-1 field's."""
