@@ -43,7 +43,7 @@ The stages with one or two call sites (``_attempts``, ``_solve``, ``_filippov``,
 ``_residual_tangent``, ``_iterate``, ``_mixed_point``) are inlined into their callers
 (``viz3d.compiled.inline``), and a single step is a call of ``ali3p_frames``, not an entry of its own:
 each compiled function of the kernel's tuples has a cost of its own to compile, more than these
-bodies' (module ``README``: the anchor hoist's signature, cold). The steps are the same to the bit.
+bodies' (README, "The anchor hoist": its signature's compile time). The steps are the same to the bit.
 
 Covered: rigid bodies, every joint and force element with a compiled piece, joint stops and shape
 contacts included. Not covered (the run keeps the NumPy path and says why,
