@@ -33,18 +33,15 @@ def scene_files(kind: str = "multibody") -> list[Path]:
 
 #: What each of the first two pytest-xdist workers compiles before its first test, on a cold numba
 #: cache: the compiled kernel's signatures that many tests share, split so that the two compile at
-#: once: on gw0 the rigid one, the adaptive driver and the compiled ALI3-P (about 90, 75 and 45 s of
-#: CPU), on gw1 the anchor hoist's (ALI3-P with shape contacts, ``viz3d.compiled.Items.present_only``:
-#: its steps and, for its frames' samples, the fixed-step driver that RK4 with shape contacts runs
-#: on; 283 s, 2026-11-28). A worker that needs a signature the other is compiling waits on its lock
+#: once (about 170 s and 200 s of CPU): on gw0 the rigid one and the adaptive driver, on gw1 the one
+#: for systems with shape contacts (``viz3d.compiled.Items.present_only``) and the compiled ALI3-P.
+#: A worker that needs a signature the other is compiling waits on its lock
 #: (``viz3d.compiled._lock_compiles``), its core idle, and then loads it from the cache; compiled
 #: here, they are ready before either worker's first test (measured 2026-11-27: a test that met
-#: the adaptive driver being compiled waited 35 s; 2026-11-28, the chain on ALI3-P compiled after the
-#: hoist on one worker: 84 s). On a warm cache this is a short run of each scene.
+#: the adaptive driver being compiled waited 35 s). On a warm cache this is a short run of each scene.
 WARM_UP = {
-    "gw0": (("torque_free.toml", 0.01, ()), ("flexible_pendulum.toml", 0.01, ()),
-            ("chain.toml", 0.01, ("sim.formulation=ali3p", "sim.integrator=trapezoidal"))),
-    "gw1": (("anchor_hoist.toml", 0.05, ()),),
+    "gw0": (("torque_free.toml", 0.01, ()), ("flexible_pendulum.toml", 0.01, ())),
+    "gw1": (("anchor_hoist.toml", 0.05, ()), ("chain.toml", 0.01, ("sim.formulation=ali3p", "sim.integrator=trapezoidal"))),
 }
 
 

@@ -265,7 +265,7 @@ def rod_on_a_stop(tmp_path, upper: float, stiffness: float, damping: float, t_en
     return system, state, make_formulation(scene.data["sim"]), ROD_I_O
 
 
-#: The anchor hoist (scenes/anchor_hoist.toml, on ALI3-P by default) on RK4 with Baumgarte's drift control
-#: at the step its links' Hertz contact on the rim allows: the comparison method, for the tests of RK4's
-#: own behaviour there (its ledger against the step, the compiled RK4 against NumPy).
+#: The anchor hoist (scenes/anchor_hoist.toml) on RK4 with Baumgarte's drift control at the step its links'
+#: Hertz contact on the rim allows (its default today), set explicitly by the tests of RK4's own behaviour
+#: there (its ledger against the step, the compiled RK4 against NumPy), whatever the scene's default.
 HOIST_RK4 = ("sim.formulation=baumgarte", "sim.integrator=rk4", "sim.dt=5e-4")

@@ -279,7 +279,6 @@ def test_rk4_run_equals_numpy_while_contacts_start_and_end(tmp_path):
     assert ended, "no body left the plane during the run"
 
 
-@pytest.mark.slow  # RK4 is the hoist's comparison method; the box runs above check the compiled RK4 with shape contacts
 def test_rk4_run_equals_numpy_on_the_anchor_hoist():
     """The anchor hoist's first 0.2 s (400 steps), trajectory and stick anchors after every frame."""
     scene, system, state = _hoist()
@@ -294,6 +293,7 @@ def test_rk4_run_equals_numpy_on_the_anchor_hoist():
 # ---------------------------------------------------------------------------- ALI3-P, and what stays on NumPy
 
 
+@pytest.mark.slow  # compiles ALI3-P with shape contacts (~2 min of CPU cold): over the default suite's budget
 def test_ali3p_holds_the_shape_contacts_and_renews_the_anchors_in_the_kernel(tmp_path):
     """ALI3-P with shape contacts and bristles runs in the kernel (``viz3d.kernel.ali3p``: the contacts held
     within a step, the anchors renewed after each step of its output frames): after two frames of five

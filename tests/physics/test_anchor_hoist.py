@@ -11,7 +11,7 @@ scene's masses and geometry, not from the simulator's forces:
 * the full hauls (slow): the default ship seats, a pocket narrower than the flukes jams (its windlass
   stalls at its capacity, the run ending cleanly).
 
-The scene runs ALI3-P by default; the tests of RK4's own behaviour there (its ledger against the step,
+The tests of RK4's own behaviour there (its ledger against the step,
 its ledger watch at too long a step) set RK4 (``systems.HOIST_RK4``).
 """
 

@@ -39,8 +39,8 @@ the other: ``_mixed_point``); a step whose set does not settle comes back to Pyt
 anchors) are loaded at each call and renewed after each step of ``ali3p_frames`` (their
 ``after_step_piece``), one frame per call so that each state carries its own.
 
-The stages with one or two call sites (``_attempts``, ``_solve``, ``_filippov``, ``_finish``,
-``_residual_tangent``, ``_iterate``, ``_mixed_point``) are inlined into their callers
+The stages with one call site (``_attempts``, ``_solve``, ``_filippov``, ``_finish``,
+``_residual_tangent``) are inlined into their callers
 (``viz3d.compiled.inline``), and a single step is a call of ``ali3p_frames``, not an entry of its own:
 each compiled function of the kernel's tuples has a cost of its own to compile, more than these
 bodies' (README, "The anchor hoist": its signature's compile time). The steps are the same to the bit.
@@ -369,7 +369,7 @@ def _trial_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, y, a1, Q):
     return _forces_and_rows(t1, y, chart, m, v, w, forces, rows, Q)
 
 
-@inline
+@jit
 def _mixed_point(t1, q0, v0, a0, dx, h, chart, m, v, w, forces, rows, branches, s, theta, y, a1, Q):
     """``_trial_point`` with the branches as held (``theta < 0``), or with the forces
     ``(1 - theta) Q(A) + theta Q(B)``, the branches held as at the increments ``s.xa`` (A) and ``s.xb``
@@ -506,7 +506,7 @@ def _finish(t1, h, alpha, bw, w0, w_dot0, chart, m, v, w, forces, rows, s, y1, a
     return CONVERGED
 
 
-@inline
+@jit
 def _iterate(t0, h, q0, v0, a0, chart, alpha, tol, bw, exact_ok, search, K, D, m, v, w, forces, rows, branches, s,
              lam, theta):
     """One iteration with the force tangents ``K``, ``D`` from the increment ``s.dx`` and multipliers
