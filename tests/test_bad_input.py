@@ -405,6 +405,10 @@ SCENE_AND_OVERRIDES = st.sampled_from(FUZZ_SCENES).flatmap(
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(case=SCENE_AND_OVERRIDES)
 @example(case=("impact_clamped_bar", [("impactor.radius", "3.7700183470978044e-135")]))  # volume underflowed to 0
+@example(case=("torque_free", [("water.cells", "100000000")]))  # 16.7 GB of cell centres; the OOM killer ended the worker
+@example(case=("chain", [("limits.max_bodies", "1000000000000"), ("chain.n", "100000000")]))  # a raised limit beyond the machine
+@example(case=("impact_clamped_bar", [("limits.max_modes", "4559460790"), ("bar.modes", "300000")]))
+@example(case=("impact_bronze_pendulum", [("impactor.pendulum.arm", "1.1125369292536007e-308")]))  # I / arm^2 divided by 0
 def test_any_override_validates_builds_or_is_refused_with_one_message(case, capsys):
     """``viz3d check`` (validate and build) of a shipped scene with random overrides: exit 0, or exit
     2 with one error line naming the file and a key, promptly; never an exception."""

@@ -184,6 +184,19 @@ def positive_int(x):
     return x
 
 
+def count(most: int) -> Checker:
+    """An integer in 1..``most``: a resolution (points on a rim, cells, sections) whose arrays grow
+    with it, bounded far above any use so that a typo cannot exhaust the machine's memory."""
+    expected = f"an integer from 1 to {most}"
+
+    def check(x):
+        if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= most:
+            raise Invalid(expected)
+        return x
+
+    return check
+
+
 def nonnegative_int(x):
     if isinstance(x, bool) or not isinstance(x, int) or x < 0:
         raise Invalid("an integer >= 0")

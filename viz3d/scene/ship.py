@@ -48,7 +48,7 @@ from viz3d import anchoring
 from viz3d.rotations import euler_from_matrix, frame_with_z, matrix_from_rotation_vector
 from viz3d.scene.budget import LIMITS, check_generated_bodies
 from viz3d.scene.chainpath import path_nodes
-from viz3d.scene.schema import (OPTIONAL, Field, SceneError, Table, boolean, nonnegative, number, positive, positive_int,
+from viz3d.scene.schema import (OPTIONAL, Field, SceneError, Table, boolean, count, nonnegative, number, positive,
                                 validate)
 
 STEEL_E, STEEL_NU, STEEL_RHO = 2.1e11, 0.3, 7850.0
@@ -108,7 +108,7 @@ SHIP = Table({
     "stall_distance": Field(positive, 0.02, "[m]"),
     "overload_time": Field(nonnegative, 0.25, "jammed: the windlass was at its capacity (stalled) for this long [s] "
                            "(an impact of the anchor on the hull lasts about 10 ms, Hertz; a jam holds it)"),
-    "sections": Field(positive_int, 32, "points round the pipe's section in the meshes"),
+    "sections": Field(count(1024), 32, "points round the pipe's section in the meshes"),
 }, "generator: a ship's anchor hoisted by its windlass into the hawse pipe and pocket (seed 004)")
 
 

@@ -22,6 +22,8 @@ impactor arrives moving along ``-n``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from viz3d.contact.laws import NORMAL_LAWS
@@ -201,7 +203,11 @@ def impactor_motion(imp: dict, src: str) -> tuple[float, float]:
         if "mass" in imp or "velocity" in imp:
             raise SceneError(src, "impactor.pendulum", "either pendulum, or mass and velocity, not both")
         p = imp["pendulum"]
-        return p["inertia"] / p["arm"] ** 2, p["omega"] * p["arm"]
+        mass = p["inertia"] / (p["arm"] * p["arm"]) if p["arm"] * p["arm"] > 0.0 else math.inf
+        if not math.isfinite(mass):  # (an arm so short that I / a^2 overflows)
+            raise SceneError(src, "impactor.pendulum.arm", "an arm giving a finite equivalent mass I / arm^2",
+                             p["arm"])
+        return mass, p["omega"] * p["arm"]
     for key in ("mass", "velocity"):
         if key not in imp:
             raise SceneError(src, f"impactor.{key}", "a value (or give impactor.pendulum)")

@@ -24,6 +24,7 @@ from viz3d.scene.schema import (
     Table,
     boolean,
     color,
+    count,
     any_table,
     dict_of_numbers,
     mat3_or_diag,
@@ -302,7 +303,7 @@ CONTACT = Table({
     "geometry": Field(one_of("sphere", "body_shape"), "sphere", "sphere: the sphere (or point) below; body_shape: the "
                       "spheres of body 1's own shape against body 2's surface (box: 8 corners, capsule: 2 end spheres, "
                       "sphere, cylinder: rim_points on each rim), one contact each, named <name>_<k>"),
-    "rim_points": Field(positive_int, 16, "body_shape of a cylinder: points on each end rim"),
+    "rim_points": Field(count(1000), 16, "body_shape of a cylinder: points on each end rim"),
     "radius": Field(nonnegative, 0.0, "sphere radius on body 1 [m] (0: a point or a flat face)"),
     "point1": Field(vec3, OPTIONAL, "sphere centre, world, initial configuration [m] (default: body 1's centre of mass)"),
     "local1": Field(vec3, OPTIONAL, "sphere centre, body 1 axes from its centre of mass [m]"),
@@ -406,10 +407,10 @@ COLLISION = Table({
     "pairs": Field(ArrayOf(COLLISION_PAIR), list, "which groups collide, and the law where they touch"),
     "ground": Field(ArrayOf(GROUND_SHAPE), list, "collision shapes fixed to ground"),
     "skip_joined": Field(boolean, True, "bodies joined to each other never collide"),
-    "max_contacts": Field(positive_int, 4, "contacts kept per pair of shapes"),
+    "max_contacts": Field(count(256), 4, "contacts kept per pair of shapes"),
     "merge_distance": Field(nonnegative, 0.0, "contacts of one pair closer than this are one [m] (0: a tenth of the "
                             "smaller shape's size)"),
-    "rim_points": Field(positive_int, 16, "cylinders against planes: points on each end rim"),
+    "rim_points": Field(count(1000), 16, "cylinders against planes: points on each end rim"),
     "triangle_meshes": Field(names, [], "bodies whose mesh shape collides as its triangles (default: its convex "
                              "hull)"),
 }, "contacts between body shapes found by the collision library (FCL): broad phase, groups, laws")
@@ -425,7 +426,7 @@ WATER = Table({
     "bodies": Field(names, [], "bodies in the water, names or fnmatch patterns, each rigid with a shape (default: "
                     "every rigid body with a sphere, capsule, box or cylinder shape, or a closed, outward mesh; open "
                     "meshes stay dry)"),
-    "cells": Field(positive_int, 512, "cells per body for the buoyancy (the wet fraction of each is linear in its "
+    "cells": Field(count(100_000), 512, "cells per body for the buoyancy (the wet fraction of each is linear in its "
                    "depth across one cell size): a grid of about this many over a primitive's bounding box, or of "
                    "cell volume V / cells over a mesh's, centres inside kept"),
 }, "still water: buoyancy and quadratic drag on submerged parts (viz3d.water)")
