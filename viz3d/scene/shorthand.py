@@ -203,11 +203,15 @@ def impactor_motion(imp: dict, src: str) -> tuple[float, float]:
         if "mass" in imp or "velocity" in imp:
             raise SceneError(src, "impactor.pendulum", "either pendulum, or mass and velocity, not both")
         p = imp["pendulum"]
-        mass = p["inertia"] / (p["arm"] * p["arm"]) if p["arm"] * p["arm"] > 0.0 else math.inf
-        if not math.isfinite(mass):  # (an arm so short that I / a^2 overflows)
-            raise SceneError(src, "impactor.pendulum.arm", "an arm giving a finite equivalent mass I / arm^2",
-                             p["arm"])
-        return mass, p["omega"] * p["arm"]
+        try:
+            mass = p["inertia"] / p["arm"] ** 2
+        except (ZeroDivisionError, OverflowError):  # (an arm whose square under- or overflows)
+            mass = math.nan
+        speed = p["omega"] * p["arm"]
+        if not (0.0 < mass < math.inf and math.isfinite(speed)):
+            raise SceneError(src, "impactor.pendulum.arm", "an arm giving a finite, positive equivalent mass "
+                             "I / arm^2 and a finite speed omega arm", p["arm"])
+        return mass, speed
     for key in ("mass", "velocity"):
         if key not in imp:
             raise SceneError(src, f"impactor.{key}", "a value (or give impactor.pendulum)")
