@@ -19,8 +19,8 @@ each contact was resolved.
   impulse of a kinematic contact and its activation while compressive, restitution impulses
   (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
   contact its target normal velocity while every joint keeps its velocity constraint.
-* **Who steps** (``ContactStepping.python_steps``, the one place that decides) adaptive runs with the
-  compiled driver (``viz3d.kernel.adaptive``): in flight and while kinematic contacts touch, the
+* **Who steps** (``ContactStepping.python_steps``, the one place that decides) runs with the
+  compiled driver (``viz3d.kernel.adaptive``: adaptive steps, or fixed ones as ``FixedSteps``): in flight and while kinematic contacts touch, the
   driver (it checks the signs of the event functions); while law contacts touch, the driver too,
   its steps bounded by ``step_bound`` and recorded, ``after_steps`` run on the records after the call
   (it keeps books and checks, and leaves the vector field alone) — unless a touching law contact has
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -569,39 +570,56 @@ class ContactStepping:
         return self._book_step(state, under_way, led, balance, low, dvs)
 
     def after_steps(self, like: State, ts: FloatArray, Y: FloatArray, charts: FloatArray,
-                    errors: FloatArray) -> tuple[list[tuple], int | None]:
+                    errors: FloatArray | None) -> tuple[Sequence[tuple], int | None]:
         """``after_step`` on N steps in order, ending at ``(ts[r], Y[r], charts[r])`` (N,), (N, n_y),
-        (N, nf, 3, 3) with error estimates ``errors`` (N, n_y), from ``like``'s memory on: the
-        contacts' memory after each step, and the index of the first step whose check fails (None
-        when none does). With the kernel and no stateful friction (the memory then changes only in the
-        onsets' books between events), the ledgers of all steps come from two kernel samples."""
+        (N, nf, 3, 3) with error estimates ``errors`` (N, n_y; None for fixed steps), from ``like``'s
+        memory on: the contacts' memory after each step (of those before the first that fails), and
+        the index of the first step whose check fails (None when none does). With the kernel and no
+        stateful friction (the memory then changes only in the onsets' books between events), the
+        ledgers of all steps come from two kernel samples and the books and checks of all steps from
+        array sums (``_StepBooks``; a step's memory is built when asked for)."""
         under_way = self._under_way(like)
         stateful = any(f is not None and f.stateful for c in self.system.contacts for f in c.friction)  # bristles: the pose
-        if not under_way or stateful or self.kernel is None:
+        if not under_way or stateful or self.kernel is None or ts.shape[0] == 0:
             return self._steps_one_by_one(like, ts, Y, charts, errors)
         try:
-            led, low = self.ledgers(ts, Y, charts, like.memory), self.ledgers(ts, Y - errors, charts, like.memory)
+            led = self.ledgers(ts, Y, charts, like.memory)
+            low = None if errors is None else self.balance(self.ledgers(ts, Y - errors, charts, like.memory))
         except np.linalg.LinAlgError:
             return self._steps_one_by_one(like, ts, Y, charts, errors)
-        balance, low = self.balance(led), self.balance(low)
-        memories, state = [], like
-        for r in range(ts.shape[0]):
-            state = self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r]))
-            dvs = self._normal_velocity_errors(state, errors[r])
-            led_r = Ledger(*(float(getattr(led, f.name)[r]) for f in dataclasses.fields(Ledger)))
-            try:
-                state = self._book_step(state, under_way, led_r, float(balance[r]), float(low[r]), dvs)
-            except SimulationFailure:
-                return memories, r
-            memories.append(state.memory)
-        return memories, None
+        balance = self.balance(led)
+        dvs = None if errors is None else np.array([self._normal_velocity_errors(
+            self.state_at(float(ts[r]), Y[r], like.replace(chart=charts[r])), errors[r]) for r in range(ts.shape[0])])
+        books = _StepBooks(like.memory, under_way, self._k0, balance, low, dvs)
+        r = self._first_failed_check(books, under_way, led, balance)
+        if r is None:
+            return books, None
+        state = self.state_at(float(ts[r]), Y[r], like.replace(chart=charts[r], memory=books[r - 1] if r else like.memory))
+        led_r = Ledger(*(float(getattr(led, f.name)[r]) for f in dataclasses.fields(Ledger)))
+        try:  # (the per-step books raise the diagnosis of the step that fails, as after_step would)
+            self._book_step(state, under_way, led_r, float(balance[r]), None if low is None else float(low[r]),
+                            None if dvs is None else dvs[r])
+        except SimulationFailure:
+            return books.before(r), r
+        raise AssertionError(f"the energy check of step {r} passed one by one, failed over the steps")
+
+    def _first_failed_check(self, books: "_StepBooks", under_way: list, led: Ledger, balance: FloatArray) -> int | None:
+        """The first step of ``books`` whose energy check (``_energy_exceeded``) fails for any law
+        contact under way, None when none does."""
+        first = None
+        for j in range(len(under_way)):
+            bad = np.flatnonzero(_energy_exceeded(books.onset0[j], led, balance, books.energy_error[j]))
+            if bad.size and (first is None or bad[0] < first):
+                first = int(bad[0])
+        return first
 
     def _steps_one_by_one(self, like: State, ts, Y, charts, errors) -> tuple[list[tuple], int | None]:
         """``after_steps`` one ``after_step`` call at a time."""
         memories, state = [], like
         for r in range(ts.shape[0]):
             try:
-                state = self.after_step(self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r])), errors[r])
+                state = self.after_step(self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r])),
+                                        None if errors is None else errors[r])
             except SimulationFailure:
                 return memories, r
             memories.append(state.memory)
@@ -692,11 +710,11 @@ class ContactStepping:
         deeper than the energy available then pays for."""
         c, phase = self.system.contacts[k], state.memory[k][i]
         o, law = phase.onset, c.laws[i]
-        work = led.work_in - o.work_in
-        roundoff = ENERGY_ROUNDOFF * (abs(o.energy) + abs(work) + abs(o.signed_potential - led.signed_potential))
-        created = balance - o.balance
-        if created <= o.energy_error + roundoff:
+        if not _energy_exceeded(o, led, balance, o.energy_error):
             return
+        work = led.work_in - o.work_in
+        roundoff = _energy_roundoff(o, led)
+        created = balance - o.balance
         alpha = float(self._gap(state, k).alpha[i])
         need = float(law.elastic_energy(alpha, phase.memory)) if alpha > 0 else 0.0
         loads = o.signed_potential - led.signed_potential + work
@@ -806,3 +824,61 @@ def contact_forces(system: System, state: State, lam: FloatArray, gaps: tuple = 
                 F[i] = max(float(lam[_row_index(system, k, i)]), 0.0)
         out.append(F)
     return out
+
+
+def _energy_exceeded(o: Onset, led: Ledger, balance, energy_error):
+    """True where the numerics created more energy since onset ``o`` than ``energy_error`` [J] allows
+    (with ``_energy_roundoff``): the test of ``ContactStepping._energy_check``, of one step (floats)
+    or of several (arrays over the steps of ``led``, ``balance`` and ``energy_error``)."""
+    return ~(balance - o.balance <= energy_error + _energy_roundoff(o, led))
+
+
+def _energy_roundoff(o: Onset, led: Ledger):
+    """Round-off [J] of the ledger's sums since onset ``o`` (``ENERGY_ROUNDOFF`` of the energies in
+    play), of one ledger or elementwise over several."""
+    return ENERGY_ROUNDOFF * (abs(o.energy) + abs(led.work_in - o.work_in) + abs(o.signed_potential - led.signed_potential))
+
+
+class _StepBooks:
+    """The contacts' memory after each of N steps while law contacts are under way, as
+    ``ContactStepping._book_step`` leaves it step by step (the same sums, added in the same order),
+    built for a step when asked (a sequence of N memories: ``after_steps``'s first result).
+
+    ``memory``: the contacts' memory before the steps; ``under_way``: the law contacts (set, contact)
+    whose onset records are kept, ``k0`` each set's first global contact index; ``balance`` (N,) the
+    ledger's balance after each step [J], ``low`` (N,) that at ``y - error`` (None: fixed steps, whose
+    energy error is the change of the balance over the step), ``dvs`` (N, n_contacts) the normal velocity
+    errors [m/s] (None: fixed steps)."""
+
+    def __init__(self, memory: tuple, under_way: list, k0, balance: FloatArray, low: FloatArray | None,
+                 dvs: FloatArray | None, n: int | None = None):
+        self.memory, self.under_way, self.balance = memory, under_way, balance
+        self.n = balance.shape[0] if n is None else n
+        self.onset0 = [memory[k][i].onset for k, i in under_way]
+        self.velocity_error, self.energy_error = [], []
+        for (k, i), o in zip(under_way, self.onset0):
+            dv = np.zeros(balance.shape[0]) if dvs is None else dvs[:, k0[k] + i]
+            prev = np.concatenate([[o.balance_now], balance[:-1]]) if low is None else low
+            self.velocity_error.append(np.add.accumulate(np.concatenate([[o.velocity_error], dv]))[1:])
+            self.energy_error.append(np.add.accumulate(np.concatenate([[o.energy_error], np.abs(balance - prev)]))[1:])
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, r: int) -> tuple:
+        if r < 0:
+            r += self.n
+        if not 0 <= r < self.n:
+            raise IndexError(r)
+        memory = [list(phases) for phases in self.memory]
+        for j, ((k, i), o) in enumerate(zip(self.under_way, self.onset0)):
+            memory[k][i] = dataclasses.replace(memory[k][i], onset=dataclasses.replace(
+                o, n_steps=o.n_steps + r + 1, velocity_error=float(self.velocity_error[j][r]),
+                energy_error=float(self.energy_error[j][r]), balance_now=float(self.balance[r])))
+        return tuple(tuple(phases) for phases in memory)
+
+    def before(self, r: int) -> "_StepBooks":
+        """The books of the first ``r`` steps."""
+        out = object.__new__(_StepBooks)
+        out.__dict__.update(self.__dict__, n=r)
+        return out

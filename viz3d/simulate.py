@@ -36,8 +36,8 @@ from viz3d.frames import Frame, frame_from_state
 from viz3d.integrators import Integrator
 from viz3d.integrators.base import StepResult
 from viz3d.integrators.explicit_rk import DenseInterpolant
-from viz3d.integrators.adaptive import (Controller, StepSizeUnderflow, accepted_step, error_order, first_event, hermite,
-                                        step_end, step_to_try)
+from viz3d.integrators.adaptive import (Controller, FixedSteps, StepSizeUnderflow, accepted_step, error_order,
+                                        first_event, hermite, step_end, step_to_try)
 from viz3d.interrupts import InterruptGuard
 from viz3d.methods import MethodError, check_combination
 from viz3d.rotations import euler_from_matrix
@@ -103,7 +103,9 @@ class Simulation:
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
         when it covers the system and formulation; the NumPy path otherwise (``kernel_note`` says
-        which, and why). The compiled driver locates contact events too and cuts its step at them
+        which, and why). Fixed steps with contact events go through the compiled adaptive driver
+        too (``FixedSteps``: the steps ``_event_step`` takes, no error test). The compiled driver
+        locates contact events and cuts its step at them
         (Python applies the event's handler); the step after each event, the steps during law
         contacts with stateful friction and with force elements that remember are taken in Python
         (``viz3d.events.ContactStepping.python_steps``); during other law contacts the compiled
@@ -294,7 +296,8 @@ class Simulation:
 
     def _kernel_ready(self) -> bool:
         """Fixed explicit RK steps the kernel covers (a formulation that steps itself gets a stepper
-        without tableau from ``_compiled``); never with contacts, whose events are located between the steps."""
+        without tableau from ``_compiled``); not with contacts, whose events the driver's ``FixedSteps`` locate
+        inside the steps (``_adaptive_kernel_covers``)."""
         return (self._kernel is not None and self._kernel.tableau is not None and self.controller is None
                 and self._contacts is None)
 
@@ -337,7 +340,7 @@ class Simulation:
         states while Python takes the steps, e.g. at a contact event)."""
         from viz3d.kernel import OK
 
-        if self.controller is not None:
+        if self.controller is not None or self._contacts is not None:  # (the driver's, fixed steps with contacts too)
             return self._kernel_samples(n_frames, every) or []
         if self._own_kernel_ready():
             return self._own_frames(n_frames, every)
@@ -473,12 +476,12 @@ class Simulation:
         f0 = rhs(s.t, s.y) if self._f is None else self._f
         bound = contacts.step_bound(s)
         with np.errstate(all="ignore"):
-            if self.controller is None:
-                h = min(self.dt, target - s.t, bound)
+            if self.controller is None:  # (as the compiled driver's FixedSteps)
+                h = step_to_try(self.dt, bound, s.t, target)
                 res = method.step(rhs, s.t, s.y, h, f0=f0, state=self._solver)
                 if not res.status.ok:
                     raise SimulationFailure(res.status.message)
-                solver, t1 = res.state, (target if h == target - s.t else s.t + h)
+                solver, t1 = res.state, step_end(s.t, h, target)
             else:
                 ctrl = self._step_controller(s)
                 if self._h is None:
@@ -563,12 +566,14 @@ class Simulation:
     # ------------------------------------------------------------------ adaptive steps in the kernel
 
     def _adaptive_kernel_covers(self) -> bool:
-        """Adaptive runs whose steps the kernel takes (``viz3d.kernel.adaptive``): an explicit RK
-        method with a continuous extension, no force element with memory (updated in Python
-        between steps)."""
+        """Runs whose steps the kernel's driver takes (``viz3d.kernel.adaptive``): adaptive ones of an
+        explicit RK method with a continuous extension, and fixed explicit RK steps with contact
+        events (its ``FixedSteps``: fixed steps without contacts go in ``_kernel_steps``); no force
+        element with memory (updated in Python between steps)."""
         k = self._kernel
-        return (self.controller is not None and k is not None and k.tableau is not None and k.tableau.dense is not None
-                and not self._remembers)
+        if k is None or k.tableau is None or self._remembers:
+            return False
+        return k.tableau.dense is not None if self.controller is not None else self._contacts is not None
 
     def _adaptive_kernel_now(self) -> bool:
         """The kernel may take the next samples: the last step was not cut at an event (its span is
@@ -657,7 +662,8 @@ class Simulation:
         if records is None:
             return [], None
         n = int(records.n[0])
-        return self._contacts.after_steps(like, records.t[:n], records.y[:n], records.chart[:n], records.err[:n])
+        errors = records.err[:n] if self.controller is not None else None  # (fixed steps have no error estimate)
+        return self._contacts.after_steps(like, records.t[:n], records.y[:n], records.chart[:n], errors)
 
     def _frames_before(self, records, r: int, t_call: float, done: int, every: int) -> int:
         """How many of the ``done`` frames of a call started at ``t_call`` [s] the Python loop outputs
@@ -691,10 +697,12 @@ class Simulation:
                                      self._step_controller(s), events, s.memory, contacts is not None,
                                      self.blowup_speed, ADAPTIVE_MAX_TURN, records)
 
-    def _step_controller(self, s: State) -> Controller:
-        """The controller of the adaptive steps from ``s``: ``max_step`` within the contacts' step
-        bound (``ContactStepping.step_bound``)."""
+    def _step_controller(self, s: State) -> Controller | FixedSteps:
+        """The controller of the steps from ``s`` (fixed steps: ``FixedSteps`` of ``dt``): ``max_step``
+        within the contacts' step bound (``ContactStepping.step_bound``)."""
         bound = self._contacts.step_bound(s) if self._contacts is not None else np.inf
+        if self.controller is None:
+            return FixedSteps(self.dt, bound)
         return self.controller if bound >= self.controller.max_step else replace(self.controller, max_step=bound)
 
     def _to_kernel(self):
@@ -706,6 +714,8 @@ class Simulation:
         if self._carry is not None:
             return self._carry
         s = self._inner
+        if self._h is None and self.controller is None:
+            self._h = self.dt
         if self._h is None:
             rhs = self._field(s.chart, s.memory, s.element_memory)
             self._f = rhs(s.t, s.y) if self._f is None else self._f
@@ -737,7 +747,7 @@ class Simulation:
         self._inner = _state_at(system, float(c.times[T]), c.y.copy(), like.replace(chart=c.chart.copy()))
         self._f = c.f.copy() if c.flags[HAS_F] else None
         self._h = float(c.times[H])
-        if not c.flags[SPAN]:
+        if not c.flags[SPAN] or self.controller is None:  # (fixed steps sample no span)
             return
         t0, t1 = float(c.times[T0]), float(c.times[T1])
         memory = like.memory if self._span_memory is None else self._span_memory

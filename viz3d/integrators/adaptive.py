@@ -84,6 +84,22 @@ class Controller:
 
 
 @dataclass(frozen=True)
+class FixedSteps:
+    """Fixed steps as the compiled driver takes them (``viz3d.kernel.adaptive``'s ``ctrl[FIXED]``)
+    for a run with contact events and no controller, as ``Simulation._event_step`` takes them:
+    ``dt`` [s] within ``max_step`` [s] (the contacts' step bound) and within the rest to the next
+    sample (``step_to_try``), the last one ending on it (``step_end``). No error test.
+
+    Attributes
+    ----------
+    dt, max_step : float [s]
+    """
+
+    dt: float
+    max_step: float = np.inf
+
+
+@dataclass(frozen=True)
 class Event:
     """A scalar function of the state whose sign change stops the integration.
 

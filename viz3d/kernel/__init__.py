@@ -218,10 +218,10 @@ class AdaptiveCarry(NamedTuple):
     def empty(cls, n: int, n_frames: int, n_bodies: int, tableau) -> "AdaptiveCarry":
         """A carry for states of ``n`` entries and ``tableau``'s stages (and extra dense stages)."""
         z = np.zeros
-        dense = tableau.dense
+        dense = tableau.dense  # (None: fixed steps, which land on the samples)
+        extra, degree = (0, 0) if dense is None else (len(dense.c_extra), dense.P.shape[1])
         return cls(z(n), z((n_frames, 3, 3)), z(n), z(5), z(4, np.int64), z(3, np.int64), z(n_bodies, np.int64),
-                   z(n), z((n_frames, 3, 3)), z((len(tableau.b) + len(dense.c_extra), n)), z((dense.P.shape[1], n)),
-                   z(n), z(n))
+                   z(n), z((n_frames, 3, 3)), z((len(tableau.b) + extra, n)), z((degree, n)), z(n), z(n))
 
     def copy(self) -> "AdaptiveCarry":
         return AdaptiveCarry(*(a.copy() for a in self))
@@ -588,17 +588,28 @@ class KernelStepper:
 
 
 def _adaptive_method(tableau, controller) -> tuple:
-    """The tableau and controller as the compiled adaptive driver takes them."""
-    from viz3d.integrators.adaptive import EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, ROUNDING, SAFETY
+    """The tableau and ``controller`` (``adaptive.Controller``, or ``FixedSteps``: no error test,
+    no continuous extension) as the compiled driver takes them."""
+    from viz3d.integrators.adaptive import (EVENT_MAXITER, EVENT_RTOL, EVENT_XTOL, FAC_MAX, FAC_MIN, ROUNDING, SAFETY,
+                                            FixedSteps)
     from viz3d.integrators.explicit_rk import is_end_stage
 
-    dense, c = tableau.dense, np.ascontiguousarray
-    ctrl = np.array([controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
-                     SAFETY, FAC_MIN, FAC_MAX, EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, ROUNDING], float)
-    a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, len(tableau.b)))
+    c, s = np.ascontiguousarray, len(tableau.b)
+    if isinstance(controller, FixedSteps):
+        steps = [np.nan, np.nan, controller.max_step, 0.0, np.nan, SAFETY, FAC_MIN, FAC_MAX]
+        fixed = [controller.dt, float(not tableau.embedded)]  # (group steps: as ExplicitRK's and the kernel's rk_step)
+        P, c_extra, a_extra = np.zeros((s, 0)), np.zeros(0), np.zeros((0, s))
+    else:
+        steps = [controller.rtol, controller.atol, controller.max_step, controller.min_step, tableau.estimate_order,
+                 SAFETY, FAC_MIN, FAC_MAX]
+        fixed = [0.0, 0.0]
+        dense = tableau.dense
+        P, c_extra = dense.P, dense.c_extra
+        a_extra = dense.a_extra if dense.a_extra.size else np.zeros((0, s))
+    ctrl = np.array(steps + [EVENT_XTOL, EVENT_RTOL, EVENT_MAXITER, ROUNDING] + fixed, float)
     reuse = np.array([is_end_stage(tableau, row) for row in a_extra], np.int64)
-    return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(dense.P),
-            c(dense.c_extra), c(a_extra), reuse)
+    return (ctrl, c(tableau.a), c(tableau.b), c(tableau.error_weights), c(tableau.c), bool(tableau.fsal), c(P),
+            c(c_extra), c(a_extra), reuse)
 
 
 def kernel_advance(data: KernelData, tableau, n_steps: int, t0: float, h: float, y: np.ndarray, chart: np.ndarray,

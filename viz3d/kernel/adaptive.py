@@ -24,6 +24,12 @@ chart and error estimate go to the step records (``rec_t`` (R,), ``rec_y`` (R, n
 up to date after the call (``viz3d.events.ContactStepping.after_step``: bookkeeping and checks that
 do not change the vector field); a call whose records are full stops before the next step (``FULL``).
 
+Fixed steps (``ctrl[FIXED]`` > 0: ``viz3d.integrators.adaptive.FixedSteps``, runs with contact
+events and no controller) go through the same loop as ``Simulation._event_step`` takes them: ``dt``
+within the contacts' step bound and within the rest to the next sample, on which the last one ends
+(``step_to_try``, ``step_end`` to the sample), one trial with no error test, group steps of Euler
+parameters as the Python loop's (``ctrl[GROUP]``); each sample is the inner state at the sample's time.
+
 The carry (arrays updated in place, see ``viz3d.kernel.KernelStepper.adaptive``):
 
 * ``y`` (n,), ``chart`` (nf, 3, 3): the state after the last accepted step ("inner" state);
@@ -41,6 +47,8 @@ The carry (arrays updated in place, see ``viz3d.kernel.KernelStepper.adaptive``)
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from viz3d.compiled import entry, inline, jit
 from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
@@ -61,6 +69,10 @@ HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
 #: ``xtol`` relative to the step, its ``rtol`` and iteration limit, the rounding of an event's cubic
 #: (``viz3d.integrators.adaptive.ROUNDING``).
 EV_XTOL, EV_RTOL, EV_MAXITER, EV_ROUNDING = 8, 9, 10, 11
+#: Indices of the fixed steps in ``ctrl`` (``viz3d.kernel.FixedSteps``): their length ``dt`` [s] (0:
+#: adaptive steps) and the ``group`` flag of ``viz3d.kernel.stepping.step`` (1: Euler parameters
+#: advance on the group, as the Python loop's fixed steps of a tableau without error estimate).
+FIXED, GROUP = 12, 13
 STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
 #: its ``alpha_dot``, a kinematic contact's multiplier.
@@ -407,13 +419,15 @@ def dense_sample(t, t0, h, y0, Q, out):
 @inline
 def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err):
     """``viz3d.integrators.adaptive.accepted_step``: trial steps from ``(t, y)`` until the error
-    test passes; returns (step taken, next step proposed, rejections, status)."""
+    test passes (fixed steps: the one step ``h``); returns (step taken, next step proposed,
+    rejections, status)."""
     rtol, atol, min_step, q = ctrl[0], ctrl[1], ctrl[3], ctrl[4]
     safety, fac_min, fac_max = ctrl[5], ctrl[6], ctrl[7]
     n_rejected = 0
     while True:
-        status = step(t, h, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
-        if status != OK:
+        status = step(t, h, y, chart, f, True, ta, tb, te, tc, np.int64(ctrl[GROUP]), m, v, w, forces, rows, k, yi, y1,
+                      err)
+        if status != OK or ctrl[FIXED] > 0.0:  # (fixed steps: no error test)
             return h, h, n_rejected, status
         norm = error_norm(err, y, y1, rtol, atol, yi)
         if norm <= 1.0:
@@ -455,7 +469,7 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
                     break
                 if record and n_rec[0] == rec_t.shape[0]:
                     return frame, sample, FULL
-                status = _commit_step(t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
+                status = _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
                                       ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f,
                                       times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
                                       chart1, sw, gap_out, g0, g1, yh)
@@ -466,7 +480,7 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
                 if status == EVENT:
                     return frame, sample, status
             if contact_mode and abs(times[T] - target) <= slack:
-                t_s = times[T]
+                t_s = target if ctrl[FIXED] > 0.0 else times[T]  # (the Python loop's sample times)
                 _copy(ys, y)
                 _copy_chart(chart1, chart)
             else:
@@ -529,12 +543,14 @@ def _unit_parameters(n_rot, n_frames, y):
 
 
 @jit
-def _commit_step(t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor,
+def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor,
                  ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0, chart0, K,
                  f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
     """One accepted step from the inner state, not past ``t_end`` (cut at the first contact event it
     crosses: ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the
-    carry only when nothing needs Python (see the module docstring)."""
+    carry only when nothing needs Python (see the module docstring). Fixed steps (``ctrl[FIXED]``):
+    ``dt`` within the contacts' bound ``ctrl[2]`` and the rest to the sample at ``target`` [s],
+    ending there when it is that rest, as ``Simulation._event_step`` takes them."""
     t = times[T]
     if flags[HAS_F] == 0:
         status = evaluate(t, y, chart, m, v, w, forces, rows, f)
@@ -542,11 +558,14 @@ def _commit_step(t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc,
             return status
         flags[HAS_F] = 1  # the field at the inner state, kept whatever follows (as Simulation._f)
         counts[EVALS] += 1
-    h, h_next, n_rejected, status = accepted_step(t, y, chart, f, step_to_try(times[H], ctrl[2], t, t_end), ctrl, ta,
-                                                  tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
+    fixed = ctrl[FIXED] > 0.0
+    reach = target if fixed else t_end
+    h, h_next, n_rejected, status = accepted_step(t, y, chart, f, step_to_try(ctrl[FIXED] if fixed else times[H], ctrl[2],
+                                                                              t, reach),
+                                                  ctrl, ta, tb, te, tc, m, v, w, forces, rows, k, yi, y1, err)
     if status != OK:
         return status
-    t1 = step_end(t, h, t_end)
+    t1 = step_end(t, h, reach)
     n_evals = (n_rejected + 1) * (tb.shape[0] - 1)
     if fsal:
         _copy(f1, k[tb.shape[0] - 1])
@@ -591,7 +610,8 @@ def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, t
         return status
     s = tb.shape[0]
     h_ev = t_ev - t
-    status = step(t, h_ev, y, chart, f, True, ta, tb, te, tc, 0, m, v, w, forces, rows, k, yi, y1, err)
+    status = step(t, h_ev, y, chart, f, True, ta, tb, te, tc, np.int64(ctrl[GROUP]), m, v, w, forces, rows, k, yi, y1,
+                  err)
     if status != OK:
         return status
     n_evals += s - 1
