@@ -19,14 +19,13 @@ each contact was resolved.
   impulse of a kinematic contact and its activation while compressive, restitution impulses
   (Newton or Poisson) with the generalized impulse-momentum balance: the impulse that gives the
   contact its target normal velocity while every joint keeps its velocity constraint.
-* **Who steps** (``ContactStepping.python_steps``, the one place that decides) runs with the
-  compiled driver (``viz3d.kernel.adaptive``: adaptive steps, or fixed ones as ``FixedSteps``): in flight and while kinematic contacts touch, the
-  driver (it checks the signs of the event functions); while law contacts touch, the driver too,
-  its steps bounded by ``step_bound`` and recorded, ``after_steps`` run on the records after the call
-  (it keeps books and checks, and leaves the vector field alone) — unless a touching law contact has
-  stateful friction, whose stick anchors move between steps and change the force: Python. The
-  driver also locates each event and cuts its step there; handling the event (``handle``: memory,
-  impulses) and the step after it (its events start at a root) are Python's.
+* **Who steps**: runs with the compiled driver (``viz3d.kernel.adaptive``: adaptive steps, or fixed
+  ones as ``FixedSteps``): in flight and while kinematic or law contacts touch, the driver (it checks
+  the signs of the event functions); during law contacts its steps are bounded by ``step_bound`` and
+  recorded, with the stick anchors of bristle friction it moves after each step (``_replant``'s rule,
+  compiled: ``viz3d.contact.contacts._replant``), and ``after_steps`` keeps the books and checks on
+  the records after the call. The driver also locates each event and cuts its step there; handling
+  the event (``handle``: memory, impulses) and the step after it (its events start at a root) are Python's.
 * **Checks** (``ContactStepping.after_step``, at separation): while a law contact lasts, the
   numerics create no more energy than the error estimates of its steps allow (and its indentation
   stores no more than the energy available since onset); a law contact separates with the surfaces
@@ -37,6 +36,7 @@ each contact was resolved.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -60,6 +60,7 @@ from viz3d.dynamics import (accelerations, body_state, flat_velocity, flexible_k
                             system_mass)
 from viz3d.forces import AppliedForce, Gravity
 from viz3d.integrators.adaptive import Event
+from viz3d.kinematics import Pose
 from viz3d.system import State, System
 
 #: A kinematic contact needing less tension than this [N] (round-off) is kept at onset.
@@ -303,15 +304,18 @@ class ContactStepping:
         return any(phase.touching and c.models[i] == "law"
                    for k, c in enumerate(self.system.contacts) for i, phase in enumerate(state.memory[k]))
 
-    def python_steps(self, state: State) -> str | None:
-        """Why the compiled adaptive driver cannot take the next step from ``state`` (the module
-        docstring's "who steps"), None when it can: a touching law contact with stateful friction."""
-        for k, c in enumerate(self.system.contacts):
-            for i, phase in enumerate(state.memory[k]):
-                law = c.friction[i]
-                if phase.touching and c.models[i] == "law" and law is not None and law.stateful:
-                    return f"{c.names[i]}: stick anchors move between steps"
-        return None
+    @functools.cached_property
+    def replants(self) -> bool:
+        """True when a located law contact has stateful friction (bristles: its stick anchor moves
+        after each step, ``_replant``)."""
+        return any(c.located and m == "law" and f is not None and f.stateful
+                   for c in self.system.contacts for m, f in zip(c.models, c.friction))
+
+    @staticmethod
+    def anchors_moved(before: State, after: State) -> bool:
+        """True when a stick anchor of ``after``'s contact memory is not ``before``'s (``_replant``
+        moved it: the vector field is another)."""
+        return any(p.anchor is not q.anchor for a, b in zip(before.memory, after.memory) for p, q in zip(a, b))
 
     def _probe(self, t: float, y: FloatArray, like: State, k: int = -1, i: int = -1):
         """Event-function values at ``(t, y)`` (``like``'s chart and phases): ``_gap_values``, or with
@@ -547,7 +551,7 @@ class ContactStepping:
     def balance(self, led: Ledger) -> float:
         return led.total + led.dissipated - led.work_in - (self.E0 if self.E0 is not None else led.total)
 
-    def after_step(self, state: State, error: FloatArray | None = None) -> State:
+    def after_step(self, state: State, error: FloatArray | None = None, replanted: bool = False) -> State:
         """Count the step of every law contact under way, add the step's error estimate of its
         normal velocity, and check its indentation; raises ``SimulationFailure`` with the diagnosis.
 
@@ -557,12 +561,14 @@ class ContactStepping:
         (gravity, loads; every other stored energy is >= 0), plus the work of the non-conservative
         loads since, plus what the numerics may have created since (``Onset.energy_error``: what
         the error estimates allow, so a run that creates more energy than its tolerance admits
-        stops; and any dissipation that went backwards).
+        stops; and any dissipation that went backwards). ``replanted``: the stick anchors of
+        ``state`` are after the step's ``_replant`` already (the compiled driver moved them).
         """
         under_way = self._under_way(state)
         if not under_way:
             return state
-        state = self._replant(state, under_way)
+        if not replanted:
+            state = self._replant(state, under_way)
         led = self.ledger(state)
         balance = self.balance(led)
         low = None if error is None else self.balance(self.ledger(self.state_at(state.t, state.y - error, state)))
@@ -570,31 +576,35 @@ class ContactStepping:
         return self._book_step(state, under_way, led, balance, low, dvs)
 
     def after_steps(self, like: State, ts: FloatArray, Y: FloatArray, charts: FloatArray,
-                    errors: FloatArray | None) -> tuple[Sequence[tuple], int | None]:
+                    errors: FloatArray | None, mems: FloatArray) -> tuple[Sequence[tuple], int | None]:
         """``after_step`` on N steps in order, ending at ``(ts[r], Y[r], charts[r])`` (N,), (N, n_y),
-        (N, nf, 3, 3) with error estimates ``errors`` (N, n_y; None for fixed steps), from ``like``'s
+        (N, nf, 3, 3) with error estimates ``errors`` (N, n_y; None for fixed steps) and the contacts'
+        memory rows ``mems`` (N, n_contacts, 7) after each (the stick anchors the compiled driver moved
+        there), from ``like``'s
         memory on: the contacts' memory after each step (of those before the first that fails), and
         the index of the first step whose check fails (None when none does). With the kernel and no
         stateful friction (the memory then changes only in the onsets' books between events), the
         ledgers of all steps come from two kernel samples and the books and checks of all steps from
         array sums (``_StepBooks``; a step's memory is built when asked for)."""
         under_way = self._under_way(like)
-        stateful = any(f is not None and f.stateful for c in self.system.contacts for f in c.friction)  # bristles: the pose
-        if not under_way or stateful or self.kernel is None or ts.shape[0] == 0:
-            return self._steps_one_by_one(like, ts, Y, charts, errors)
+        if not under_way or self.kernel is None or ts.shape[0] == 0:
+            return self._steps_one_by_one(like, ts, Y, charts, errors, mems)
+        anchored = mems if self.replants else None  # (bristles: their stick anchors after each step)
         try:
-            led = self.ledgers(ts, Y, charts, like.memory)
-            low = None if errors is None else self.balance(self.ledgers(ts, Y - errors, charts, like.memory))
+            led = self.ledgers(ts, Y, charts, like.memory, anchored)
+            low = None if errors is None else self.balance(self.ledgers(ts, Y - errors, charts, like.memory, anchored))
         except np.linalg.LinAlgError:
-            return self._steps_one_by_one(like, ts, Y, charts, errors)
+            return self._steps_one_by_one(like, ts, Y, charts, errors, mems)
         balance = self.balance(led)
         dvs = None if errors is None else np.array([self._normal_velocity_errors(
             self.state_at(float(ts[r]), Y[r], like.replace(chart=charts[r])), errors[r]) for r in range(ts.shape[0])])
-        books = _StepBooks(like.memory, under_way, self._k0, balance, low, dvs)
+        books = _StepBooks(like.memory, under_way, self._k0, balance, low, dvs, anchored)
         r = self._first_failed_check(books, under_way, led, balance)
         if r is None:
             return books, None
-        state = self.state_at(float(ts[r]), Y[r], like.replace(chart=charts[r], memory=books[r - 1] if r else like.memory))
+        memory = books[r - 1] if r else like.memory
+        memory = memory if anchored is None else with_anchors(memory, anchored[r], self._k0)
+        state = self.state_at(float(ts[r]), Y[r], like.replace(chart=charts[r], memory=memory))
         led_r = Ledger(*(float(getattr(led, f.name)[r]) for f in dataclasses.fields(Ledger)))
         try:  # (the per-step books raise the diagnosis of the step that fails, as after_step would)
             self._book_step(state, under_way, led_r, float(balance[r]), None if low is None else float(low[r]),
@@ -613,21 +623,24 @@ class ContactStepping:
                 first = int(bad[0])
         return first
 
-    def _steps_one_by_one(self, like: State, ts, Y, charts, errors) -> tuple[list[tuple], int | None]:
-        """``after_steps`` one ``after_step`` call at a time."""
+    def _steps_one_by_one(self, like: State, ts, Y, charts, errors, mems) -> tuple[list[tuple], int | None]:
+        """``after_steps`` one ``after_step`` call at a time (the stick anchors from ``mems``)."""
         memories, state = [], like
         for r in range(ts.shape[0]):
+            state = self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r]))
+            state = state.replace(memory=with_anchors(state.memory, mems[r], self._k0))
             try:
-                state = self.after_step(self.state_at(float(ts[r]), Y[r], state.replace(chart=charts[r])),
-                                        None if errors is None else errors[r])
+                state = self.after_step(state, None if errors is None else errors[r], replanted=True)
             except SimulationFailure:
                 return memories, r
             memories.append(state.memory)
         return memories, None
 
-    def ledgers(self, ts: FloatArray, Y: FloatArray, charts: FloatArray, memory: tuple) -> Ledger:
-        """The ledgers of N states sharing the contacts' ``memory`` (fields (N,)), from one kernel
-        sample (``KernelStepper.sample``: rigid kinetic and force elements' potential energies, gaps)
+    def ledgers(self, ts: FloatArray, Y: FloatArray, charts: FloatArray, memory: tuple,
+                mems: FloatArray | None = None) -> Ledger:
+        """The ledgers of N states sharing the contacts' ``memory`` (fields (N,)), but for the stick
+        anchors of memory rows ``mems`` (N, n_contacts, 7) when given, from one kernel sample
+        (``KernelStepper.sample``: rigid kinetic and force elements' potential energies, gaps, poses)
         and the flexible bodies' energies over all states at once."""
         s, data = self.system, self.kernel.data
         smp = self.kernel.sample(ts, Y, charts, memory)
@@ -638,9 +651,12 @@ class ContactStepping:
             strain += 0.5 * np.einsum("ni,ij,nj->n", smp.eta[:, sl], fb.bar.K, smp.eta[:, sl])
         U = np.zeros((ts.shape[0], data.n_contacts))
         for r in np.flatnonzero((smp.gap[:, :, 0] > 0.0).any(axis=1) | any(p.touching for ph in memory for p in ph)):
+            memory_r = memory if mems is None else with_anchors(memory, mems[r], self._k0)
+            pose = Pose(smp.r[r], smp.R[r])
             for k, (c, x) in enumerate(zip(s.contacts, data.contact_slices)):
                 g = smp.gap[r, x]
-                U[r, x] = c.elastic_energy(None, memory[k], Gap(g[:, 0], g[:, 1], g[:, 2:5], g[:, 5:8], g[:, 8:11]))
+                U[r, x] = c.elastic_energy(None, memory_r[k], Gap(g[:, 0], g[:, 1], g[:, 2:5], g[:, 5:8], g[:, 8:11]),
+                                           pose)
         W = Y[:, s.n_q + s.n_v:] if Y.shape[1] > s.n_q + s.n_v else np.zeros((ts.shape[0], U.shape[1] + 2))
         losses = np.full(ts.shape[0], memory_loss(memory))
         return ledger_of(T, smp.V[:, 0] + smp.V[:, 1], smp.V[:, 0], strain, U, W, losses)
@@ -676,7 +692,7 @@ class ContactStepping:
         for k in {k for k, _ in stateful}:
             c, phases = self.system.contacts[k], state.memory[k]
             gp = c.gap(cfg)
-            F, s = c.magnitudes(gp, phases), c.deflection(cfg, gp, phases)
+            F, s = c.magnitudes(gp, phases), c.deflection(cfg.pose, gp, phases)
             for kk, i in stateful:
                 if kk != k:
                     continue
@@ -826,6 +842,21 @@ def contact_forces(system: System, state: State, lam: FloatArray, gaps: tuple = 
     return out
 
 
+def with_anchors(memory: tuple, rows: FloatArray, k0) -> tuple:
+    """The contacts' ``memory`` with the stick anchors of memory rows ``rows`` (n_contacts, 7;
+    ``viz3d.contact.contacts.memory_rows``, set ``k``'s first at ``k0[k]``) where it has one (the
+    same phases where they are equal)."""
+    out = []
+    for k, phases in enumerate(memory):
+        new = list(phases)
+        for i, p in enumerate(phases):
+            row = rows[k0[k] + i]
+            if p.anchor is not None and row[3] == 1.0 and tuple(row[4:7]) != p.anchor:
+                new[i] = dataclasses.replace(p, anchor=tuple(float(x) for x in row[4:7]))
+        out.append(tuple(new))
+    return tuple(out)
+
+
 def _energy_exceeded(o: Onset, led: Ledger, balance, energy_error):
     """True where the numerics created more energy since onset ``o`` than ``energy_error`` [J] allows
     (with ``_energy_roundoff``): the test of ``ContactStepping._energy_check``, of one step (floats)
@@ -848,11 +879,12 @@ class _StepBooks:
     whose onset records are kept, ``k0`` each set's first global contact index; ``balance`` (N,) the
     ledger's balance after each step [J], ``low`` (N,) that at ``y - error`` (None: fixed steps, whose
     energy error is the change of the balance over the step), ``dvs`` (N, n_contacts) the normal velocity
-    errors [m/s] (None: fixed steps)."""
+    errors [m/s] (None: fixed steps), ``mems`` (N, n_contacts, 7) the memory rows with the stick anchors
+    after each step (None: anchors that do not move)."""
 
     def __init__(self, memory: tuple, under_way: list, k0, balance: FloatArray, low: FloatArray | None,
-                 dvs: FloatArray | None, n: int | None = None):
-        self.memory, self.under_way, self.balance = memory, under_way, balance
+                 dvs: FloatArray | None, mems: FloatArray | None = None, n: int | None = None):
+        self.memory, self.under_way, self.balance, self.k0, self.mems = memory, under_way, balance, k0, mems
         self.n = balance.shape[0] if n is None else n
         self.onset0 = [memory[k][i].onset for k, i in under_way]
         self.velocity_error, self.energy_error = [], []
@@ -875,7 +907,8 @@ class _StepBooks:
             memory[k][i] = dataclasses.replace(memory[k][i], onset=dataclasses.replace(
                 o, n_steps=o.n_steps + r + 1, velocity_error=float(self.velocity_error[j][r]),
                 energy_error=float(self.energy_error[j][r]), balance_now=float(self.balance[r])))
-        return tuple(tuple(phases) for phases in memory)
+        memory = tuple(tuple(phases) for phases in memory)
+        return memory if self.mems is None else with_anchors(memory, self.mems[r], self.k0)
 
     def before(self, r: int) -> "_StepBooks":
         """The books of the first ``r`` steps."""

@@ -106,10 +106,10 @@ class Simulation:
         which, and why). Fixed steps with contact events go through the compiled adaptive driver
         too (``FixedSteps``: the steps ``_event_step`` takes, no error test). The compiled driver
         locates contact events and cuts its step at them
-        (Python applies the event's handler); the step after each event, the steps during law
-        contacts with stateful friction and with force elements that remember are taken in Python
-        (``viz3d.events.ContactStepping.python_steps``); during other law contacts the compiled
-        driver takes them and Python keeps the contacts' books on its step records afterwards.
+        (Python applies the event's handler); the step after each event and the steps of systems
+        with force elements that remember are taken in Python; during law contacts the compiled
+        driver takes them (and moves the stick anchors of bristle friction after each) and Python
+        keeps the contacts' books on its step records afterwards.
 
     Raises
     ------
@@ -502,7 +502,10 @@ class Simulation:
         if hit is None:
             self._solver = solver
             self._span = self._rk_span(rhs, s, t1, h, res, f1) if self.controller is not None else None
-            new = contacts.after_step(self._accept(_state_at(system, t1, res.y, s), f1, h), res.error)
+            accepted = self._accept(_state_at(system, t1, res.y, s), f1, h)
+            new = contacts.after_step(accepted, res.error)
+            if contacts.anchors_moved(accepted, new):
+                self._f = None  # (f1 was evaluated with the anchors before)
             self._fired = None
             if self.controller is not None:
                 self._h = min(self._h, self._turn_limit(f1))
@@ -578,14 +581,12 @@ class Simulation:
     def _adaptive_kernel_now(self) -> bool:
         """The kernel may take the next samples: the last step was not cut at an event (its span is
         an RK step's; the event is handled, ``_pending``), and with contacts, no event was just
-        handled (the next step's events start at a root) and ``ContactStepping.python_steps``
-        leaves the steps to the kernel."""
+        handled (the next step's events start at a root)."""
         if self._carry is not None:
             return True
         if self._pending is not None or (self._span is not None and self._span.stages is None):
             return False
-        c = self._contacts
-        return c is None or (self._fired is None and c.python_steps(self._inner) is None)
+        return self._fired is None
 
     def _kernel_samples(self, n_frames: int, every: int) -> list[State] | None:
         """Up to ``n_frames`` output states ``every`` samples apart, the adaptive steps and dense
@@ -651,7 +652,8 @@ class Simulation:
         if c is None or not c.law_contact_under_way(self._inner):
             return None
         if self._records is None or self._records.capacity != self._capacity:
-            self._records = StepRecords.empty(self._capacity, self._inner.y.shape[0], self._inner.chart.shape[0])
+            self._records = StepRecords.empty(self._capacity, self._inner.y.shape[0], self._inner.chart.shape[0],
+                                              self._kernel.data.n_contacts)
         self._records.n[0] = 0
         return self._records
 
@@ -663,7 +665,7 @@ class Simulation:
             return [], None
         n = int(records.n[0])
         errors = records.err[:n] if self.controller is not None else None  # (fixed steps have no error estimate)
-        return self._contacts.after_steps(like, records.t[:n], records.y[:n], records.chart[:n], errors)
+        return self._contacts.after_steps(like, records.t[:n], records.y[:n], records.chart[:n], errors, records.mem[:n])
 
     def _frames_before(self, records, r: int, t_call: float, done: int, every: int) -> int:
         """How many of the ``done`` frames of a call started at ``t_call`` [s] the Python loop outputs
@@ -695,7 +697,8 @@ class Simulation:
         events = contacts.event_rows(s) if contacts is not None else ()
         return self._kernel.adaptive(carry, n_frames, every, self.n_samples, self.t0, self.dt, self.t_end,
                                      self._step_controller(s), events, s.memory, contacts is not None,
-                                     self.blowup_speed, ADAPTIVE_MAX_TURN, records)
+                                     self.blowup_speed, ADAPTIVE_MAX_TURN, records,
+                                     contacts is not None and contacts.replants)
 
     def _step_controller(self, s: State) -> Controller | FixedSteps:
         """The controller of the steps from ``s`` (fixed steps: ``FixedSteps`` of ``dt``): ``max_step``

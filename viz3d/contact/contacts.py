@@ -30,6 +30,7 @@ Sign of the multiplier of a rigid contact row: ``lambda >= 0`` is compressive (t
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +38,7 @@ import numpy as np
 from viz3d._typing import FloatArray, IntArray
 from viz3d.compiled import (
     Items,
+    after_step_piece,
     compiled_piece,
     cross3,
     dot3,
@@ -49,9 +51,9 @@ from viz3d.compiled import (
     row_piece,
     tmatvec3,
 )
-from viz3d.contact.friction import FRICTION_PARAMS, friction_vector
+from viz3d.contact.friction import FRICTION_PARAMS, Bristle, friction_vector
 from viz3d.contact.laws import NORMAL_LAWS, ContactMemory, NormalLaw
-from viz3d.kinematics import Configuration
+from viz3d.kinematics import Configuration, Pose
 from viz3d.points import BodyPoints, add_row, apply_pair, bias
 from viz3d.rotations import cross
 
@@ -330,14 +332,15 @@ class ContactSet:
              - B.velocities(cfg, rho_b) - cross(cfg.twist.W_omega[self.body[:, 1]], gp.d + to_point))
         return v - np.einsum("ki,ki->k", v, gp.n)[:, None] * gp.n
 
-    def deflection(self, cfg: Configuration, gp: Gap, phases: tuple[ContactPhase, ...]) -> FloatArray:
+    def deflection(self, pose: Pose, gp: Gap, phases: tuple[ContactPhase, ...]) -> FloatArray:
         """Bristle deflection of the contacts with a stick anchor, world [m], shape (k, 3): the contact
-        point minus the anchor (fixed in B), without its normal part; zero elsewhere."""
+        point minus the anchor (fixed in B), without its normal part; zero elsewhere. ``pose``: the
+        bodies' (``Configuration.pose``)."""
         s = np.zeros((self.k, 3))
         for i, phase in enumerate(phases):
             if phase.anchor is not None:
                 b = self.body[i, 1]
-                d = gp.point[i] - cfg.pose.W_r[b] - cfg.pose.R_WB[b] @ np.asarray(phase.anchor)
+                d = gp.point[i] - pose.W_r[b] - pose.R_WB[b] @ np.asarray(phase.anchor)
                 s[i] = d - (gp.n[i] @ d) * gp.n[i]
         return s
 
@@ -354,7 +357,7 @@ class ContactSet:
         which = [i for i, law in enumerate(self.friction) if law is not None and F[i] > 0.0]
         if not which:
             return f
-        v_t, s = self.slip(cfg, gp), self.deflection(cfg, gp, phases)
+        v_t, s = self.slip(cfg, gp), self.deflection(cfg.pose, gp, phases)
         for i in which:
             f[i] = self.friction[i].vector(v_t[i], s[i], F[i])
         return f
@@ -387,9 +390,10 @@ class ContactSet:
             P = P - np.einsum("ki,ki->k", self.friction_forces(cfg, gp, F, phases), self.slip(cfg, gp))
         return P
 
-    def elastic_energy(self, cfg: Configuration, phases: tuple[ContactPhase, ...], gp: Gap | None = None) -> FloatArray:
+    def elastic_energy(self, cfg: Configuration | None, phases: tuple[ContactPhase, ...], gp: Gap | None = None,
+                       pose: Pose | None = None) -> FloatArray:
         """Recoverable energy stored in each acting law contact [J], shape (k,); ``gp``: ``gap(cfg)``
-        if the caller has it."""
+        if the caller has it, ``pose``: ``cfg.pose`` (bristles' deflection; with both, ``cfg`` may be None)."""
         gp = self.gap(cfg) if gp is None else gp
         on = self.active(phases, gp)
         U = np.zeros(self.k)
@@ -397,7 +401,7 @@ class ContactSet:
             memory = phases[i].memory if self.located else None
             U[i] = float(self.laws[i].elastic_energy(gp.alpha[i], memory))
         if any(f is not None and f.stateful for f in self.friction):
-            s = self.deflection(cfg, gp, phases)
+            s = self.deflection(cfg.pose if pose is None else pose, gp, phases)
             for i in np.flatnonzero(on & (gp.alpha > 0.0)):
                 if self.friction[i] is not None and self.friction[i].stateful:
                     U[i] += self.friction[i].energy(s[i])
@@ -621,17 +625,56 @@ def _friction(d, k, v, pa, pb, bB, kg, F, n, dv):
     return P
 
 
+#: ``Bristle.code`` as the packed friction parameters hold it.
+BRISTLE = float(Bristle.code)
+
+
+def _replant(d, t, v):
+    """``ContactStepping._replant`` after an accepted step (its kinematics in ``v``): the stick anchor
+    (``v.mem[kg, 4:7]``, B's axes) of every touching located contact with bristles whose deflection
+    carries more than ``mu_s F_n`` moved to leave it ``alpha mu_s F_n / k`` (``Bristle.anchor_update``,
+    seed 004 eq. 3.49); the deflection and ``F_n`` as ``_friction`` and ``_law_contacts`` make them."""
+    n, dv, s, a = v.v3[8], v.v3[9], v.v3[10], v.v3[11]
+    for k in range(d.i.shape[0]):
+        pa, pb, bB, kg = d.i[k, 0], d.i[k, 1], d.i[k, 2], d.i[k, 3]
+        p = d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS]
+        if p[0] != BRISTLE or d.i[k, 4] != 1 or v.mem[kg, 0] != 1.0 or v.mem[kg, 3] != 1.0:
+            continue
+        alpha, alpha_dot = _gap(v, pa, pb, bB, d.f[k, 0:3], d.f[k, 3], n, dv)
+        F = 0.0
+        if alpha > 0.0:
+            elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2], True)
+            F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
+        r = d.f[k, 3]
+        matvec3(v.R[bB], v.mem[kg, 4:7], a)
+        for c in range(3):  # contact point - anchor, without its normal part (B's origin r_B = x_b - rho_b)
+            s[c] = v.px[pa, c] - r * n[c] - (v.px[pb, c] - v.prho[pb, c]) - a[c]
+        sn = dot3(s, n)
+        for c in range(3):
+            s[c] -= sn * n[c]
+        limit, size = p[2] * F, math.sqrt(dot3(s, s))
+        if p[6] * size <= limit or size == 0.0:
+            continue
+        keep = p[8] * limit / (p[6] * size)
+        for c in range(3):  # the anchor that leaves the deflection s keep: R^T (point - s keep - r_B)
+            a[c] = v.px[pa, c] - r * n[c] - s[c] * keep - (v.px[pb, c] - v.prho[pb, c])
+        tmatvec3(v.R[bB], a, s)
+        for c in range(3):
+            v.mem[kg, 4 + c] = s[c]
+
+
 _LAW_CONTACTS: dict[type, type[Items]] = {}
 
 
 def law_contacts(items_cls: type[Items]) -> type[Items]:
     """The packed data class of law contacts (``ContactSet.compiled``) whose law has the compiled data
     class ``items_cls``: a subclass of it (the law's piece reads its parameters), created and
-    registered as a force piece on first use."""
+    registered as a force piece (and an after-step piece: ``_replant``) on first use."""
     if items_cls not in _LAW_CONTACTS:
         cls = type(f"Contacts{items_cls.__name__}", (items_cls,), {"__module__": __name__})
         globals()[cls.__name__] = cls  # importable by name: numba's cache pickles types by reference
         compiled_piece(force_piece, cls)(_law_contacts)
+        compiled_piece(after_step_piece, cls)(_replant)
         _LAW_CONTACTS[items_cls] = cls
     return _LAW_CONTACTS[items_cls]
 

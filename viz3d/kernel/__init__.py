@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from viz3d.compiled import numba
+from viz3d.contact.contacts import MEMORY_COLUMNS, memory_rows
 
 try:  # numba's fingerprint of an argument's type (C, fast), the key of its own dispatch cache
     from numba._dispatcher import compute_fingerprint
@@ -102,8 +103,6 @@ def kernel_for(system, formulation) -> KernelData | None:
 
 def memory_table(data: KernelData, memory: tuple) -> np.ndarray:
     """The contacts' memory rows (``viz3d.contact.contacts.memory_rows``) of all sets, (n_contacts, 7)."""
-    from viz3d.contact.contacts import MEMORY_COLUMNS, memory_rows
-
     if not memory:
         return np.zeros((data.n_contacts, MEMORY_COLUMNS))
     return (np.concatenate([memory_rows(phases) for phases in memory]) if data.n_contacts
@@ -236,6 +235,9 @@ class StepRecords(NamedTuple):
     y, err : (R, n)
         The settled state at its end and the step's error estimate.
     chart : (R, nf, 3, 3)
+    mem : (R, n_contacts, 7)
+        The contacts' memory rows after it (``viz3d.contact.contacts.memory_rows``: the stick anchors
+        the driver moved).
     n : (1,) int64
     """
 
@@ -243,12 +245,14 @@ class StepRecords(NamedTuple):
     y: np.ndarray
     chart: np.ndarray
     err: np.ndarray
+    mem: np.ndarray
     n: np.ndarray
 
     @classmethod
-    def empty(cls, capacity: int, n: int, n_frames: int) -> "StepRecords":
+    def empty(cls, capacity: int, n: int, n_frames: int, n_contacts: int) -> "StepRecords":
         z = np.zeros
-        return cls(z(capacity), z((capacity, n)), z((capacity, n_frames, 3, 3)), z((capacity, n)), z(1, np.int64))
+        return cls(z(capacity), z((capacity, n)), z((capacity, n_frames, 3, 3)), z((capacity, n)),
+                   z((capacity, n_contacts, MEMORY_COLUMNS)), z(1, np.int64))
 
     @property
     def capacity(self) -> int:
@@ -555,14 +559,15 @@ class KernelStepper:
 
     def adaptive(self, carry: AdaptiveCarry, n_frames: int, every: int, n0: int, t_start: float, dt: float,
                  t_end: float, controller, events: tuple, memory: tuple, contact_mode: bool, max_speed: float,
-                 max_turn: float, records: StepRecords | None = None
+                 max_turn: float, records: StepRecords | None = None, replant: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, int]:
         """Up to ``n_frames`` output frames of an adaptive run, ``every`` samples ``dt`` apart, the
         first after sample ``n0`` of a run started at ``t_start`` [s], no step past ``t_end`` [s],
         advancing ``carry`` in place (``viz3d.kernel.adaptive.adaptive_frames``) under ``controller``
         (``adaptive.Controller``),
         with the contacts' ``events`` (``viz3d.events.EventRow``) and memory ``memory``, each accepted
-        step into ``records`` when given (from ``records.n[0]`` on). Returns
+        step into ``records`` when given (from ``records.n[0]`` on); with ``replant`` the stick anchors
+        of the contacts' bristles move after each step (in a copy of ``memory``'s rows, recorded). Returns
         ``(Ts, Y, charts, frames done, samples done in the next frame, status)``, the first three
         over the frames done: times (N,) [s], states (N, n), charts (N, nf, 3, 3)."""
         d, tab = self.data, self.tableau
@@ -575,15 +580,15 @@ class KernelStepper:
         direction = np.array([e.direction for e in events], np.int64)
         z = np.empty
         scratch = (z(n), z(n), z(n), z(n), z((nf, 3, 3)), np.zeros(carry.switches.shape[0], np.int64),
-                   z((d.n_contacts, 11)), z((len(events), 2)), z((len(events), 2)), z(n))
+                   z((d.n_contacts, 11)), z((len(events), 2)), z((len(events), 2)), z(n), z((d.n_contacts, MEMORY_COLUMNS)))
         Ts, Y, charts = z(n_frames), z((n_frames, n)), z((n_frames, nf, 3, 3))
         record = records is not None
-        records = records if record else StepRecords.empty(0, n, nf)
+        records = records if record else StepRecords.empty(0, n, nf, d.n_contacts)
+        view = self.ws[0]._replace(mem=memory_table(d, memory)) if replant else self.view(memory)  # (moved: not kept)
         done, partial, status = self._call(
             adaptive_frames, n_frames, every, n0, t_start, dt, t_end, int(contact_mode), max_speed, max_turn,
-            *self._method[1], kind, index, floor, direction, int(record), *records, d.model, self.view(memory),
-            self.ws[1], d.forces,
-            d.rows, d.geometry, *carry, self._k, *scratch, Y, charts, Ts)
+            *self._method[1], kind, index, floor, direction, int(record), *records, d.model, view, self.ws[1], d.forces,
+            d.rows, d.geometry, d.memories, int(replant), *carry, self._k, *scratch, Y, charts, Ts)
         return Ts[:done], Y[:done], charts[:done], done, partial, status
 
 

@@ -18,11 +18,14 @@ e.g. a restitution impulse, and takes the next step, whose events start at a roo
 kernel is deterministic) exactly as on a run without the kernel: an event function not finite on
 the interpolant or a root not converging (``UNLOCATED``: Python's ``brentq`` raises), a failed
 evaluation, projection or health check, a step below ``min_step`` (``UNDERFLOW``): Python writes
-the diagnosis. While a law contact acts (``record``), each accepted step's end time, settled state,
-chart and error estimate go to the step records (``rec_t`` (R,), ``rec_y`` (R, n), ``rec_chart``
-(R, nf, 3, 3), ``rec_err`` (R, n), ``n_rec`` (1,)), from which Python brings the contacts' memory
-up to date after the call (``viz3d.events.ContactStepping.after_step``: bookkeeping and checks that
-do not change the vector field); a call whose records are full stops before the next step (``FULL``).
+the diagnosis. With ``replant``, after each accepted step (settled) the stick anchors of bristle friction move
+(the law contacts' ``after_step_piece``, in ``v.mem``: ``ContactStepping._replant``'s rule), and the
+field at the step's end is not carried over when one moved. While a law contact acts (``record``),
+each accepted step's end time, settled state, chart, error estimate and the contacts' memory rows
+go to the step records (``rec_t`` (R,), ``rec_y`` (R, n), ``rec_chart`` (R, nf, 3, 3), ``rec_err``
+(R, n), ``rec_mem`` (R, n_contacts, 7), ``n_rec`` (1,)), from which Python brings the contacts'
+memory up to date after the call (``viz3d.events.ContactStepping.after_steps``: the anchors,
+bookkeeping and checks); a call whose records are full stops before the next step (``FULL``).
 
 Fixed steps (``ctrl[FIXED]`` > 0: ``viz3d.integrators.adaptive.FixedSteps``, runs with contact
 events and no controller) go through the same loop as ``Simulation._event_step`` takes them: ``dt``
@@ -54,7 +57,7 @@ from viz3d.compiled import entry, inline, jit
 from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
 from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
 from viz3d.kernel.projection import project
-from viz3d.kernel.stepping import _check_frames, state_ok, step, unit_parameters
+from viz3d.kernel.stepping import _check_frames, renew, state_ok, step, unit_parameters
 
 #: Status codes beyond ``viz3d.kernel.field``'s: the last step was cut at a contact event (committed
 #: up to it, the handler is Python's); the controller asked for a step below ``min_step``; the step
@@ -441,9 +444,9 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
 @entry
 def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc,
                     fsal, P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
-                    rec_err, n_rec, m, v, w, forces, rows, geometry,
+                    rec_err, rec_mem, n_rec, m, v, w, forces, rows, geometry, memories, replant,
                     y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1, y_cut,
-                    k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, yh, Y, charts, Ts):
+                    k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, yh, mem0, Y, charts, Ts):
     """Up to ``n_frames`` output frames, ``every`` samples apart, of an adaptive run (the carry in
     place, see the module docstring): sample ``i`` of the run is at ``t_start + i dt``, the first
     here is ``n0 + 1``; no step goes past ``t_end`` (``Simulation.t_end``). Frame ``f``'s time,
@@ -451,7 +454,9 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
     run with contacts (``Simulation._event_steps``: no projection or check of samples, the inner
     state itself within round-off of the output time)
     and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``; with
-    ``record`` every accepted step goes to the step records (module docstring).
+    ``record`` every accepted step goes to the step records (module docstring); with ``replant`` the
+    contacts' stick anchors move after every accepted step (``after_step_piece`` of ``memories``:
+    ``viz3d.contact.contacts._replant``, in ``v.mem``; ``mem0`` scratch of its shape).
 
     Returns (frames done, samples done in the next frame, status); on a status other than ``OK`` and
     ``EVENT`` (the step cut at the event committed and recorded) nothing of the step or sample that
@@ -470,13 +475,13 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
                 if record and n_rec[0] == rec_t.shape[0]:
                     return frame, sample, FULL
                 status = _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
-                                      ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f,
-                                      times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
-                                      chart1, sw, gap_out, g0, g1, yh)
+                                      ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y,
+                                      chart, f, times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1,
+                                      err, chart1, sw, gap_out, g0, g1, yh, mem0)
                 if status != OK and status != EVENT:
                     return frame, sample, status
                 if record:
-                    _record(times[T], y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec)
+                    _record(times[T], y, chart, err, v.mem, rec_t, rec_y, rec_chart, rec_err, rec_mem, n_rec)
                 if status == EVENT:
                     return frame, sample, status
             if contact_mode and abs(times[T] - target) <= slack:
@@ -497,13 +502,15 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
 
 
 @jit
-def _record(t, y, chart, err, rec_t, rec_y, rec_chart, rec_err, n_rec):
-    """The step just committed (end time, settled state and chart, error estimate) as the next record."""
+def _record(t, y, chart, err, mem, rec_t, rec_y, rec_chart, rec_err, rec_mem, n_rec):
+    """The step just committed (end time, settled state and chart, error estimate, the contacts'
+    memory rows after it) as the next record."""
     r = n_rec[0]
     rec_t[r] = t
     _copy(rec_y[r], y)
     _copy(rec_err[r], err)
     _copy_chart(rec_chart[r], chart)
+    _copy_rows(rec_mem[r], mem)
     n_rec[0] = r + 1
 
 
@@ -544,8 +551,8 @@ def _unit_parameters(n_rot, n_frames, y):
 
 @jit
 def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor,
-                 ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0, chart0, K,
-                 f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
+                 ev_dir, m, v, w, forces, rows, geometry, memories, replant, y, chart, f, times, flags, counts, switches,
+                 y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh, mem0):
     """One accepted step from the inner state, not past ``t_end`` (cut at the first contact event it
     crosses: ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the
     carry only when nothing needs Python (see the module docstring). Fixed steps (``ctrl[FIXED]``):
@@ -579,23 +586,24 @@ def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb,
                                 forces, rows, geometry, gap_out, yi, g0, g1)
         if status == EVENT:  # cut and committed (EVENT), a failure, or no crossing on the interpolant (OK)
             status = _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
-                                   ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times,
-                                   flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw,
-                                   gap_out, g0, g1, yh)
+                                   ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y,
+                                   chart, f, times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
+                                   chart1, sw, gap_out, g0, g1, yh, mem0)
         if status != OK:
             return status
     status = _settled(t1, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
     if status != OK:
         return status
-    _commit(t, t1, h, h_next, n_rejected, n_evals, 0, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
+    moved = replant == 1 and _replanted(t1, m, v, w, yi, chart1, memories, mem0)
+    _commit(t, t1, h, h_next, n_rejected, n_evals, 0, max_turn, moved, m, y, chart, f, times, flags, counts, switches, y0,
             chart0, K, f1, k, yi, chart1, sw)
     return OK
 
 
 @jit
 def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index,
-                  ev_floor, ev_dir, m, v, w, forces, rows, geometry, y, chart, f, times, flags, counts, switches, y0,
-                  chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh):
+                  ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y, chart, f, times, flags, counts,
+                  switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh, mem0):
     """The accepted step from ``(t, y)`` to ``(t1, y1)`` (``h_next`` proposed after it, ``n_rejected``
     trials and ``n_evals`` evaluations before it), over which an event function changes sign, cut
     as ``Simulation._event_step`` cuts it: the first event located (``_first_event``), the step
@@ -625,9 +633,11 @@ def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, t
     status = _settled(t_ev, h_ev, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
     if status != OK:
         return status
+    if replant == 1:
+        _replanted(t_ev, m, v, w, yi, chart1, memories, mem0)
     _copy(y_cut, y1)
-    _commit(t, t_ev, h_ev, h_next, n_rejected, n_evals, e + 1, 0.0, m, y, chart, f, times, flags, counts, switches, y0,
-            chart0, K, f1, k, yi, chart1, sw)
+    _commit(t, t_ev, h_ev, h_next, n_rejected, n_evals, e + 1, 0.0, False, m, y, chart, f, times, flags, counts, switches,
+            y0, chart0, K, f1, k, yi, chart1, sw)
     return EVENT
 
 
@@ -675,14 +685,27 @@ def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
                          max_speed)
 
 
+@jit
+def _replanted(t, m, v, w, y, chart, memories, mem0):
+    """The contacts' stick anchors moved after the step ending at ``(t, y)`` (``renew``: the
+    ``after_step_piece`` of ``memories``); True when one moved (the field there is then another)."""
+    _copy_rows(mem0, v.mem)
+    renew(t, m, v, w, y, chart, memories)
+    for kg in range(mem0.shape[0]):
+        for c in range(4, 7):
+            if v.mem[kg, c] != mem0[kg, c]:
+                return True
+    return False
+
+
 @inline
-def _commit(t, t1, h, h_next, n_rejected, n_evals, cut, max_turn, m, y, chart, f, times, flags, counts, switches, y0,
-            chart0, K, f1, k, y_end, chart_end, sw):
+def _commit(t, t1, h, h_next, n_rejected, n_evals, cut, max_turn, moved, m, y, chart, f, times, flags, counts, switches,
+            y0, chart0, K, f1, k, y_end, chart_end, sw):
     """The accepted step ``[t, t1]`` of length ``h`` into the carry: its span (start, stages, length,
     ``cut``: 0 or 1 + the event row it was cut at), the settled end state as the inner state, the
     next step (``min(h_next, turn_limit)``; ``h_next`` after a cut), the field kept when the end
     state is the step's own (no cut, no projection, no chart switch, no Euler parameters to
-    normalise: ``Simulation._settle``), the counters."""
+    normalise, no stick anchor ``moved``: ``Simulation._settle``), the counters."""
     switched = False
     for b in range(sw.shape[0]):
         switches[b] += sw[b]
@@ -696,7 +719,7 @@ def _commit(t, t1, h, h_next, n_rejected, n_evals, cut, max_turn, m, y, chart, f
     _copy_chart(chart, chart_end)
     times[T] = t1
     times[H] = h_next if cut else min(h_next, turn_limit(m.frame_body.shape[0], m.n_rot, f1, max_turn))
-    keep = cut == 0 and m.projects != 1 and not switched and m.n_rot != 4  # (Euler parameters are normalised: a new state)
+    keep = cut == 0 and m.projects != 1 and not switched and m.n_rot != 4 and not moved  # (Euler parameters: normalised)
     flags[HAS_F] = 1 if keep else 0
     if keep:
         _copy(f, f1)
@@ -711,6 +734,14 @@ def _copy(dst, src):
     """``dst[:] = src`` (n,) without numba's overlap check, which would allocate."""
     for j in range(dst.shape[0]):
         dst[j] = src[j]
+
+
+@inline
+def _copy_rows(dst, src):
+    """``dst[:] = src`` (r, c)."""
+    for i in range(dst.shape[0]):
+        for j in range(dst.shape[1]):
+            dst[i, j] = src[i, j]
 
 
 @inline
