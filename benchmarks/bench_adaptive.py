@@ -1,5 +1,6 @@
-"""Adaptive runs (dopri5, dop853) through the compiled adaptive driver against the Python adaptive loop
-(issue 14): whole-run wall time and cost per accepted step, on shipped scenes (a benchmark, not a test).
+"""Adaptive runs (dopri5, dop853), and fixed steps with contact events, through the compiled adaptive
+driver against the Python loop (issue 14): whole-run wall time and cost per accepted step, on
+shipped scenes (a benchmark, not a test).
 
     python benchmarks/bench_adaptive.py [--repeat 3] [--out docs/bench_adaptive.md] [--before /work/main]
 
@@ -28,8 +29,6 @@ import time
 from pathlib import Path
 
 import viz3d
-from viz3d.kernel import KernelStepper
-from viz3d.kernel.adaptive import STEPS
 from viz3d.scene.build import make_controller, make_formulation, make_integrator_from
 from viz3d.scene.load import with_sim
 from viz3d.simulate import Simulation, run
@@ -45,17 +44,23 @@ SCENES = {
     "impact_bronze_ball": ("impact_bronze_ball", [], 1e-3),
     "bouncing_sphere": ("bouncing_sphere", [], 0.1),
     "bouncing_sphere restitution": ("bouncing_sphere", ["contact.law=restitution", "sim.max_step=2e-3"], 0.4),
+    # fixed RK4 steps with contact events (``FixedSteps`` in the driver): law contacts with regularised
+    # Coulomb friction throughout, and the coin's 48 rim contacts with bristle friction
+    "box_on_incline (rk4)": ("box_on_incline", [], 1.0),
+    "rolling_ball (rk4)": ("rolling_ball", [], 0.5),
+    "coin_drop (rk4)": ("coin_drop", [], 0.4),
 }
 
 
 @contextlib.contextmanager
 def python_loop(on: bool, kernel_steps: list, event_steps: list, python_walls: list):
     """Adaptive steps in the Python loop (``on``) instead of the compiled driver; the steps the
-    compiled driver takes are appended to ``kernel_steps``, a 1 for each step the Python loop takes
+    compiled driver takes (those its calls kept: ``Simulation._kernel_samples`` counts the last call
+    only, not a call it redid for fewer frames) are appended to ``kernel_steps``, a 1 for each step the Python loop takes
     with contacts (``Simulation._event_step``) to ``event_steps``, the wall time [s] of each sample
     the Python loop takes (``Simulation._python_step``: its steps, event location and handlers)
     to ``python_walls``."""
-    covers, adaptive = Simulation._adaptive_kernel_covers, KernelStepper.adaptive
+    covers, samples = Simulation._adaptive_kernel_covers, Simulation._kernel_samples
     event_step, python_step = Simulation._event_step, Simulation._python_step
 
     def counted_step(self, *args):
@@ -69,18 +74,20 @@ def python_loop(on: bool, kernel_steps: list, event_steps: list, python_walls: l
         finally:
             python_walls.append(time.perf_counter() - t0)
 
-    def counted(self, carry, *args, **kwargs):
-        out = adaptive(self, carry, *args, **kwargs)
-        kernel_steps.append(int(carry.counts[STEPS]))
-        return out
+    def counted(self, *args):
+        before = self.n_steps
+        try:
+            return samples(self, *args)
+        finally:
+            kernel_steps.append(self.n_steps - before)
 
-    KernelStepper.adaptive, Simulation._event_step, Simulation._python_step = counted, counted_step, timed
+    Simulation._kernel_samples, Simulation._event_step, Simulation._python_step = counted, counted_step, timed
     if on:
         Simulation._adaptive_kernel_covers = lambda self: False
     try:
         yield
     finally:
-        Simulation._adaptive_kernel_covers, KernelStepper.adaptive = covers, adaptive
+        Simulation._adaptive_kernel_covers, Simulation._kernel_samples = covers, samples
         Simulation._event_step, Simulation._python_step = event_step, python_step
 
 
@@ -161,12 +168,20 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench_adaptive.md")
     ap.add_argument("--before", type=Path, help="a checkout of an earlier viz3d: its compiled driver too")
+    ap.add_argument("--scenes", help="comma-separated labels of SCENES to run (default: all)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)  # (before_run's subprocess: one timed run as JSON)
     args = ap.parse_args()
     if args.worker:
         one_run(args.worker, False)
         print(json.dumps(one_run(args.worker, False)))
         return
+    if args.scenes:
+        chosen = args.scenes.split(",")
+        unknown = sorted(set(chosen) - set(SCENES))
+        if unknown:
+            ap.error(f"--scenes: unknown label(s) {unknown}; expected some of {sorted(SCENES)}")
+        for label in set(SCENES) - set(chosen):
+            del SCENES[label]
     load0 = os.getloadavg()
     best = measure(args.repeat, args.before)
     load1 = os.getloadavg()
@@ -180,8 +195,8 @@ def main() -> None:
               + ", ".join(f"{label} {t_end:g} s" for label, (_, _, t_end) in SCENES.items())
               + ". Per step: wall time over accepted steps. The step after each contact event is the Python "
               "loop's in every column; the steps of law contacts the compiled driver's since 18cf73e, the steps "
-              "cut at contact events (located in the kernel) since 2a61818 (the share of the steps in the driver "
-              "is given)"
+              "cut at contact events (located in the kernel) since 2a61818, fixed steps with contacts and the steps "
+              "of bristle friction since 61e4d83 (the share of the steps in the driver is given)"
               + (f"; subprocess columns: the compiled driver of this checkout (git {_commit(ROOT)}) and of "
                  f"{args.before} (git {_commit(args.before)}), each run in a fresh process, with the steps the "
                  "Python loop took at contacts (``Simulation._event_step``) and the wall time of the samples it "
