@@ -596,7 +596,9 @@ class Simulation:
         the rest of the sample), when it stopped at a step that needs Python (a failure, an event it
         cannot locate: the Python path then redoes that step from the same state and raises the
         diagnosis or locates the event), when its step records were full, or before a recorded step
-        whose contact check fails (the Python path redoes that step and raises the diagnosis)."""
+        whose contact check fails (the Python path redoes that step and raises the diagnosis). Fixed
+        steps during law contacts: no more frames than their steps' records hold (a call stopped
+        by full records is redone for the frames before)."""
         from viz3d.kernel import EVENT, FULL, OK
         from viz3d.kernel.adaptive import CUT, EVALS, REJECTED, STEPS, T
 
@@ -606,6 +608,8 @@ class Simulation:
         try:
             carry = self._to_kernel()
             records = self._step_records()
+            if records is not None and self.controller is None:  # fixed steps: as many frames as their records take
+                n_frames = max(1, min(n_frames, records.capacity // (every * self._fixed_steps_per_sample())))
             start = carry.copy() if every > 1 or records is not None else None
             Ts, Y, charts, done, partial, status = self._adaptive_call(carry, n_frames, every, records)
             memories, failed = self._contact_steps(records, like)
@@ -642,6 +646,12 @@ class Simulation:
             if status == EVENT and failed is None:  # (the cut step's end is the inner state now)
                 self._pending = self._contacts.event_rows(like)[row].name
         return states
+
+    def _fixed_steps_per_sample(self) -> int:
+        """Fixed steps to the next sample within the contacts' step bound (``FixedSteps``; events add
+        the step cut at them, which ends the driver's call)."""
+        bound = self._contacts.step_bound(self._inner)
+        return 1 if bound >= self.dt else math.ceil(self.dt / bound)
 
     def _step_records(self):
         """The kernel's step records (emptied) when a law contact acts at the inner state (its steps'
