@@ -582,8 +582,8 @@ class ContactStepping:
         memory rows ``mems`` (N, n_contacts, 7) after each (the stick anchors the compiled driver moved
         there), from ``like``'s
         memory on: the contacts' memory after each step (of those before the first that fails), and
-        the index of the first step whose check fails (None when none does). With the kernel and no
-        stateful friction (the memory then changes only in the onsets' books between events), the
+        the index of the first step whose check fails (None when none does). With the kernel (the
+        memory then changes only in the onsets' books and the recorded anchors between events), the
         ledgers of all steps come from two kernel samples and the books and checks of all steps from
         array sums (``_StepBooks``; a step's memory is built when asked for)."""
         under_way = self._under_way(like)

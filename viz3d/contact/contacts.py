@@ -41,6 +41,7 @@ from viz3d.compiled import (
     after_step_piece,
     compiled_piece,
     cross3,
+    inline,
     dot3,
     force_piece,
     gap_piece,
@@ -563,6 +564,27 @@ def _contact_gaps(d, v, out):
             row[8 + c] = v.px[d.i[k, 0], c] - d.f[k, 3] * n[c]
 
 
+@inline
+def _magnitude(d, k, kg, v, alpha, alpha_dot):
+    """Normal force [N] of law contact ``k`` of ``d`` (global index ``kg``) at indentation ``alpha`` > 0
+    and its rate: its law's (memory in ``v.mem``) plus its dashpot, clipped at zero (``ContactSet.magnitudes``)."""
+    elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2], True)
+    return max(elastic + d.f[k, 4] * alpha_dot, 0.0)
+
+
+@inline
+def _deflection(v, pa, pb, bB, kg, r, n, a, s):
+    """Bristle deflection of contact ``kg`` into ``s`` (3,): its contact point ``a - r n`` minus its stick
+    anchor (``v.mem[kg, 4:7]``, B's axes; B's frame origin ``r_B = x_b - rho_b``), without its normal part
+    (``ContactSet.deflection``); ``a`` (3,) scratch."""
+    matvec3(v.R[bB], v.mem[kg, 4:7], a)
+    for c in range(3):
+        s[c] = v.px[pa, c] - r * n[c] - (v.px[pb, c] - v.prho[pb, c]) - a[c]
+    sn = dot3(s, n)
+    for c in range(3):
+        s[c] -= sn * n[c]
+
+
 def _law_contacts(d, t, v, power):
     n, dv, f = v.v3[8], v.v3[9], v.v3[10]
     for k in range(d.i.shape[0]):
@@ -571,8 +593,7 @@ def _law_contacts(d, t, v, power):
         acting = v.mem[kg, 0] == 1.0 if d.i[k, 4] == 1 else alpha > 0.0
         if not acting or alpha <= 0.0:
             continue
-        elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2], True)
-        F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
+        F = _magnitude(d, k, kg, v, alpha, alpha_dot)
         for c in range(3):
             f[c] = F * n[c]
         apply_pair(v, pa, pb, f)
@@ -605,13 +626,8 @@ def _friction(d, k, v, pa, pb, bB, kg, F, n, dv):
     for c in range(3):
         vt[c] -= vn * n[c]
         sb[c] = 0.0
-    if v.mem[kg, 3] == 1.0:  # bristles: contact point - anchor (B's frame origin r_B = x_b - rho_b)
-        matvec3(v.R[bB], v.mem[kg, 4:7], t1)
-        for c in range(3):
-            sb[c] = v.px[pa, c] - r * n[c] - (v.px[pb, c] - v.prho[pb, c]) - t1[c]
-        sn = dot3(sb, n)
-        for c in range(3):
-            sb[c] -= sn * n[c]
+    if v.mem[kg, 3] == 1.0:  # bristles
+        _deflection(v, pa, pb, bB, kg, r, n, t1, sb)
     friction_vector(d.f[k, FRICTION_COLUMN:FRICTION_COLUMN + FRICTION_PARAMS], vt, sb, F, ft)
     P = -dot3(ft, vt)
     apply_pair(v, pa, pb, ft)                  # f_t on A at a, -f_t on B at b
@@ -641,17 +657,9 @@ def _replant(d, t, v):
         if p[0] != BRISTLE or d.i[k, 4] != 1 or v.mem[kg, 0] != 1.0 or v.mem[kg, 3] != 1.0:
             continue
         alpha, alpha_dot = _gap(v, pa, pb, bB, d.f[k, 0:3], d.f[k, 3], n, dv)
-        F = 0.0
-        if alpha > 0.0:
-            elastic = normal_force(d, k, LAW_COLUMN, alpha, alpha_dot, v.mem[kg, 1], v.mem[kg, 2], True)
-            F = max(elastic + d.f[k, 4] * alpha_dot, 0.0)
+        F = _magnitude(d, k, kg, v, alpha, alpha_dot) if alpha > 0.0 else 0.0
         r = d.f[k, 3]
-        matvec3(v.R[bB], v.mem[kg, 4:7], a)
-        for c in range(3):  # contact point - anchor, without its normal part (B's origin r_B = x_b - rho_b)
-            s[c] = v.px[pa, c] - r * n[c] - (v.px[pb, c] - v.prho[pb, c]) - a[c]
-        sn = dot3(s, n)
-        for c in range(3):
-            s[c] -= sn * n[c]
+        _deflection(v, pa, pb, bB, kg, r, n, a, s)
         limit, size = p[2] * F, math.sqrt(dot3(s, s))
         if p[6] * size <= limit or size == 0.0:
             continue

@@ -72,7 +72,7 @@ HAS_F, SPAN, DENSE, CUT = 0, 1, 2, 3
 #: ``xtol`` relative to the step, its ``rtol`` and iteration limit, the rounding of an event's cubic
 #: (``viz3d.integrators.adaptive.ROUNDING``).
 EV_XTOL, EV_RTOL, EV_MAXITER, EV_ROUNDING = 8, 9, 10, 11
-#: Indices of the fixed steps in ``ctrl`` (``viz3d.kernel.FixedSteps``): their length ``dt`` [s] (0:
+#: Indices of the fixed steps in ``ctrl`` (``viz3d.integrators.adaptive.FixedSteps``): their length ``dt`` [s] (0:
 #: adaptive steps) and the ``group`` flag of ``viz3d.kernel.stepping.step`` (1: Euler parameters
 #: advance on the group, as the Python loop's fixed steps of a tableau without error estimate).
 FIXED, GROUP = 12, 13
