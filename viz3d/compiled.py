@@ -17,6 +17,10 @@ written next to its NumPy code and registered here for one of its **targets** (`
 * ``after_step_piece(d, t, v)``: force elements with a memory (``ForceElement.has_memory``) renew it
   after each accepted step of the kernel's fixed-step loop, from the state in ``v`` at its end
   (``memory_after_step``); the memory lives in arrays of ``d``, fixed during a step;
+* ``replant_piece(d, t, v)``: law contacts move the stick anchors of their bristle friction (the
+  contacts' memory rows ``v.mem``) after each accepted step of the compiled adaptive driver
+  (``viz3d.events.ContactStepping._replant``): only that driver takes them (``KernelData.replants``),
+  so the other entries do not compile them;
 * ``hold_piece(d, t, v, mode, tol)``: force elements with branches (``ForceElement.branches``) hold
   them as they are at the kinematics in ``v`` (``HOLD``: ``ForceElement.frozen``), evaluate with their
   own again (``RELEASE``), or count those found in ``v`` that differ from the held ones beyond
@@ -246,6 +250,12 @@ def after_step_piece(d, t, v):
     raise NotImplementedError
 
 
+def replant_piece(d, t, v):
+    """Move the stick anchors of the contacts ``d`` in their memory rows ``v.mem`` after an accepted
+    step ending at time ``t`` (the state's kinematics in ``v``)."""
+    raise NotImplementedError
+
+
 #: ``hold_piece``'s modes (module docstring).
 HOLD, RELEASE, CHANGE = 0, 1, 2
 
@@ -257,7 +267,7 @@ def hold_piece(d, t, v, mode, tol):
 
 
 #: Targets in order: a data class registered for several belongs to the first (its packing group).
-TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece, after_step_piece, hold_piece)
+TARGETS = (force_piece, row_piece, gap_piece, normal_force, energy_piece, after_step_piece, replant_piece, hold_piece)
 
 #: Registered data classes per target, in registration order.
 REGISTRY: dict[str, list[type[Items]]] = {t.__name__: [] for t in TARGETS}

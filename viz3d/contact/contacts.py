@@ -38,7 +38,6 @@ import numpy as np
 from viz3d._typing import FloatArray, IntArray
 from viz3d.compiled import (
     Items,
-    after_step_piece,
     compiled_piece,
     cross3,
     inline,
@@ -49,6 +48,7 @@ from viz3d.compiled import (
     jit,
     matvec3,
     normal_force,
+    replant_piece,
     row_piece,
     tmatvec3,
 )
@@ -677,12 +677,12 @@ _LAW_CONTACTS: dict[type, type[Items]] = {}
 def law_contacts(items_cls: type[Items]) -> type[Items]:
     """The packed data class of law contacts (``ContactSet.compiled``) whose law has the compiled data
     class ``items_cls``: a subclass of it (the law's piece reads its parameters), created and
-    registered as a force piece (and an after-step piece: ``_replant``) on first use."""
+    registered as a force piece (and a replant piece: ``_replant``) on first use."""
     if items_cls not in _LAW_CONTACTS:
         cls = type(f"Contacts{items_cls.__name__}", (items_cls,), {"__module__": __name__})
         globals()[cls.__name__] = cls  # importable by name: numba's cache pickles types by reference
         compiled_piece(force_piece, cls)(_law_contacts)
-        compiled_piece(after_step_piece, cls)(_replant)
+        compiled_piece(replant_piece, cls)(_replant)
         _LAW_CONTACTS[items_cls] = cls
     return _LAW_CONTACTS[items_cls]
 

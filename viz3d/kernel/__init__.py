@@ -80,7 +80,7 @@ def keep_packed(system, formulation) -> None:
 
 
 #: The ``KernelData`` fields the compiled calls take (tuples of arrays; ``memories`` may be None).
-DATA_TUPLES = ("model", "forces", "rows", "geometry", "energies", "memories")
+DATA_TUPLES = ("model", "forces", "rows", "geometry", "energies", "memories", "replants")
 
 
 def type_prints(data: KernelData) -> dict:
@@ -588,7 +588,7 @@ class KernelStepper:
         done, partial, status = self._call(
             adaptive_frames, n_frames, every, n0, t_start, dt, t_end, int(contact_mode), max_speed, max_turn,
             *self._method[1], kind, index, floor, direction, int(record), *records, d.model, view, self.ws[1], d.forces,
-            d.rows, d.geometry, d.memories, int(replant), *carry, self._k, *scratch, Y, charts, Ts)
+            d.rows, d.geometry, d.replants, int(replant), *carry, self._k, *scratch, Y, charts, Ts)
         return Ts[:done], Y[:done], charts[:done], done, partial, status
 
 

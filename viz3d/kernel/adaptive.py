@@ -19,7 +19,7 @@ kernel is deterministic) exactly as on a run without the kernel: an event functi
 the interpolant or a root not converging (``UNLOCATED``: Python's ``brentq`` raises), a failed
 evaluation, projection or health check, a step below ``min_step`` (``UNDERFLOW``): Python writes
 the diagnosis. With ``replant``, after each accepted step (settled) the stick anchors of bristle friction move
-(the law contacts' ``after_step_piece``, in ``v.mem``: ``ContactStepping._replant``'s rule), and the
+(the law contacts' ``replant_piece``, in ``v.mem``: ``ContactStepping._replant``'s rule), and the
 field at the step's end is not carried over when one moved. While a law contact acts (``record``),
 each accepted step's end time, settled state, chart, error estimate and the contacts' memory rows
 go to the step records (``rec_t`` (R,), ``rec_y`` (R, n), ``rec_chart`` (R, nf, 3, 3), ``rec_err``
@@ -53,11 +53,12 @@ import math
 
 import numpy as np
 
-from viz3d.compiled import entry, inline, jit
+from viz3d.compiled import entry, inline, jit, replant_piece
 from viz3d.integrators.adaptive import armed, crosses, hermite_extrema, step_end, step_to_try
-from viz3d.kernel.field import NONFINITE, OK, evaluate, gaps
+from viz3d.kernel.field import NONFINITE, OK, evaluate, frames, gaps, literal_unroll
 from viz3d.kernel.projection import project
-from viz3d.kernel.stepping import _check_frames, renew, state_ok, step, unit_parameters
+from viz3d.kernel.stepping import _check_frames, state_ok, step, unit_parameters
+from viz3d.points import kinematics
 
 #: Status codes beyond ``viz3d.kernel.field``'s: the last step was cut at a contact event (committed
 #: up to it, the handler is Python's); the controller asked for a step below ``min_step``; the step
@@ -444,7 +445,7 @@ def accepted_step(t, y, chart, f, h, ctrl, ta, tb, te, tc, m, v, w, forces, rows
 @entry
 def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc,
                     fsal, P, c_extra, a_extra, reuse, ev_kind, ev_index, ev_floor, ev_dir, record, rec_t, rec_y, rec_chart,
-                    rec_err, rec_mem, n_rec, m, v, w, forces, rows, geometry, memories, replant,
+                    rec_err, rec_mem, n_rec, m, v, w, forces, rows, geometry, replants, replant,
                     y, chart, f, times, flags, counts, switches, y0, chart0, K, Q, f1, y_cut,
                     k, yi, y1, err, ys, chart1, sw, gap_out, g0, g1, yh, mem0, Y, charts, Ts):
     """Up to ``n_frames`` output frames, ``every`` samples apart, of an adaptive run (the carry in
@@ -455,7 +456,7 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
     state itself within round-off of the output time)
     and the sign checks of the event functions ``(ev_kind, ev_index, ev_floor, ev_dir)``; with
     ``record`` every accepted step goes to the step records (module docstring); with ``replant`` the
-    contacts' stick anchors move after every accepted step (``after_step_piece`` of ``memories``:
+    contacts' stick anchors move after every accepted step (``replant_piece`` of ``replants``:
     ``viz3d.contact.contacts._replant``, in ``v.mem``; ``mem0`` scratch of its shape).
 
     Returns (frames done, samples done in the next frame, status); on a status other than ``OK`` and
@@ -475,7 +476,7 @@ def adaptive_frames(n_frames, every, n0, t_start, dt, t_end, contact_mode, max_s
                 if record and n_rec[0] == rec_t.shape[0]:
                     return frame, sample, FULL
                 status = _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind,
-                                      ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y,
+                                      ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, replants, replant, y,
                                       chart, f, times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1,
                                       err, chart1, sw, gap_out, g0, g1, yh, mem0)
                 if status != OK and status != EVENT:
@@ -551,7 +552,7 @@ def _unit_parameters(n_rot, n_frames, y):
 
 @jit
 def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index, ev_floor,
-                 ev_dir, m, v, w, forces, rows, geometry, memories, replant, y, chart, f, times, flags, counts, switches,
+                 ev_dir, m, v, w, forces, rows, geometry, replants, replant, y, chart, f, times, flags, counts, switches,
                  y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh, mem0):
     """One accepted step from the inner state, not past ``t_end`` (cut at the first contact event it
     crosses: ``_cut_at_event``), then what ``Simulation._accept`` does after it; committed to the
@@ -586,7 +587,7 @@ def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb,
                                 forces, rows, geometry, gap_out, yi, g0, g1)
         if status == EVENT:  # cut and committed (EVENT), a failure, or no crossing on the interpolant (OK)
             status = _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind,
-                                   ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y,
+                                   ev_index, ev_floor, ev_dir, m, v, w, forces, rows, geometry, replants, replant, y,
                                    chart, f, times, flags, counts, switches, y0, chart0, K, f1, y_cut, k, yi, y1, err,
                                    chart1, sw, gap_out, g0, g1, yh, mem0)
         if status != OK:
@@ -594,7 +595,7 @@ def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb,
     status = _settled(t1, h, y1, chart, max_speed, m, v, w, rows, yi, chart1, sw)
     if status != OK:
         return status
-    moved = replant == 1 and _replanted(t1, m, v, w, yi, chart1, memories, mem0)
+    moved = replant == 1 and _replanted(t1, m, v, w, yi, chart1, replants, mem0)
     _commit(t, t1, h, h_next, n_rejected, n_evals, 0, max_turn, moved, m, y, chart, f, times, flags, counts, switches, y0,
             chart0, K, f1, k, yi, chart1, sw)
     return OK
@@ -602,7 +603,7 @@ def _commit_step(target, t_end, contact_mode, max_speed, max_turn, ctrl, ta, tb,
 
 @jit
 def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, te, tc, fsal, ev_kind, ev_index,
-                  ev_floor, ev_dir, m, v, w, forces, rows, geometry, memories, replant, y, chart, f, times, flags, counts,
+                  ev_floor, ev_dir, m, v, w, forces, rows, geometry, replants, replant, y, chart, f, times, flags, counts,
                   switches, y0, chart0, K, f1, y_cut, k, yi, y1, err, chart1, sw, gap_out, g0, g1, yh, mem0):
     """The accepted step from ``(t, y)`` to ``(t1, y1)`` (``h_next`` proposed after it, ``n_rejected``
     trials and ``n_evals`` evaluations before it), over which an event function changes sign, cut
@@ -634,7 +635,7 @@ def _cut_at_event(t, t1, h_next, n_rejected, n_evals, max_speed, ctrl, ta, tb, t
     if status != OK:
         return status
     if replant == 1:
-        _replanted(t_ev, m, v, w, yi, chart1, memories, mem0)
+        _replanted(t_ev, m, v, w, yi, chart1, replants, mem0)
     _copy(y_cut, y1)
     _commit(t, t_ev, h_ev, h_next, n_rejected, n_evals, e + 1, 0.0, False, m, y, chart, f, times, flags, counts, switches,
             y0, chart0, K, f1, k, yi, chart1, sw)
@@ -686,11 +687,15 @@ def _settled(t1, h, y1, chart, max_speed, m, v, w, rows, y_end, chart_end, sw):
 
 
 @jit
-def _replanted(t, m, v, w, y, chart, memories, mem0):
-    """The contacts' stick anchors moved after the step ending at ``(t, y)`` (``renew``: the
-    ``after_step_piece`` of ``memories``); True when one moved (the field there is then another)."""
+def _replanted(t, m, v, w, y, chart, replants, mem0):
+    """The contacts' stick anchors moved after the step ending at ``(t, y)`` (the ``replant_piece``
+    of ``replants``); True when one moved (the field there is then another)."""
     _copy_rows(mem0, v.mem)
-    renew(t, m, v, w, y, chart, memories)
+    frames(m, v, w, y, chart)
+    kinematics(m, v, w)
+    for d in literal_unroll(replants):
+        if d.i.shape[0] > 0:
+            replant_piece(d, t, v)
     for kg in range(mem0.shape[0]):
         for c in range(4, 7):
             if v.mem[kg, c] != mem0[kg, c]:

@@ -28,6 +28,7 @@ from viz3d.compiled import (
     force_piece,
     gap_piece,
     hold_piece,
+    replant_piece,
     items,
     registered,
     row_piece,
@@ -174,6 +175,7 @@ class KernelData:
     energies: tuple           # the force elements' data per registered energy piece
     energy_gap: str | None    # why output frames cannot take their energies from the kernel (None: they can)
     memories: tuple | None    # the force elements' data per registered after-step piece (their memory; None: none)
+    replants: tuple           # the law contacts' data per registered replant piece (the adaptive driver's)
     anchors: tuple            # (index in System.forces, CollisionItems) of shape contacts with stick anchors
     #: Compiled entries of the kernel's functions for this data's argument types, by dispatcher
     #: (``viz3d.kernel.KernelStepper._call``); a copy made by ``dataclasses.replace`` starts empty.
@@ -291,14 +293,14 @@ def pack(system, formulation) -> KernelData:
         raise Unsupported("more than one shape-contact element")
     if formulation.name in STEPPING:
         _check_held(system.forces, classes)
-    forces, rows, geometry, energies, memories = (_by_class(target, parts) for target in (
-        force_piece, row_piece, gap_piece, energy_piece, after_step_piece))
+    forces, rows, geometry, energies, memories, replants = (_by_class(target, parts) for target in (
+        force_piece, row_piece, gap_piece, energy_piece, after_step_piece, replant_piece))
     memories = memories or None  # (numba unrolls no empty tuple; the kernel skips None)
     pt_i, pt_s, pt_N, pt_P = packer.tables()
     model, sizes, row_je = _model(system, formulation, pt_s)
     return KernelData(model, forces, rows, geometry, sum(c.k for c in system.contacts), sizes, pt_i, pt_N, pt_P, row_je,
                       _slices([fb.n for fb in system.bodies.flexible]), _slices([c.k for c in system.contacts]),
-                      energies, _energy_gap(system.forces, classes), memories, _anchors(system.forces, parts))
+                      energies, _energy_gap(system.forces, classes), memories, replants, _anchors(system.forces, parts))
 
 
 def per_run(system, formulation) -> bool:
