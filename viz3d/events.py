@@ -886,6 +886,7 @@ class _StepBooks:
                  dvs: FloatArray | None, mems: FloatArray | None = None, n: int | None = None):
         self.memory, self.under_way, self.balance, self.k0, self.mems = memory, under_way, balance, k0, mems
         self.n = balance.shape[0] if n is None else n
+        self._built: dict[int, tuple] = {}  # (step -> its memory: one object however often asked for)
         self.onset0 = [memory[k][i].onset for k, i in under_way]
         self.velocity_error, self.energy_error = [], []
         for (k, i), o in zip(under_way, self.onset0):
@@ -902,6 +903,11 @@ class _StepBooks:
             r += self.n
         if not 0 <= r < self.n:
             raise IndexError(r)
+        if r not in self._built:
+            self._built[r] = self._build(r)
+        return self._built[r]
+
+    def _build(self, r: int) -> tuple:
         memory = [list(phases) for phases in self.memory]
         for j, ((k, i), o) in enumerate(zip(self.under_way, self.onset0)):
             memory[k][i] = dataclasses.replace(memory[k][i], onset=dataclasses.replace(

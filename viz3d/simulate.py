@@ -7,6 +7,7 @@ far are kept. Ctrl-C likewise ends the run with status "interrupted ..." and kee
 
 from __future__ import annotations
 
+import collections.abc
 import json
 import math
 import sys
@@ -263,15 +264,19 @@ class Simulation:
     def steps(self, n: int) -> State:
         """``n`` calls of ``step`` (the same states, diagnoses and counters); fixed explicit RK
         steps and the steps of a formulation that steps itself through the compiled kernel go in
-        one call, free of per-step Python overhead."""
+        one call, free of per-step Python overhead, and the compiled adaptive driver takes the
+        samples left in calls of one sample a frame (one call up to the next event, whose handler
+        ``step`` takes; a call of one frame of the ``n`` samples would keep nothing of a frame cut
+        at an event)."""
         goal = self.n_samples + n
         if n > 1 and self._kernel_ready():
             self._kernel_steps(n)
         elif n > 1 and self._own_kernel_ready():
             self._own_frames(1, n)
-        elif n > 1 and self._adaptive_kernel_covers():
-            self._kernel_samples(1, n)
         while self.n_samples < goal:
+            if (goal - self.n_samples > 1 and self._adaptive_kernel_covers()
+                    and self._kernel_samples(goal - self.n_samples, 1)):
+                continue  # (each sample a frame: a call cut at an event keeps the samples before it)
             self.step()
         return self.state
 
@@ -690,13 +695,12 @@ class Simulation:
         return keep
 
     @staticmethod
-    def _memories_at(ts: np.ndarray, records, memories: list[tuple], memory: tuple) -> tuple:
+    def _memories_at(ts: np.ndarray, records, memories: Sequence[tuple], memory: tuple) -> Sequence[tuple]:
         """The contacts' memory of each sample at ``ts`` (N,) [s]: after the last recorded step ending
-        by its time (``memory``, that at the call's start, before the first)."""
+        by its time (``memory``, that at the call's start, before the first), each built when indexed."""
         if not memories:
             return (memory,) * ts.shape[0]
-        rs = np.searchsorted(records.t[: len(memories)], ts, side="right")
-        return tuple(memories[r - 1] if r else memory for r in rs.tolist())
+        return _SampleMemories(np.searchsorted(records.t[: len(memories)], ts, side="right").tolist(), memories, memory)
 
     def _adaptive_call(self, carry, n_frames: int, every: int, records=None) -> tuple:
         """The kernel's ``adaptive`` call from ``carry`` (its counters and ``records`` emptied first)."""
@@ -985,6 +989,23 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
             goal(cols, states)
 
     return check, goal is not None or any(limited for _, _, limited in limits.values())
+
+
+class _SampleMemories(collections.abc.Sequence):
+    """``Simulation._memories_at``: sample ``i``'s contact memory is ``memories[rs[i] - 1]`` (``memory``
+    where ``rs[i]`` is 0), looked up when indexed (a call's samples that no one reads build none)."""
+
+    def __init__(self, rs: list[int], memories: Sequence[tuple], memory: tuple):
+        self.rs, self.memories, self.memory = rs, memories, memory
+
+    def __len__(self) -> int:
+        return len(self.rs)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return tuple(self[k] for k in range(len(self))[i])
+        r = self.rs[i]
+        return self.memories[r - 1] if r else self.memory
 
 
 def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[Sink] = ()) -> Trajectory:

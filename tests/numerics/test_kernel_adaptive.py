@@ -294,6 +294,22 @@ def test_failed_contact_check_in_recorded_steps_is_diagnosed_as_in_python(monkey
     assert len(a[1].t) == len(b[1].t), "mismatch: frames kept"
 
 
+def test_the_samples_after_an_event_go_to_the_driver_in_one_call(monkeypatch):
+    """After an event inside an output frame the rest of the frame is one driver call, each sample a
+    frame of the call (``Simulation.steps``), not one call per sample: coin_drop's landing (100 samples
+    a frame, its 48 contacts bound the steps to about 3 a sample). A call ends at an event (then
+    Python handles it and the next call goes on), at the end of the frames it was asked for, or when
+    its step records are full (``STEP_RECORDS`` records: at least a quarter of them in samples); per
+    sample it took 107 calls to 0.1 s."""
+    from viz3d.simulate import STEP_RECORDS
+
+    handled = []
+    sim, traj, calls = _run("coin_drop", 0.1, True, monkeypatch=monkeypatch, handled=handled)
+    assert traj.ok and handled and sim.n_samples == 1000
+    bound = 2 * len(handled) + len(traj.t) + sim.n_steps // (STEP_RECORDS // 4)
+    assert calls <= bound, (calls, bound)
+
+
 def test_events_inside_output_frames(monkeypatch):
     """Five samples per output frame: a call that stops at an event inside a frame keeps the frames
     before it only, and the Python loop takes the rest of that frame (the kernel's work on it is
