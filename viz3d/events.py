@@ -650,13 +650,14 @@ class ContactStepping:
             T += flexible_kinetics(fb, smp, sl)
             strain += 0.5 * np.einsum("ni,ij,nj->n", smp.eta[:, sl], fb.bar.K, smp.eta[:, sl])
         U = np.zeros((ts.shape[0], data.n_contacts))
-        for r in np.flatnonzero((smp.gap[:, :, 0] > 0.0).any(axis=1) | any(p.touching for ph in memory for p in ph)):
-            memory_r = memory if mems is None else with_anchors(memory, mems[r], self._k0)
-            pose = Pose(smp.r[r], smp.R[r])
-            for k, (c, x) in enumerate(zip(s.contacts, data.contact_slices)):
-                g = smp.gap[r, x]
-                U[r, x] = c.elastic_energy(None, memory_r[k], Gap(g[:, 0], g[:, 1], g[:, 2:5], g[:, 5:8], g[:, 8:11]),
-                                           pose)
+        rs = np.flatnonzero((smp.gap[:, :, 0] > 0.0).any(axis=1) | any(p.touching for ph in memory for p in ph))
+        if rs.size:
+            pose = Pose(smp.r[rs], smp.R[rs])
+            for c, x, phases in zip(s.contacts, data.contact_slices, memory):
+                g = smp.gap[rs, x]
+                anchors = None if mems is None else anchor_rows(c.anchor_table(phases), mems[rs, x])
+                U[rs, x] = c.elastic_energy(None, phases, Gap(g[..., 0], g[..., 1], g[..., 2:5], g[..., 5:8], g[..., 8:11]),
+                                            pose, anchors)
         W = Y[:, s.n_q + s.n_v:] if Y.shape[1] > s.n_q + s.n_v else np.zeros((ts.shape[0], U.shape[1] + 2))
         losses = np.full(ts.shape[0], memory_loss(memory))
         return ledger_of(T, smp.V[:, 0] + smp.V[:, 1], smp.V[:, 0], strain, U, W, losses)
@@ -855,6 +856,13 @@ def with_anchors(memory: tuple, rows: FloatArray, k0) -> tuple:
                 new[i] = dataclasses.replace(p, anchor=tuple(float(x) for x in row[4:7]))
         out.append(tuple(new))
     return tuple(out)
+
+
+def anchor_rows(anchors: FloatArray, rows: FloatArray) -> FloatArray:
+    """A contact set's stick anchors ``anchors`` (k, 3; ``ContactSet.anchor_table``, NaN: none) with
+    those of its memory rows ``rows`` (N, k, 7) where it has one (``with_anchors``' rule): (N, k, 3)."""
+    moved = (rows[..., 3:4] == 1.0) & ~np.isnan(anchors)
+    return np.where(moved, rows[..., 4:7], anchors)
 
 
 def _energy_exceeded(o: Onset, led: Ledger, balance, energy_error):

@@ -208,7 +208,7 @@ def test_law_contact_with_friction_in_the_compiled_driver(monkeypatch):
 
 def test_stateful_friction_steps_in_the_compiled_driver(monkeypatch, tmp_path):
     """Bristle friction moves its stick anchors after each step (``ContactStepping._replant``; in the
-    driver the law contacts' ``after_step_piece``), which changes the force: the driver moves them as
+    driver the law contacts' ``replant_piece``), which changes the force: the driver moves them as
     the Python loop does, drops the field it would carry over when one moved, and records them for
     the books; the same steps, evaluations, anchors and states to round-off."""
     text = (SCENES / "rolling_ball.toml").read_text()
@@ -225,6 +225,51 @@ def test_stateful_friction_steps_in_the_compiled_driver(monkeypatch, tmp_path):
     assert sum(moved) > 10, "the anchors must move on the Python loop's steps for the comparison to mean something"
     assert a[0]._inner.memory[0][0].anchor is not None and not python_steps  # in contact throughout: all in the driver
     _assert_same_run(a, b, SAMPLE_ROUNDOFF)
+
+
+def test_contact_energies_of_a_calls_steps_are_each_steps(monkeypatch):
+    """The ledgers of a driver call's recorded steps take the contacts' elastic energies of all the
+    steps at once (``ContactSet.elastic_energy`` over a leading axis of states, each with its own
+    stick anchors): on coin_drop's landing (48 contacts, Hertz with bristles whose anchors move)
+    each step's equals the one-state call with that step's anchors in its phases, to the round-off
+    of the energies (a power may round apart in numpy's array and scalar loops, by an ulp)."""
+    from viz3d.contact.contacts import ContactSet, Gap
+    from viz3d.events import anchor_rows, with_anchors
+    from viz3d.kinematics import Pose
+
+    energy, seen = ContactSet.elastic_energy, {"rows": 0, "moved": 0, "bristle": 0}
+
+    def checked(self, cfg, phases, gp=None, pose=None, anchors=None):
+        U = energy(self, cfg, phases, gp, pose, anchors)
+        if gp is None or gp.alpha.ndim == 1:
+            return U
+        own = self.anchor_table(phases)
+        for r in range(gp.alpha.shape[0]):
+            phases_r = phases if anchors is None else tuple(
+                p if p.anchor is None else dataclasses.replace(p, anchor=tuple(float(x) for x in anchors[r, i]))
+                for i, p in enumerate(phases))
+            gap_r = Gap(*(getattr(gp, f.name)[r] for f in dataclasses.fields(Gap)))
+            one = energy(self, None, phases_r, gap_r, Pose(pose.W_r[r], pose.R_WB[r]))
+            assert np.all(np.abs(U[r] - one) <= 4 * np.finfo(float).eps * np.abs(one)), (r, U[r] - one)
+            seen["rows"] += 1
+            seen["moved"] += anchors is not None and not np.array_equal(anchors[r], own, equal_nan=True)
+            seen["bristle"] += any(p.anchor is not None and p.touching for p in phases) and bool(np.any(one > 0.0))
+        return U
+
+    ledgers = ContactStepping.ledgers
+
+    def anchored(self, ts, Y, charts, memory, mems=None):  # each step's anchors: its memory's (``with_anchors``)
+        for r in range(0 if mems is None else ts.shape[0]):
+            memory_r = with_anchors(memory, mems[r], self._k0)
+            for c, x, phases, phases_r in zip(self.system.contacts, self.kernel.data.contact_slices, memory, memory_r):
+                np.testing.assert_array_equal(anchor_rows(c.anchor_table(phases), mems[r:r + 1, x])[0],
+                                              c.anchor_table(phases_r))
+        return ledgers(self, ts, Y, charts, memory, mems)
+
+    monkeypatch.setattr(ContactSet, "elastic_energy", checked)
+    monkeypatch.setattr(ContactStepping, "ledgers", anchored)
+    sim, traj, _ = _run("coin_drop", 0.12, True, monkeypatch=monkeypatch)
+    assert traj.ok and seen["rows"] > 100 and seen["moved"] > 10 and seen["bristle"] > 10, seen
 
 
 #: Fixed-step runs with contacts (no controller: ``viz3d.integrators.adaptive.FixedSteps`` in the

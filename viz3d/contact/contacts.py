@@ -333,17 +333,26 @@ class ContactSet:
              - B.velocities(cfg, rho_b) - cross(cfg.twist.W_omega[self.body[:, 1]], gp.d + to_point))
         return v - np.einsum("ki,ki->k", v, gp.n)[:, None] * gp.n
 
-    def deflection(self, pose: Pose, gp: Gap, phases: tuple[ContactPhase, ...]) -> FloatArray:
+    def deflection(self, pose: Pose, gp: Gap, phases: tuple[ContactPhase, ...],
+                   anchors: FloatArray | None = None) -> FloatArray:
         """Bristle deflection of the contacts with a stick anchor, world [m], shape (k, 3): the contact
         point minus the anchor (fixed in B), without its normal part; zero elsewhere. ``pose``: the
-        bodies' (``Configuration.pose``)."""
-        s = np.zeros((self.k, 3))
+        bodies' (``Configuration.pose``). Of N states at once for ``pose`` and ``gp`` with a leading
+        axis: shape (N, k, 3), their stick anchors ``anchors`` (N, k, 3) (default: ``anchor_table``)."""
+        A = self.anchor_table(phases) if anchors is None else anchors
+        has = ~np.isnan(A[..., :1])
+        b = self.body[:, 1]
+        d = gp.point - pose.W_r[..., b, :] - (pose.R_WB[..., b, :, :] @ np.where(has, A, 0.0)[..., None])[..., 0]
+        s = d - (gp.n[..., None, :] @ d[..., :, None])[..., 0] * gp.n
+        return np.where(has, s, 0.0)
+
+    def anchor_table(self, phases: tuple[ContactPhase, ...]) -> FloatArray:
+        """The stick anchors of ``phases`` (B's axes [m]), shape (k, 3), NaN where a contact has none."""
+        A = np.full((self.k, 3), np.nan)
         for i, phase in enumerate(phases):
             if phase.anchor is not None:
-                b = self.body[i, 1]
-                d = gp.point[i] - pose.W_r[b] - pose.R_WB[b] @ np.asarray(phase.anchor)
-                s[i] = d - (gp.n[i] @ d) * gp.n[i]
-        return s
+                A[i] = phase.anchor
+        return A
 
     def anchor_at(self, cfg: Configuration, gp: Gap, i: int, s: FloatArray) -> tuple:
         """The anchor (B's axes, ``ContactPhase.anchor``) that gives contact ``i`` the deflection ``s`` (3,)."""
@@ -392,20 +401,23 @@ class ContactSet:
         return P
 
     def elastic_energy(self, cfg: Configuration | None, phases: tuple[ContactPhase, ...], gp: Gap | None = None,
-                       pose: Pose | None = None) -> FloatArray:
+                       pose: Pose | None = None, anchors: FloatArray | None = None) -> FloatArray:
         """Recoverable energy stored in each acting law contact [J], shape (k,); ``gp``: ``gap(cfg)``
-        if the caller has it, ``pose``: ``cfg.pose`` (bristles' deflection; with both, ``cfg`` may be None)."""
+        if the caller has it, ``pose``: ``cfg.pose`` (bristles' deflection; with both, ``cfg`` may be None).
+        Of N states sharing ``phases`` at once for ``gp`` and ``pose`` with a leading axis (N,): shape
+        (N, k), their stick anchors ``anchors`` (N, k, 3) (``deflection``)."""
         gp = self.gap(cfg) if gp is None else gp
-        on = self.active(phases, gp)
-        U = np.zeros(self.k)
-        for i in np.flatnonzero(on & (gp.alpha > 0.0)):
+        on = self.active(phases, gp) & (gp.alpha > 0.0)
+        U = np.zeros(gp.alpha.shape)
+        acting = np.flatnonzero(on.reshape(-1, self.k).any(axis=0))
+        for i in acting:
             memory = phases[i].memory if self.located else None
-            U[i] = float(self.laws[i].elastic_energy(gp.alpha[i], memory))
+            U[..., i] = np.where(on[..., i], self.laws[i].elastic_energy(gp.alpha[..., i], memory), 0.0)
         if any(f is not None and f.stateful for f in self.friction):
-            s = self.deflection(cfg.pose if pose is None else pose, gp, phases)
-            for i in np.flatnonzero(on & (gp.alpha > 0.0)):
+            s = self.deflection(cfg.pose if pose is None else pose, gp, phases, anchors)
+            for i in acting:
                 if self.friction[i] is not None and self.friction[i].stateful:
-                    U[i] += self.friction[i].energy(s[i])
+                    U[..., i] += np.where(on[..., i], self.friction[i].energy(s[..., i, :]), 0.0)
         return U
 
     def contacts(self, cfg: Configuration, phases: tuple[ContactPhase, ...]) -> tuple[FloatArray, FloatArray]:

@@ -148,8 +148,9 @@ class Bristle(FrictionLaw):
         return s * (self.alpha * limit / (self.stiffness * size))
 
     def energy(self, s):
-        """Elastic energy of the bristles ``k |s|^2 / 2`` [J]."""
-        return 0.5 * self.stiffness * float(np.dot(s, s))
+        """Elastic energy of the bristles ``k |s|^2 / 2`` [J] at deflections ``s`` (..., 3): shape (...)."""
+        s = np.asarray(s, dtype=float)
+        return 0.5 * self.stiffness * (s[..., None, :] @ s[..., :, None])[..., 0, 0]
 
     def params(self):
         return [self.code, self.mu, self.mu_static, 1.0, self.stick_speed, self.viscous, self.stiffness, self.damping,
