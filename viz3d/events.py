@@ -412,20 +412,20 @@ class ContactStepping:
         mobility = self.response(state, k, i)[1]
         return 1.0 / mobility if mobility > 0.0 else np.inf
 
-    def rigid_velocity(self, state: State, k: int) -> FloatArray:
+    def rigid_velocity(self, state: State, k: int, i: int | None = None) -> FloatArray | float:
         """Relative normal velocity of each contact's bodies' rigid motion at the contact point (k,)
-        [m/s], positive approaching: of each body, the rigid motion with its momentum (linear and
-        angular, about its centre of mass), so elastic vibration does not count; a flexible body on a
-        fixed frame has none."""
+        [m/s], positive approaching, or of contact ``i`` alone (a float): of each body, the rigid
+        motion with its momentum (linear and angular, about its centre of mass), so elastic vibration
+        does not count; a flexible body on a fixed frame has none."""
         cfg = body_state(self.system, state.q, state.v, state.chart, state.t)
         c = self.system.contacts[k]
         gp = c.gap(cfg)
         out = np.empty(c.k)
-        for i in range(c.k):
-            va = rigid_point_velocity(self.system, cfg, int(c.body[i, 0]), gp.point[i])
-            vb = rigid_point_velocity(self.system, cfg, int(c.body[i, 1]), gp.point[i])
-            out[i] = -float(gp.n[i] @ (va - vb))
-        return out
+        for j in range(c.k) if i is None else (i,):
+            va = rigid_point_velocity(self.system, cfg, int(c.body[j, 0]), gp.point[j])
+            vb = rigid_point_velocity(self.system, cfg, int(c.body[j, 1]), gp.point[j])
+            out[j] = -float(gp.n[j] @ (va - vb))
+        return out if i is None else float(out[i])
 
     # ------------------------------------------------------------------ handlers
 
@@ -456,7 +456,7 @@ class ContactStepping:
         gp = self._gap(state, k)
         approach = float(gp.alpha_dot[i])
         self.log.append((state.t, f"{c.names[i]}: contact start (approach speed {approach:.4g} m/s)"))
-        record = ContactRecord(c.names[i], state.t, approach, rigid_start=float(self.rigid_velocity(state, k)[i]))
+        record = ContactRecord(c.names[i], state.t, approach, rigid_start=self.rigid_velocity(state, k, i))
         self.records.append(record)
         self._open[(k, i)] = record
         phase = state.memory[k][i]
@@ -543,7 +543,7 @@ class ContactStepping:
         if record is not None:
             record.t_end = state.t
             record.separation = -float(self._gap(state, k).alpha_dot[i])
-            record.rigid_end = float(self.rigid_velocity(state, k)[i])
+            record.rigid_end = self.rigid_velocity(state, k, i)
         return state
 
     # ------------------------------------------------------------------ checks
