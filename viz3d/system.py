@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,8 +257,9 @@ class States:
     chart : ndarray, shape (N, nf, 3, 3)
     n_q, n_v : int
         Where ``q`` and ``v`` end in a row of ``Y``.
-    memory, element_memory : tuple, length N
-        Each state's ``State.memory`` and ``State.element_memory``.
+    memory, element_memory : sequence, length N
+        Each state's ``State.memory`` and ``State.element_memory`` (a tuple, or a sequence that builds
+        each when indexed: ``viz3d.simulate._SampleMemories``).
     samples : viz3d.kernel.Samples, optional
         Their output samples when the kernel took them with the states (``KernelStepper.frames``).
     """
@@ -267,8 +269,8 @@ class States:
     chart: FloatArray
     n_q: int
     n_v: int
-    memory: tuple
-    element_memory: tuple
+    memory: Sequence
+    element_memory: Sequence
     samples: object = None
 
     @classmethod
