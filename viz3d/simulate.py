@@ -65,6 +65,8 @@ ADAPTIVE_MAX_TURN = 0.5
 #: Steps the compiled adaptive driver records in one call during a law contact (doubled whenever a
 #: frame needs more): their contact bookkeeping runs in Python after the call.
 STEP_RECORDS = 256
+#: Most state entries (samples x coordinates) a driver call with contacts returns (``output_states``).
+SAMPLES_PER_CALL = 1 << 21
 
 
 class Simulation:
@@ -342,10 +344,16 @@ class Simulation:
         states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
         the states before the failing frame are returned (``state`` is the last); ``steps(every)``
         then takes that frame and raises its diagnosis. Adaptive runs: ``_kernel_samples`` (no
-        states while Python takes the steps, e.g. at a contact event)."""
+        states while Python takes the steps, e.g. at a contact event); with contacts, the samples
+        one a frame of the driver's call, every ``every``-th returned: a call cut at an event keeps
+        the samples before it, so the run may stand inside a frame after it (``n_samples``)."""
         from viz3d.kernel import OK
 
-        if self.controller is not None or self._contacts is not None:  # (the driver's, fixed steps with contacts too)
+        if self._contacts is not None:  # (the driver's, fixed steps with contacts too)
+            room = max(1, SAMPLES_PER_CALL // (every * self.state.y.shape[0]))
+            states = self._kernel_samples(min(n_frames, room) * every, 1) or []
+            return (states if every == 1 else states[every - 1::every]) if states else []
+        if self.controller is not None:
             return self._kernel_samples(n_frames, every) or []
         if self._own_kernel_ready():
             return self._own_frames(n_frames, every)
@@ -1032,13 +1040,13 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             else:
                 log.chunk = chunk_length(sim.system, fine)
             log.record(sim.state)
-            n = 0
+            n, n0 = 0, sim.n_samples
             while n < n_steps:  # to the next instant in one call, or as many instants as fit the chunk
                 if sim.batches_frames and n % fine == 0 and n_steps - n >= fine:
                     want = min((n_steps - n) // fine, log.room)
                     states = sim.output_states(want, fine)
                     ns = n + fine * np.arange(1, len(states) + 1)
-                    n += fine * len(states)
+                    n = sim.n_samples - n0  # (with contacts, maybe inside the next instant's interval: the samples of a call cut at an event)
                     log.record_all(States.of(states), (ns % every == 0) | (ns == n_steps))  # (may compute and check the chunk)
                     if bar is not None:
                         bar.update(n)
