@@ -610,8 +610,9 @@ class Simulation:
         cannot locate: the Python path then redoes that step from the same state and raises the
         diagnosis or locates the event), when its step records were full, or before a recorded step
         whose contact check fails (the Python path redoes that step and raises the diagnosis). Fixed
-        steps during law contacts: no more frames than their steps' records hold (a call stopped
-        by full records is redone for the frames before)."""
+        steps during law contacts: no more frames than their steps' records hold. With contacts the
+        callers ask for one sample a frame (``steps``, ``output_states``): a frame of several samples
+        that such a stop cuts is redone for the frames before it."""
         from viz3d.kernel import EVENT, FULL, OK
         from viz3d.kernel.adaptive import CUT, EVALS, REJECTED, STEPS, T
 
