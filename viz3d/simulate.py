@@ -267,18 +267,17 @@ class Simulation:
         """``n`` calls of ``step`` (the same states, diagnoses and counters); fixed explicit RK
         steps and the steps of a formulation that steps itself through the compiled kernel go in
         one call, free of per-step Python overhead, and the compiled adaptive driver takes the
-        samples left in calls of one sample a frame (one call up to the next event, whose handler
-        ``step`` takes; a call of one frame of the ``n`` samples would keep nothing of a frame cut
-        at an event)."""
+        samples left as ``output_states`` asks for one frame of them (with contacts, one call up to
+        the next event, whose handler ``step`` takes, keeping the samples before it)."""
         goal = self.n_samples + n
         if n > 1 and self._kernel_ready():
             self._kernel_steps(n)
         elif n > 1 and self._own_kernel_ready():
             self._own_frames(1, n)
         while self.n_samples < goal:
-            if (goal - self.n_samples > 1 and self._adaptive_kernel_covers()
-                    and self._kernel_samples(goal - self.n_samples, 1)):
-                continue  # (each sample a frame: a call cut at an event keeps the samples before it)
+            left = goal - self.n_samples
+            if left > 1 and self._adaptive_kernel_covers() and (self.output_states(1, left) or self.n_samples == goal):
+                continue
             self.step()
         return self.state
 
