@@ -114,15 +114,14 @@ def entry(fn):
 
 def _njit(fn, options: dict):
     """``numba.njit(**options)(fn)``, cached on disk by a ``LoadingCache`` (``options["cache"]``);
-    an entry (callable from Python) compiles each signature under a lock (``_lock_compiles``)."""
+    every signature compiles under a lock (``_lock_compiles``)."""
     dispatcher = numba.njit(**dict(options, cache=False))(fn)
     if options.get("cache") and hasattr(dispatcher, "enable_caching"):  # not with NUMBA_DISABLE_JIT
         if LoadingCache is None:  # pragma: no cover - another numba
             dispatcher.enable_caching()
         else:
             dispatcher._cache = LoadingCache(dispatcher.py_func)  # what enable_caching does, our class
-        if not options.get("no_cpython_wrapper"):
-            _lock_compiles(dispatcher)
+        _lock_compiles(dispatcher)
     return dispatcher
 
 
@@ -133,9 +132,14 @@ def _lock_compiles(dispatcher) -> None:
     compile the kernel, minutes of CPU apiece; with the lock one compiles a signature and saves it,
     and the others, waiting, then load it from the cache (numba's ``compile`` looks there first).
     The lock is taken inside numba's compiler lock (re-entrant), so the order of the two is the same
-    in every thread; entries compiled inside another's compilation take their own lock. Where no
-    lock file can be made (no ``fcntl``, a cache directory that cannot be written) compiling goes on
-    unlocked, as numba's own does."""
+    in every thread. Functions compiled inside another's compilation (its callees) take their own
+    lock too, so two workers compiling different entries share the callees both need (the rigid
+    kernel's ``project`` and ``fill_rows``, 27 s of CPU, were compiled by both of the suite's
+    workers): a process holds the locks of a chain of callers and callees, taken callers first, and
+    as no compiled function calls back into its callers no two processes can wait on each other (a
+    process re-entering a lock it holds, a function compiled within its own compilation, passes).
+    Where no lock file can be made (no ``fcntl``, a cache directory that cannot be written)
+    compiling goes on unlocked, as numba's own does."""
     compile_ = dispatcher.compile
 
     def compile(sig):
@@ -162,13 +166,17 @@ def _lock_path(dispatcher, args) -> Path | None:
     return directory / f"{dispatcher.py_func.__qualname__}-{key}.lock"
 
 
+#: The lock files this process holds (``_file_lock``).
+_HELD: set[Path] = set()
+
+
 @contextlib.contextmanager
 def _file_lock(path: Path | None):
-    """An exclusive ``flock`` on ``path`` while the block runs (nothing when ``path`` is None, or the
-    platform has no ``fcntl``)."""
+    """An exclusive ``flock`` on ``path`` while the block runs (nothing when ``path`` is None, the
+    platform has no ``fcntl``, or this process holds it already)."""
     try:
         import fcntl
-        handle = None if path is None else open(path, "a")
+        handle = None if path is None or path in _HELD else open(path, "a")
     except (ImportError, OSError):  # pragma: no cover - Windows, a read-only cache
         handle = None
     if handle is None:
@@ -176,9 +184,11 @@ def _file_lock(path: Path | None):
         return
     with handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
+        _HELD.add(path)
         try:
             yield
         finally:
+            _HELD.discard(path)
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
@@ -536,10 +546,70 @@ def _loading_cache():
     return LoadingCache
 
 
+#: What numba's inliner copies a callee's blocks with (``InlineWorker.inline_ir``'s ``copy_ir``), and
+#: what ``_one_copy_of_the_blocks`` makes it: one deep copy of all the blocks.
+_BLOCKWISE_COPY = """        for block_label, block in the_ir.blocks.items():
+            new_block = copy.deepcopy(the_ir.blocks[block_label])
+            kernel_copy.blocks[block_label] = new_block
+"""
+_ONE_COPY = """        kernel_copy.blocks = copy.deepcopy(the_ir.blocks)
+"""
+
+
+def _one_copy_of_the_blocks() -> bool:
+    """Make numba's inliner copy an inlined callee's blocks in one deep copy (True), not one deep copy
+    per block; False (numba left as it is) where its source is not the one this was written for.
+
+    Every block of a function's IR refers to the function's one scope, which holds all its variables,
+    so a deep copy per block copies the whole scope again for each block: blocks x variables, and the
+    kernel's stages, inlined into each other (``inline``), have hundreds of both (numba issues 8989,
+    9204). One copy of the blocks with a shared memo copies the scope once, shared by the copied
+    blocks as by the original ones; the inliner then renames the callee's variables in that scope as
+    before. The compiled code is the same (the kernel's runs are bit-identical), its compilation
+    cheaper: the rigid kernel's entry 86 -> 79 s of CPU cold (2026-11-28)."""
+    import inspect
+    import textwrap
+
+    from numba.core import inline_closurecall
+
+    worker = inline_closurecall.InlineWorker
+    try:
+        source = textwrap.dedent(inspect.getsource(worker.inline_ir))
+    except (OSError, TypeError):  # pragma: no cover - no source to read
+        return False
+    if source.count(_BLOCKWISE_COPY) != 1:
+        return False  # pragma: no cover - another numba
+    namespace: dict = {}
+    exec(compile(source.replace(_BLOCKWISE_COPY, _ONE_COPY), inline_closurecall.__file__, "exec"),
+         inline_closurecall.__dict__, namespace)
+    worker.inline_ir = namespace["inline_ir"]
+    return True
+
+
+def _before_the_first_compilation(change) -> None:
+    """Run ``change()`` once, as numba starts its first compilation in this process (not at import:
+    a run that loads its kernel from the cache never compiles)."""
+    from numba.core import event
+
+    class Once(event.Listener):  # (it stays registered: removing it while numba notifies its listeners
+        done = False                # would skip the next one)
+
+        def on_start(self, ev):
+            if not self.done:
+                self.done = True
+                change()
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", Once())
+
+
 LoadingCache = None
 if numba is not None:
     _install_stamp_locators()
     LoadingCache = _loading_cache()
+    _before_the_first_compilation(_one_copy_of_the_blocks)
 
 
 # ---------------------------------------------------------------------------- small 3-vector helpers

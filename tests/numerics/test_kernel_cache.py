@@ -133,3 +133,61 @@ def test_processes_starting_together_compile_an_entry_once(tmp_path):
     outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
     assert all(p.returncode == 0 for p in procs)
     assert outs == [["0", "1"], ["1", "0"]], "one process compiles (a miss), the other loads (a hit)"
+
+
+#: Two entries that call one compiled function (as the rigid kernel's entries call ``project``).
+SHARING = """
+from viz3d.compiled import entry, jit
+
+
+@jit
+def shared(x):
+    s = 0.0
+    for k in range(3):
+        s += x ** k
+    return s
+
+
+@entry
+def one(a):
+    return shared(a[0])
+
+
+@entry
+def other(a):
+    return shared(a[1]) + 1.0
+"""
+#: Waits until the file ``go`` exists (after writing ``ready``), then calls entry ``name``; prints
+#: ``shared``'s cache hits and misses.
+SHARE = """
+import os, sys, time
+sys.path.insert(0, {folder!r})
+import numpy as np
+import sharing
+open({ready!r}, "w").close()
+while not os.path.exists({go!r}):
+    time.sleep(0.001)
+getattr(sharing, {name!r})(np.arange(2.0))
+print(sum(sharing.shared.stats.cache_hits.values()), sum(sharing.shared.stats.cache_misses.values()))
+"""
+
+
+def test_processes_compiling_different_entries_compile_their_shared_callee_once(tmp_path):
+    """Two processes compiling two entries at once on a cold cache (the suite's two workers warming up
+    the rigid and the contact kernel) compile a function both entries call once: the callee too is
+    compiled under its signature's lock, and the process that waited for it loads it from the cache
+    (``viz3d.compiled._lock_compiles``). Unlocked, both miss the cache and compile it."""
+    (tmp_path / "sharing.py").write_text(SHARING, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    go = tmp_path / "go"
+    ready = [tmp_path / f"ready{k}" for k in range(2)]
+    procs = [subprocess.Popen([sys.executable, "-c", SHARE.format(folder=str(tmp_path), ready=str(r), go=str(go),
+                                                                  name=name)],
+                              env=env, stdout=subprocess.PIPE, text=True) for r, name in zip(ready, ("one", "other"))]
+    deadline = time.monotonic() + 120.0
+    while not all(r.exists() for r in ready) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    go.touch()
+    outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
+    assert all(p.returncode == 0 for p in procs)
+    assert outs == [["0", "1"], ["1", "0"]], "one process compiles the callee (a miss), the other loads it (a hit)"
