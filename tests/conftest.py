@@ -38,7 +38,12 @@ def scene_files(kind: str = "multibody") -> list[Path]:
 #: A worker that needs a signature the other is compiling waits on its lock
 #: (``viz3d.compiled._lock_compiles``), its core idle, and then loads it from the cache; compiled
 #: here, they are ready before either worker's first test (measured 2026-11-27: a test that met
-#: the adaptive driver being compiled waited 35 s). On a warm cache this is a short run of each scene.
+#: the adaptive driver being compiled waited 35 s). The callees both kernels call (the projection,
+#: the constraint rows) are compiled once too, by the first worker to need them: measured at
+#: af6b510, both warm-ups at once on a cold cache, gw0 158 s of CPU in 160 s, gw1 165 s in 201 s
+#: (it waited 35 s for them) against 168 and 206 s of CPU before, when each compiled its own; gw1
+#: warming up the compiled ALI3-P first instead left gw0 waiting 80 s for the rigid entry the
+#: ALI3-P run compiles too. On a warm cache this is a short run of each scene.
 WARM_UP = {
     "gw0": (("torque_free.toml", 0.01, ()), ("flexible_pendulum.toml", 0.01, ())),
     "gw1": (("anchor_hoist.toml", 0.05, ()), ("chain.toml", 0.01, ("sim.formulation=ali3p", "sim.integrator=trapezoidal"))),
