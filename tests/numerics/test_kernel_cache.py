@@ -191,3 +191,65 @@ def test_processes_compiling_different_entries_compile_their_shared_callee_once(
     outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
     assert all(p.returncode == 0 for p in procs)
     assert outs == [["0", "1"], ["1", "0"]], "one process compiles the callee (a miss), the other loads it (a hit)"
+
+
+#: Functions inlined into each other (as the kernel's stages are, ``viz3d.compiled.inline``), with
+#: branches and loops (many blocks in one scope).
+NESTED = """
+from viz3d.compiled import entry, inline
+
+
+@inline
+def clipped(x, lo, hi):
+    if x < lo:
+        return lo
+    if x > hi:
+        return hi
+    return x
+
+
+@inline
+def ramp_sum(a, lo, hi):
+    s = 0.0
+    for k in range(a.shape[0]):
+        if k % 2 == 0:
+            s += clipped(a[k], lo, hi)
+        else:
+            s -= clipped(-a[k], lo, hi)
+    return s
+
+
+@entry
+def twice_ramp(a, b):
+    t = ramp_sum(a, -0.5, 0.5)
+    u = ramp_sum(b, -1.0, 2.0)
+    return t * 3.0 + u
+"""
+#: Compiles ``nested.twice_ramp``; prints the compiled and the Python results and whose
+#: ``inline_function`` numba's inliner ran.
+INLINED = """
+import sys
+sys.path.insert(0, {folder!r})
+import numpy as np
+import nested
+from numba.core.inline_closurecall import InlineWorker
+a, b = np.linspace(-2.0, 3.0, 11), np.linspace(2.5, -1.5, 7)
+compiled = nested.twice_ramp(a, b)
+nested.clipped, nested.ramp_sum = nested.clipped.py_func, nested.ramp_sum.py_func  # (not callable from Python)
+print(float(compiled).hex(), float(nested.twice_ramp.py_func(a, b)).hex(), InlineWorker.inline_function.__module__)
+"""
+
+
+def test_the_cheaper_inliner_compiles_nested_inlined_functions_to_the_same_results(tmp_path):
+    """numba's inliner, made to copy less once the process first compiles (``viz3d.compiled.
+    _cheaper_inlining``), inlines functions into each other as before: the compiled result equals the
+    Python one to the bit (the same operations in the same order), and on this numba the change is in
+    place (were numba's inliner another, it would be left as it is, and this says so)."""
+    (tmp_path / "nested.py").write_text(NESTED, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", INLINED.format(folder=str(tmp_path))], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    compiled_value, python_value, owner = out.stdout.split()
+    assert compiled_value == python_value
+    assert owner == "viz3d.compiled", "numba's inliner is not the one _cheaper_inlining was written for"
