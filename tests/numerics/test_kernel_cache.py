@@ -121,18 +121,26 @@ def test_processes_starting_together_compile_an_entry_once(tmp_path):
     from the cache (``viz3d.compiled._lock_compiles``). Unlocked, both miss the cache and compile (the
     calls start within milliseconds of each other; compiling takes a tenth of a second and more)."""
     (tmp_path / "linked.py").write_text(LINKED, encoding="utf-8")
+    outs = _started_together(tmp_path, [RACE, RACE], [{}, {}])
+    assert outs == [["0", "1"], ["1", "0"]], "one process compiles (a miss), the other loads (a hit)"
+
+
+def _started_together(tmp_path, scripts: list[str], fields: list[dict]) -> list[list[str]]:
+    """Run each script (formatted with ``folder``, its ``ready`` and the common ``go`` file, and its
+    ``fields``) in its own process on one cold cache in ``tmp_path``, released together once all
+    are ready; their outputs' words, sorted."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     go = tmp_path / "go"
-    ready = [tmp_path / f"ready{k}" for k in range(2)]
-    procs = [subprocess.Popen([sys.executable, "-c", RACE.format(folder=str(tmp_path), ready=str(r), go=str(go))],
-                              env=env, stdout=subprocess.PIPE, text=True) for r in ready]
+    ready = [tmp_path / f"ready{k}" for k in range(len(scripts))]
+    procs = [subprocess.Popen([sys.executable, "-c", script.format(folder=str(tmp_path), ready=str(r), go=str(go), **f)],
+                              env=env, stdout=subprocess.PIPE, text=True) for script, r, f in zip(scripts, ready, fields)]
     deadline = time.monotonic() + 120.0
     while not all(r.exists() for r in ready) and time.monotonic() < deadline:
         time.sleep(0.01)
     go.touch()
     outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
     assert all(p.returncode == 0 for p in procs)
-    assert outs == [["0", "1"], ["1", "0"]], "one process compiles (a miss), the other loads (a hit)"
+    return outs
 
 
 #: Two entries that call one compiled function (as the rigid kernel's entries call ``project``).
@@ -178,18 +186,7 @@ def test_processes_compiling_different_entries_compile_their_shared_callee_once(
     compiled under its signature's lock, and the process that waited for it loads it from the cache
     (``viz3d.compiled._lock_compiles``). Unlocked, both miss the cache and compile it."""
     (tmp_path / "sharing.py").write_text(SHARING, encoding="utf-8")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    go = tmp_path / "go"
-    ready = [tmp_path / f"ready{k}" for k in range(2)]
-    procs = [subprocess.Popen([sys.executable, "-c", SHARE.format(folder=str(tmp_path), ready=str(r), go=str(go),
-                                                                  name=name)],
-                              env=env, stdout=subprocess.PIPE, text=True) for r, name in zip(ready, ("one", "other"))]
-    deadline = time.monotonic() + 120.0
-    while not all(r.exists() for r in ready) and time.monotonic() < deadline:
-        time.sleep(0.01)
-    go.touch()
-    outs = sorted(p.communicate(timeout=300)[0].split() for p in procs)
-    assert all(p.returncode == 0 for p in procs)
+    outs = _started_together(tmp_path, [SHARE, SHARE], [{"name": "one"}, {"name": "other"}])
     assert outs == [["0", "1"], ["1", "0"]], "one process compiles the callee (a miss), the other loads it (a hit)"
 
 
