@@ -250,3 +250,53 @@ def test_the_cheaper_inliner_compiles_nested_inlined_functions_to_the_same_resul
     compiled_value, python_value, owner = out.stdout.split()
     assert compiled_value == python_value
     assert owner == "viz3d.compiled", "numba's inliner is not the one _cheaper_inlining was written for"
+
+
+#: A callee called with different constants (as ``viz3d.kernel.ali3p._branches`` with its modes), and
+#: one that cannot be typed without its constant (a tuple of two types indexed by it).
+CONSTANTS = """
+from viz3d.compiled import entry, jit
+
+
+@jit
+def scaled(x, mode):
+    if mode == 0:
+        return x
+    return x * mode
+
+
+@jit
+def pick(t, i):
+    return t[i]
+
+
+@entry
+def modes(x):
+    return scaled(x, 0) + scaled(x, 2) + scaled(x, 3) + pick((1, 2.5), 1)
+"""
+#: Compiles ``constants.modes``; prints how many signatures each callee compiled and both results.
+CONSTANTS_RUN = """
+import sys
+sys.path.insert(0, {folder!r})
+import constants
+compiled = constants.modes(1.25)
+n_scaled, n_pick = len(constants.scaled.signatures), len(constants.pick.signatures)
+constants.scaled, constants.pick = constants.scaled.py_func, constants.pick.py_func  # (not callable from Python)
+print(n_scaled, n_pick, float(compiled).hex(), float(constants.modes.py_func(1.25)).hex())
+"""
+
+
+def test_a_callee_compiles_once_for_every_constant_its_callers_pass(tmp_path):
+    """numba types a constant argument in compiled code as a literal and would compile the callee once
+    per constant; viz3d's functions compile once per argument type (``viz3d.compiled.
+    _one_signature_per_type``), and one that needs its constant (a tuple indexed by it) still compiles.
+    The results equal Python's."""
+    (tmp_path / "constants.py").write_text(CONSTANTS, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", CONSTANTS_RUN.format(folder=str(tmp_path))], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    n_scaled, n_pick, compiled_value, python_value = out.stdout.split()
+    assert n_scaled == "1", f"scaled compiled {n_scaled} times, once per constant"
+    assert n_pick == "1"
+    assert compiled_value == python_value

@@ -418,10 +418,10 @@ def evaluate(t, y, chart, m, v, w, forces, rows, ydot):
 
     The first stage of a step (``stages``), which is taken at ``(t, y)`` itself and reads neither the
     tableau nor the stage point: ``ydot`` as a (1, n) stage array and ``y`` stand in for them, with
-    the types a step passes, and ``first``, ``turns`` are typed as a step's variables (numba compiles
-    a call with literal arguments apart): one compiled field for both."""
+    the types a step passes: one compiled field for both (the constants compile as their types,
+    ``viz3d.compiled._one_signature_per_type``)."""
     k = ydot.reshape((1, ydot.shape[0]))
-    return stages(t, 0.0, y, chart, k, ydot, np.int64(0), np.bool_(False), m, v, w, forces, rows, k, y)
+    return stages(t, 0.0, y, chart, k, ydot, 0, False, m, v, w, forces, rows, k, y)
 
 
 @entry

@@ -44,11 +44,10 @@ def steps(n_steps, t0, h, y, chart, switches, ta, tb, tc, group, max_speed, m, v
     their memory at each step's end (``renew``) after all that."""
     n = y.shape[0]
     s = tb.shape[0]
-    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
+    turns = group == 1 and m.n_rot == 4
     n_turned = 7 * m.frame_body.shape[0] if turns else 0  # (q's frame coordinates: 3 + 4 per frame)
     for n_done in range(n_steps):
-        # (np.int64(0), not a literal 0: numba would compile stages apart for it)
-        status = stages(t0 + n_done * h, h, y, chart, ta, tc, np.int64(0), turns, m, v, w, forces, rows, k, yi)
+        status = stages(t0 + n_done * h, h, y, chart, ta, tc, 0, turns, m, v, w, forces, rows, k, yi)
         if status != OK:
             return n_done, status
         for f in range(n_turned // 7):
@@ -217,12 +216,12 @@ def step(t, h, y, chart, f0, use_f0, ta, tb, te, tc, group, m, v, w, forces, row
     ``k`` holds the stages' rates ``p_dot`` again at the end (``_stage_rates``). Returns the status of
     the first failed evaluation (``OK`` when none)."""
     n = y.shape[0]
-    turns = np.bool_(group == 1 and m.n_rot == 4)  # (not a literal where group is one: one compiled stages)
+    turns = group == 1 and m.n_rot == 4
     n_turned = 7 * m.frame_body.shape[0] if turns else 0
     if use_f0:
         for j in range(n):
             k[0, j] = f0[j]
-    status = stages(t, h, y, chart, ta, tc, np.int64(1 if use_f0 else 0), turns, m, v, w, forces, rows, k, yi)
+    status = stages(t, h, y, chart, ta, tc, 1 if use_f0 else 0, turns, m, v, w, forces, rows, k, yi)
     if status != OK:
         return status
     for f in range(n_turned // 7):
