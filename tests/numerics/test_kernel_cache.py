@@ -300,3 +300,61 @@ def test_a_callee_compiles_once_for_every_constant_its_callers_pass(tmp_path):
     assert n_scaled == "1", f"scaled compiled {n_scaled} times, once per constant"
     assert n_pick == "1"
     assert compiled_value == python_value
+
+
+#: An entry calling a callee that calls another (as the kernel's entries call its stages).
+LINKED_CALLEES = """
+from viz3d.compiled import entry, jit
+
+
+@jit
+def inner(x, k):
+    return x[k] * x[k] + 1.0
+
+
+@jit
+def middle(x):
+    s = 0.0
+    for k in range(x.shape[0]):
+        s += inner(x, k) / (k + 1.0)
+    return s
+
+
+@entry
+def outer(x):
+    return middle(x) - 2.0 * middle(x)
+"""
+#: Compiles ``callees.outer``; prints whether its optimized code still calls ``middle`` (not inlined
+#: into it), whose code library numba's linker ran, and the compiled and Python results.
+LINKED_RUN = """
+import sys
+sys.path.insert(0, {folder!r})
+import numpy as np
+import callees
+from numba.core.codegen import CPUCodeLibrary
+x = np.linspace(-1.0, 2.0, 9)
+compiled = callees.outer(x)
+(sig,) = callees.outer.signatures
+(middle,) = callees.middle.overloads.values()
+name = middle.fndesc.mangled_name
+ir = callees.outer.inspect_llvm(sig)
+calls = any(("call" in line and "@" + name in line) or ("call" in line and '@"' + name + '"' in line)
+            for line in ir.splitlines())
+callees.inner, callees.middle = callees.inner.py_func, callees.middle.py_func  # (not callable from Python)
+print(calls, CPUCodeLibrary.finalize.__module__, float(compiled).hex(), float(callees.outer.py_func(x)).hex())
+"""
+
+
+def test_callees_are_linked_into_their_caller_after_it_is_optimized(tmp_path):
+    """Each compiled callee is optimized once, in its own library, and linked into its caller after
+    the caller is optimized (``viz3d.compiled._link_optimized_callees``): the caller's optimized code
+    calls it instead of holding a copy optimized again. The results equal Python's."""
+    (tmp_path / "callees.py").write_text(LINKED_CALLEES, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", LINKED_RUN.format(folder=str(tmp_path))], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    calls, owner, compiled_value, python_value = out.stdout.split()
+    assert owner == "viz3d.compiled", "numba's code library is not the one _link_optimized_callees was written for"
+    assert calls == "True", "the caller's code holds its callee inlined: it was linked before optimizing"
+    assert compiled_value == python_value
