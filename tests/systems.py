@@ -266,6 +266,6 @@ def rod_on_a_stop(tmp_path, upper: float, stiffness: float, damping: float, t_en
 
 
 #: The anchor hoist (scenes/anchor_hoist.toml) on RK4 with Baumgarte's drift control at the step its links'
-#: Hertz contact on the rim allows (its default today), set explicitly by the tests of RK4's own behaviour
-#: there (its ledger against the step, the compiled RK4 against NumPy), whatever the scene's default.
+#: Hertz contact on the rim allows (its default until 2026-11-28; ALI3-P since), set explicitly by the tests
+#: of RK4's own behaviour there (its ledger against the step, the compiled RK4 against NumPy).
 HOIST_RK4 = ("sim.formulation=baumgarte", "sim.integrator=rk4", "sim.dt=5e-4")
