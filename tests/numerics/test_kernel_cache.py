@@ -237,17 +237,23 @@ print(float(compiled).hex(), float(nested.twice_ramp.py_func(a, b)).hex(), Inlin
 """
 
 
+def _printed(tmp_path, module: str, source: str, script: str) -> list[str]:
+    """The words ``script`` (formatted with ``folder``) prints, run in a fresh process with ``source``
+    as the module ``module`` in ``tmp_path`` and a cold numba cache there."""
+    (tmp_path / f"{module}.py").write_text(source, encoding="utf-8")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", script.format(folder=str(tmp_path))], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.split()
+
+
 def test_the_cheaper_inliner_compiles_nested_inlined_functions_to_the_same_results(tmp_path):
     """numba's inliner, made to copy less once the process first compiles (``viz3d.compiled.
     _cheaper_inlining``), inlines functions into each other as before: the compiled result equals the
     Python one to the bit (the same operations in the same order), and on this numba the change is in
     place (were numba's inliner another, it would be left as it is, and this says so)."""
-    (tmp_path / "nested.py").write_text(NESTED, encoding="utf-8")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    out = subprocess.run([sys.executable, "-c", INLINED.format(folder=str(tmp_path))], env=env, capture_output=True,
-                         text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    compiled_value, python_value, owner = out.stdout.split()
+    compiled_value, python_value, owner = _printed(tmp_path, "nested", NESTED, INLINED)
     assert compiled_value == python_value
     assert owner == "viz3d.compiled", "numba's inliner is not the one _cheaper_inlining was written for"
 
@@ -291,12 +297,7 @@ def test_a_callee_compiles_once_for_every_constant_its_callers_pass(tmp_path):
     per constant; viz3d's functions compile once per argument type (``viz3d.compiled.
     _one_signature_per_type``), and one that needs its constant (a tuple indexed by it) still compiles.
     The results equal Python's."""
-    (tmp_path / "constants.py").write_text(CONSTANTS, encoding="utf-8")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    out = subprocess.run([sys.executable, "-c", CONSTANTS_RUN.format(folder=str(tmp_path))], env=env,
-                         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    n_scaled, n_pick, compiled_value, python_value = out.stdout.split()
+    n_scaled, n_pick, compiled_value, python_value = _printed(tmp_path, "constants", CONSTANTS, CONSTANTS_RUN)
     assert n_scaled == "1", f"scaled compiled {n_scaled} times, once per constant"
     assert n_pick == "1"
     assert compiled_value == python_value
@@ -349,12 +350,7 @@ def test_callees_are_linked_into_their_caller_after_it_is_optimized(tmp_path):
     """Each compiled callee is optimized once, in its own library, and linked into its caller after
     the caller is optimized (``viz3d.compiled._link_optimized_callees``): the caller's optimized code
     calls it instead of holding a copy optimized again. The results equal Python's."""
-    (tmp_path / "callees.py").write_text(LINKED_CALLEES, encoding="utf-8")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    out = subprocess.run([sys.executable, "-c", LINKED_RUN.format(folder=str(tmp_path))], env=env,
-                         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    calls, owner, compiled_value, python_value = out.stdout.split()
+    calls, owner, compiled_value, python_value = _printed(tmp_path, "callees", LINKED_CALLEES, LINKED_RUN)
     assert owner == "viz3d.compiled", "numba's code library is not the one _link_optimized_callees was written for"
     assert calls == "True", "the caller's code holds its callee inlined: it was linked before optimizing"
     assert compiled_value == python_value
