@@ -672,7 +672,13 @@ def _link_optimized_callees() -> bool:
     from numba.core import codegen
 
     library = getattr(codegen, "CPUCodeLibrary", None)
-    if library is None or not all(hasattr(library, n) for n in ("finalize", "_optimize_final_module")):
+    try:
+        source = inspect.getsource(library.finalize)
+    except (AttributeError, OSError, TypeError):  # pragma: no cover - another numba
+        return False
+    steps = ("for library in self._linking_libraries:", "self._reload_init.update(library._reload_init)",
+             "library._get_module_for_linking(), preserve=True", "self._optimize_final_module()")
+    if not all(step in source for step in steps):  # (links them, then optimizes: what this reorders)
         return False  # pragma: no cover - another numba
     finalize_, optimize_ = library.finalize, library._optimize_final_module
 
