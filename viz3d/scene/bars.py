@@ -35,7 +35,7 @@ def material_section(bar: dict, src: str, where: str) -> tuple[Material, Section
             section = Section.circle(sec["diameter"], **k)
         else:
             section = Section(sec["area"], sec["second_moment"], sec["depth"], **k)
-    except ValueError as exc:  # e.g. a second moment that underflows to 0
+    except (ValueError, ArithmeticError) as exc:  # e.g. a second moment that underflows to 0, or overflows
         raise SceneError(src, f"{where}.section", f"a section with positive area and second moment (here: {exc})") from None
     return Material(m["E"], m["rho"], m["nu"]), section
 
@@ -132,7 +132,12 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
         raise SceneError(src, where, _uncomputable(bar, exc)) from None
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
-    return FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice, bar["coupling"] == "ked"), choice
+    fb = FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice, bar["coupling"] == "ked")
+    with np.errstate(all="ignore"):
+        finite = np.isfinite(fb.mass_matrix(R0, np.zeros(fb.n))).all() and np.isfinite(fb.M_ee_inv).all()
+    if not finite:  # sizes whose mass overflows floating point (a 1e102 m deep section)
+        raise SceneError(src, where, _uncomputable(bar, "its mass matrix is not finite"))
+    return fb, choice
 
 
 def modal_time_resolution(fb: FlexibleBody) -> float:
