@@ -132,9 +132,12 @@ def flexible_body(index: int, bar: dict, src: str, where: str) -> tuple[Flexible
         raise SceneError(src, where, _uncomputable(bar, exc)) from None
     axis, R0 = bar_frame(bar)
     W_r0 = np.asarray(bar["position"], float) + body.x_G * axis
-    fb = FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice, bar["coupling"] == "ked")
-    with np.errstate(all="ignore"):
-        finite = np.isfinite(fb.mass_matrix(R0, np.zeros(fb.n))).all() and np.isfinite(fb.M_ee_inv).all()
+    try:
+        with np.errstate(all="ignore"):
+            fb = FlexibleBody(index, body, bar["frame"] == "floating", W_r0, R0, choice, bar["coupling"] == "ked")
+            finite = np.isfinite(fb.mass_matrix(R0, np.zeros(fb.n))).all() and np.isfinite(fb.M_ee_inv).all()
+    except (ValueError, ArithmeticError) as exc:  # (LinAlgError is a ValueError: M_ee singular)
+        raise SceneError(src, where, _uncomputable(bar, exc)) from None
     if not finite:  # sizes whose mass overflows floating point (a 1e102 m deep section)
         raise SceneError(src, where, _uncomputable(bar, "its mass matrix is not finite"))
     return fb, choice
