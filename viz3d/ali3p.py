@@ -191,15 +191,19 @@ def _work_rates(system: System, state: State, acc) -> FloatArray:
     return aux_rates(system, acc.cfg, state.memory, state.element_memory, drive_power(acc.lam, acc.rows.C_t))
 
 
-def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory, halvings: int = 0
-               ) -> tuple[State, ALI3PMemory, Status]:
+def ali3p_step(system: System, formulation, state: State, h: float, memory: ALI3PMemory, halvings: int = 0,
+               failed: tuple[ALI3PMemory, Status] | None = None) -> tuple[State, ALI3PMemory, Status]:
     """Advance ``state`` by ``h`` [s]; return the new state, memory and a status.
 
     Tries with the kept force tangent first, then once with a fresh one, then as two steps of
     ``h / 2`` (down to ``h / 2^MAX_HALVINGS``: a contact that starts within the step, a snatch of a
-    chain); a failed step returns the old state and memory with the reason.
+    chain); a failed step returns the old state and memory with the reason. ``failed``: the memory and
+    status those first attempts already gave (a batched kernel call stopped there), not redone.
     """
-    state1, memory1, status = _one_step(system, formulation, state, h, memory)
+    if failed is None:
+        state1, memory1, status = _one_step(system, formulation, state, h, memory)
+    else:
+        state1, (memory1, status) = state, failed
     if status.ok or halvings >= MAX_HALVINGS:
         return state1, memory1, status
     mid, memory_mid, status = ali3p_step(system, formulation, state, h / 2, memory1, halvings + 1)

@@ -199,9 +199,11 @@ class ALI3P(Index1):
 
         return init_memory(system, self, state, KernelALI3P(system, kernel))
 
-    def step(self, system: System, state: State, h: float, memory: ALI3PMemory) -> tuple[State, ALI3PMemory, Status]:
-        """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``)."""
-        return ali3p_step(system, self, state, h, memory)
+    def step(self, system: System, state: State, h: float, memory: ALI3PMemory, failed=None
+             ) -> tuple[State, ALI3PMemory, Status]:
+        """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``; ``failed``: its first attempts' memory
+        and status when already known)."""
+        return ali3p_step(system, self, state, h, memory, failed=failed)
 
 
 def _per_body_twist(twist):

@@ -142,6 +142,7 @@ class Simulation:
         self._f = None          # vector field at the current (inner) state, when known
         self._solver = None     # the integrator's solver state
         self._memory = None     # the memory of a formulation that steps itself
+        self._stopped = None    # where its batched call stopped (viz3d.kernel.ali3p.Stopped), the state then
         self._inner = state     # adaptive: state at the last accepted step (may be ahead of .state)
         self._span = None       # adaptive: the last accepted step, for dense output
         self._h = None          # adaptive: next step to try [s]
@@ -341,8 +342,9 @@ class Simulation:
     def output_states(self, n_frames: int, every: int) -> States | list[State]:
         """Up to ``n_frames`` states ``every`` steps apart, through the kernel in one call: the same
         states, counters and chart switches as ``n_frames`` calls of ``steps(every)``. On a failure
-        the states before the failing frame are returned (``state`` is the last); ``steps(every)``
-        then takes that frame and raises its diagnosis. Adaptive runs: ``_kernel_samples`` (no
+        the states before the failing frame are returned (``state`` is the last, or, for a formulation
+        that steps itself, the one before the failing step, inside that frame: ``n_samples`` says);
+        ``steps`` then takes the rest of that frame and raises its diagnosis. Adaptive runs: ``_kernel_samples`` (no
         states while Python takes the steps, e.g. at a contact event); with contacts, the samples
         one a frame of the driver's call, every ``every``-th returned: a call cut at an event keeps
         the samples before it, so the run may stand inside a frame after it (``n_samples``)."""
@@ -419,24 +421,27 @@ class Simulation:
     def _own_frames(self, n_frames: int, every: int) -> list[State]:
         """Up to ``n_frames`` states ``every`` steps apart of a formulation that steps itself, in one
         kernel call (``viz3d.kernel.ali3p.KernelALI3P.frames``): the same states, memory and counters
-        as ``steps(every)`` ``n_frames`` times. On a failure the frames before the failing one are
-        kept (redone: the kernel is deterministic); ``step`` then takes that one for the diagnosis."""
-        kernel = self._own_memory().kernel
-        call = (self.system, self.formulation, self.state, self._memory)
-        states, memory, switches, done, ok = kernel.frames(*call, n_frames, every, self.n_samples, self.t0, self.dt,
-                                                           self.blowup_speed)
-        if not ok and done:
-            states, memory, switches, done, ok = kernel.frames(*call, done, every, self.n_samples, self.t0, self.dt,
-                                                               self.blowup_speed)
-        if not ok:
+        as ``steps(every)`` ``n_frames`` times. On a failure the states of the frames before it are
+        returned and the run stands before the failing step (``state``, maybe inside a frame); that
+        step's attempts are kept for ``step``, which goes on from them (halvings, or the diagnosis)
+        instead of redoing them, and no call is made while it stands there."""
+        if self._stopped is not None and self._stopped[1] is self.state:
             return []
+        kernel = self._own_memory().kernel
+        states, memory, switches, done, stopped = kernel.frames(self.system, self.formulation, self.state,
+                                                                self._memory, n_frames, every, self.n_samples,
+                                                                self.t0, self.dt, self.blowup_speed)
+        steps = done * every + (stopped.steps if stopped is not None else 0)
+        if steps:
+            self.state = states[-1] if stopped is None else stopped.state
+            self.n_samples += steps
+            self.n_steps += steps
+            self.chart_switches += switches
+            self._f = None
         self.n_rhs += memory.n_evals - self._memory.n_evals
         self._memory = memory
-        self.state = states[-1]
-        self.n_samples += done * every
-        self.n_steps += done * every
-        self.chart_switches += switches
-        self._f = None
+        if stopped is not None and stopped.failed is not None:
+            self._stopped = (stopped.failed, self.state)
         return states
 
     def _kernel_run(self, n: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -546,7 +551,9 @@ class Simulation:
     def _own_step(self, target: float) -> State:
         s = self.state
         self._own_memory()
-        new, memory, status = self.formulation.step(self.system, s, self.dt, self._memory)
+        failed = self._stopped[0] if self._stopped is not None and self._stopped[1] is s else None
+        self._stopped = None
+        new, memory, status = self.formulation.step(self.system, s, self.dt, self._memory, failed=failed)
         self.n_rhs += memory.n_evals - self._memory.n_evals
         if not status.ok:
             raise SimulationFailure(status.message)

@@ -75,6 +75,46 @@ def test_a_failing_compiled_step_stops_with_the_numpy_diagnosis():
     assert abs(compiled_rhs - numpy_rhs) <= max(2, 0.02 * numpy_rhs), (compiled_rhs, numpy_rhs)
 
 
+def test_a_batched_call_that_stops_at_a_failing_step_keeps_its_steps_and_never_redoes_the_step():
+    """The same chain: ``output_states`` asks for 5 steps in one call; the first converges and the second
+    fails. The run stands after the first (its state to the bit as the single steps' one), and ``steps``
+    goes on from the failed attempts: only their halvings are new calls (before: the batch was called a
+    second time and the first attempts made a third time, 0.4 s each at the anchor hoist's flukes'
+    stop). The diagnosis and evaluations are those of the single steps."""
+    from viz3d.ali3p import MAX_HALVINGS
+    from viz3d.kernel.ali3p import KernelALI3P
+
+    system, state, form, dt = _setup("chain", {"sim.ali3p_alpha": 1e6})
+    calls = []
+    call = KernelALI3P._call
+
+    def counted(self, *args):
+        calls.append(args[3])  # (n_frames)
+        return call(self, *args)
+
+    runs = {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(KernelALI3P, "_call", counted)
+        for batched in (True, False):
+            calls.clear()
+            sim = Simulation(system, state, make_integrator("trapezoidal"), form, dt)
+            if batched:
+                assert sim.output_states(1, 5) == []
+                assert (sim.n_samples, sim.n_steps, sim.state.t) == (1, 1, dt)
+                assert sim.output_states(1, 4) == [] and len(calls) == 1  # it stands at the failure: no call
+            else:
+                sim.step()
+            after_one = sim.state.y.copy()
+            with pytest.raises(SimulationFailure) as failure:
+                sim.steps(4)
+            runs[batched] = (after_one, str(failure.value), sim.n_steps, sim.n_rhs, list(calls))
+    (y_b, message_b, steps_b, rhs_b, calls_b), (y_s, message_s, steps_s, rhs_s, calls_s) = runs[True], runs[False]
+    np.testing.assert_array_equal(y_b, y_s)
+    assert message_b == message_s and (steps_b, rhs_b) == (steps_s, rhs_s) == (1, rhs_s)
+    assert len(calls_b) == 1 + MAX_HALVINGS, calls_b  # the batch (its failed step's attempts), then the halvings
+    assert len(calls_s) == 2 + MAX_HALVINGS, calls_s  # the first step, the failed one, the halvings
+
+
 @pytest.mark.parametrize("name, why", [("flexible_pendulum", "ALI3-P with flexible bodies"),
                                        ("stiff_contact", "ALI3-P with contacts")])
 def test_what_the_compiled_ali3p_does_not_cover_takes_the_numpy_path_and_says_why(name, why):

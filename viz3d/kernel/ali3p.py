@@ -838,11 +838,13 @@ def _band_order(A: np.ndarray, frame_of: np.ndarray, n_frames: int) -> np.ndarra
 
 
 class _Run(NamedTuple):
-    """What one ``ali3p_frames`` call left (``KernelALI3P._call``): the state ``y`` after its last step
-    done, the memory's parts (``a0``, ``lam``, ``w_dot0``, tangents ``Ks``, ``Ds`` and ``carry``), ``info``,
-    the chart switches per body, the frames' states ``Y``, ``charts``, frames done and the status."""
+    """What one ``ali3p_frames`` call left (``KernelALI3P._call``): the state ``y`` and ``chart`` after its
+    last step done, the memory's parts (``a0``, ``lam``, ``w_dot0``, tangents ``Ks``, ``Ds`` and ``carry``),
+    ``info``, the chart switches per body, the frames' states ``Y``, ``charts``, frames done, steps done in
+    the next frame and the status."""
 
     y: np.ndarray
+    chart: np.ndarray
     a0: np.ndarray
     lam: np.ndarray
     w_dot0: np.ndarray
@@ -854,7 +856,21 @@ class _Run(NamedTuple):
     Y: np.ndarray
     charts: np.ndarray
     done: int
+    partial: int
     status: int
+
+
+class Stopped(NamedTuple):
+    """Where a batched call (``KernelALI3P.frames``) stopped: the ``state`` and ``memory`` before the
+    step that failed, ``steps`` steps past the last whole frame; ``failed``: that step's attempts, the
+    memory after them (their evaluations, the fresh tangents they built) and their failed status, as
+    ``KernelALI3P.step`` returns them (None when the step converged and its end state was not healthy,
+    or its work rates failed: ``step`` then takes it for the diagnosis)."""
+
+    state: State
+    memory: object
+    steps: int
+    failed: tuple[object, Status] | None
 
 
 def _after(memory, run: _Run):
@@ -927,40 +943,48 @@ class KernelALI3P:
         if run.status != CONVERGED:
             if run.status == WORK_RATES:
                 raise np.linalg.LinAlgError(f"t = {state.t + h:.6g} s: constraint matrix is not positive definite")
-            fresh = 1 - int(run.carry[0])
-            K, D = (run.Ks[fresh], run.Ds[fresh]) if run.info[1] == 1.0 else (memory.K, memory.D)
-            step, C_max = float(run.info[2]), float(run.info[3])
-            reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX,
-                      CYCLED: cycled(state.t + h)}.get(run.status)
-            if run.status == NOT_SETTLED:
-                reason = not_settled(system, formulation, state, h, self.s.dx0, self.s.dx, step)
-            return state, replace(memory, K=K, D=D, n_evals=memory.n_evals + int(run.info[0])), failure(
-                state, h, reason or no_convergence(step, C_max))
+            return (state, *self._failed(system, formulation, state, h, memory, run))
         y = run.y
         new = State(state.t + h, y[:n_q], y[n_q:n_q + n_v], state.chart, element_memory=state.element_memory)
         if m.n_aux:
             new = new.replace(memory=state.memory, w=y[n_q + n_v:])
         return new, _after(memory, run), Status.OK
 
+    def _failed(self, system, formulation, state: State, h: float, memory, run: _Run) -> tuple[object, Status]:
+        """The memory after the failed attempts of ``run``'s last step, from ``state`` with ``memory``
+        (their evaluations, the fresh tangents they built), and its failed status."""
+        fresh = 1 - int(run.carry[0])
+        K, D = (run.Ks[fresh], run.Ds[fresh]) if run.info[1] == 1.0 else (memory.K, memory.D)
+        step, C_max = float(run.info[2]), float(run.info[3])
+        reason = {NONFINITE_POINT: NONFINITE_STATE, SINGULAR_LU: SINGULAR_MATRIX,
+                  CYCLED: cycled(state.t + h)}.get(run.status)
+        if run.status == NOT_SETTLED:
+            reason = not_settled(system, formulation, state, h, self.s.dx0, self.s.dx, step)
+        return replace(memory, K=K, D=D, n_evals=memory.n_evals + int(run.info[0])), failure(
+            state, h, reason or no_convergence(step, C_max))
+
     def frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
                h: float, max_speed: float):
         """``n_frames`` times ``every`` steps from ``state`` with ``memory`` in one compiled call
         (``ali3p_frames``), from step ``n0`` of a run started at ``t_start`` [s]: ``(states, memory,
-        switches, done, ok)``, the states after each frame done, the memory and chart switches per
-        body (n_bodies,) after the last; ``ok`` False when a step failed or its end state was not
-        healthy (that frame not done: ``viz3d.ali3p`` then takes it for the diagnosis). Inputs are copied.
-        With force elements that remember (stick anchors), one call per frame: each state carries its own."""
+        switches, done, stopped)``, the states after each frame done, the memory and chart switches per
+        body (n_bodies,) after the last step done, and ``None`` when every frame was done, else where
+        the run stopped (``Stopped``: the state before the step that failed, the steps done past the
+        last frame, the failed step's outcome, which ``viz3d.ali3p`` takes without redoing it). Inputs
+        are copied. With force elements that remember (stick anchors), one call per frame: each state
+        carries its own."""
         if not self.stepper.data.anchors:
             return self._frames(system, formulation, state, memory, n_frames, every, n0, t_start, h, max_speed)
         states, switches = [], np.zeros(system.n_bodies, np.int64)
         for f in range(n_frames):
-            got, memory, more, done, ok = self._frames(system, formulation, state, memory, 1, every, n0 + f * every,
-                                                       t_start, h, max_speed)
+            got, memory, more, done, stopped = self._frames(system, formulation, state, memory, 1, every,
+                                                            n0 + f * every, t_start, h, max_speed)
             switches += more
-            if not ok:
-                return states, memory, switches, f, False
-            states, state = states + got, got[-1]
-        return states, memory, switches, n_frames, True
+            states += got
+            if stopped is not None:
+                return states, memory, switches, f, stopped
+            state = got[-1]
+        return states, memory, switches, n_frames, None
 
     def _frames(self, system, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float,
                 h: float, max_speed: float):
@@ -972,7 +996,15 @@ class KernelALI3P:
         Y = run.Y
         states = [State(t_start + (n0 + (f + 1) * every) * h, Y[f, :n_q], Y[f, n_q:n_q + n_v], run.charts[f],
                         Y[f, n_q + n_v:], state.memory, elements) for f in range(run.done)]
-        return states, _after(memory, run), run.switches, run.done, run.status == CONVERGED
+        memory = _after(memory, run)
+        if run.status == CONVERGED:
+            return states, memory, run.switches, run.done, None
+        y, k = run.y, run.partial
+        at = State(t_start + (n0 + run.done * every + k) * h, y[:n_q], y[n_q:n_q + n_v], run.chart, y[n_q + n_v:],
+                   state.memory, elements)
+        failed = None if run.status in (UNHEALTHY, WORK_RATES) else self._failed(system, formulation, at, h, memory,
+                                                                                 run)
+        return states, memory, run.switches, run.done, Stopped(at, memory, k, failed)
 
     def _call(self, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float, h: float,
               max_speed: float, after: bool) -> "_Run":
@@ -991,12 +1023,12 @@ class KernelALI3P:
         switches = np.zeros(m.nb, np.int64)
         Y, charts = np.empty((n_frames, y.size)), np.empty((n_frames, *chart.shape))
         v, w = st.ws
-        done, _, status = st._call(
+        done, partial, status = st._call(
             ali3p_frames, n_frames, every, n0, t_start, h, y, chart, switches, float(max_speed), a0, lam, w_dot0, Ks,
             Ds, carry, float(formulation.alpha), float(formulation.tol), self.bw, self.search, d.model, v, w, d.forces,
             d.rows, self.branches, d.memories, self.s, np.empty(y.size), np.empty(n), np.empty(lam.size),
             np.empty(m.n_aux), Y, charts, after, info)
-        return _Run(y, a0, lam, w_dot0, Ks, Ds, carry, info, switches, Y, charts, done, status)
+        return _Run(y, chart, a0, lam, w_dot0, Ks, Ds, carry, info, switches, Y, charts, done, partial, status)
 
     def work_rates(self, system, formulation, state) -> np.ndarray:
         """The ledger's work rates at ``state`` (n_aux,) [W]: the kernel's index-1 field's."""
