@@ -71,3 +71,67 @@ def test_a_lagging_run_publishes_frames_within_their_share_of_the_wall_time():
         assert runner._frame_interval() == 1.0 / MIN_FRAME_RATE
     finally:
         runner.stop()
+
+
+class _Clock:
+    """A wall clock the test moves (``perf_counter``, ``sleep``) [s]; each reading costs 10 us."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def perf_counter(self):
+        self.now += 1e-5
+        return self.now
+
+    def sleep(self, seconds):
+        self.now += seconds
+
+
+class _Stalling:
+    """A simulation that steps ``capacity`` times faster than real time but once, at ``t_stall`` [s]
+    of simulated time, takes ``stall`` [s] of wall time for one 1-ms step (a failed step's attempts and
+    halvings)."""
+
+    t_end = 100.0
+
+    def __init__(self, clock, capacity, t_stall, stall):
+        self.clock, self.capacity, self.t_stall, self.stall, self.t = clock, capacity, t_stall, stall, 0.0
+
+    def advance(self, t_target, deadline, commands):
+        while self.t < t_target and self.clock.now < deadline:
+            if self.stall and self.t >= self.t_stall:
+                self.clock.now += self.stall
+                self.t, self.stall = self.t + 1e-3, 0.0
+                continue
+            span = min(t_target - self.t, (deadline - self.clock.now) * self.capacity)
+            self.t += span
+            self.clock.now += span / self.capacity
+
+
+@pytest.mark.parametrize("stall", [0.6, 3.0])
+def test_a_stall_within_max_lag_is_won_back_and_a_longer_one_is_dropped(monkeypatch, stall):
+    """At speed 1, a run with spare speed (capacity 1.5x) that stalls once for 0.6 s (the anchor hoist
+    stalls 0.4 s at its flukes' stop) is level with the wall clock again a few seconds later (before:
+    the backlog over 0.25 s was dropped and the run stayed behind for good, 0.94x over 20 s). A stall
+    longer than MAX_LAG is dropped: the run then stays that far behind, as it cannot win it back."""
+    from viz3d import realtime
+    from viz3d.realtime import MAX_LAG, SimRunner
+
+    assert 0.6 < MAX_LAG < 3.0
+    clock = _Clock()
+    monkeypatch.setattr(realtime, "time", clock)
+    runner = SimRunner(viz3d.load_scene(SCENES / "chain.toml", ["chain.n=5"]), speed=1.0, display_rate=60.0)
+    try:
+        runner.driver = _Stalling(clock, 1.5, 1.0, stall)
+        runner._publish = lambda force: None
+        runner._rebase()
+        start = clock.now
+        while clock.now - start < 10.0:
+            runner._advance()
+        behind = (clock.now - start) - runner.driver.t
+        if stall < MAX_LAG:  # caught up: within a display interval of the wall clock
+            assert 0.0 <= behind <= 1.0 / 60.0, behind
+        else:  # what the runner could not win back: the stall, less the lag it had when it dropped it
+            assert stall - MAX_LAG - 1e-3 <= behind <= stall + 1.0 / 60.0, behind
+    finally:
+        runner.stop()
