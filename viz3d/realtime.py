@@ -6,8 +6,9 @@ until simulated time catches up with ``speed x`` wall time (or a frame's worth o
 spent), publishes a frame at most at the display rate, and measures the real-time factor it
 actually achieves. A backlog of up to ``MAX_LAG`` (a costly stretch: a step that fails and is
 halved at a contact or a stop) is won back at the runner's spare speed; a larger one means it cannot
-keep up, and it is dropped instead of stalling: the achieved factor shows it. A viewer can hold the run until someone watches (``wait``, then
-``connected``): nothing is simulated and the wall clock does not start before that.
+keep up, and it is dropped instead of stalling: the achieved factor shows it. A viewer can hold the
+run until someone watches (``wait``, then ``connected``): nothing is simulated and the wall clock
+does not start before that.
 
 One ``Driver`` advances any scene through its ``Simulation`` (fixed steps, or adaptive steps
 with contact events).

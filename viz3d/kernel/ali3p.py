@@ -861,14 +861,13 @@ class _Run(NamedTuple):
 
 
 class Stopped(NamedTuple):
-    """Where a batched call (``KernelALI3P.frames``) stopped: the ``state`` and ``memory`` before the
-    step that failed, ``steps`` steps past the last whole frame; ``failed``: that step's attempts, the
-    memory after them (their evaluations, the fresh tangents they built) and their failed status, as
-    ``KernelALI3P.step`` returns them (None when the step converged and its end state was not healthy,
-    or its work rates failed: ``step`` then takes it for the diagnosis)."""
+    """Where a batched call (``KernelALI3P.frames``) stopped: the ``state`` before the step that failed
+    (its memory: the one ``frames`` returns), ``steps`` steps past the last whole frame; ``failed``: that
+    step's attempts, the memory after them (their evaluations, the fresh tangents they built) and their
+    failed status, as ``KernelALI3P.step`` returns them (None when the step converged and its end state
+    was not healthy, or its work rates failed: ``step`` then takes it for the diagnosis)."""
 
     state: State
-    memory: object
     steps: int
     failed: tuple[object, Status] | None
 
@@ -1004,7 +1003,7 @@ class KernelALI3P:
                    state.memory, elements)
         failed = None if run.status in (UNHEALTHY, WORK_RATES) else self._failed(system, formulation, at, h, memory,
                                                                                  run)
-        return states, memory, run.switches, run.done, Stopped(at, memory, k, failed)
+        return states, memory, run.switches, run.done, Stopped(at, k, failed)
 
     def _call(self, formulation, state: State, memory, n_frames: int, every: int, n0: int, t_start: float, h: float,
               max_speed: float, after: bool) -> "_Run":
