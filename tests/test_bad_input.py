@@ -412,6 +412,7 @@ SCENE_AND_OVERRIDES = st.sampled_from(FUZZ_SCENES).flatmap(
 @example(case=("impact_bronze_pendulum", [("impactor.pendulum.arm", "1e200")]))  # arm^2 overflowed
 @example(case=("impact_clamped_bar", [("bar.section.depth", "5.643803094122362e+102")]))  # depth^3 overflowed
 @example(case=("impact_clamped_bar", [("bar.section.depth", "2.0879310524535847e+102")]))  # the bar's mass matrix overflowed
+@example(case=("double_pendulum", [("ship.pocket_depth", "1165617355080101.0")]))  # the rim's clearance rounded to 0
 def test_any_override_validates_builds_or_is_refused_with_one_message(case, capsys):
     """``viz3d check`` (validate and build) of a shipped scene with random overrides: exit 0, or exit
     2 with one error line naming the file and a key, promptly; never an exception."""

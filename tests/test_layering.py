@@ -30,7 +30,8 @@ LAYERS = {
                  "viz3d.kernel.*", "viz3d.events", "viz3d.diagnosis", "viz3d.sparsity"],
     "drivers": ["viz3d.scene.*", "viz3d.simulate", "viz3d.realtime", "viz3d.bench", "viz3d.stability", "viz3d.stowage", "viz3d.stowagestudy", "viz3d.hydrostudy",
                 "viz3d.studies.*", "viz3d.sweep",
-                "viz3d.frames", "viz3d.trajectory", "viz3d.outputs", "viz3d.extras", "viz3d.sink", "viz3d.interrupts", "viz3d.columns"],
+                "viz3d.frames", "viz3d.trajectory", "viz3d.outputs", "viz3d.extras", "viz3d.sink", "viz3d.interrupts", "viz3d.columns",
+                "viz3d.departures"],
     "view": ["viz3d.viz.*"],
     "cli": ["viz3d", "viz3d.cli", "viz3d.__main__", "viz3d.process"],  # the package's public API is at the top
 }

@@ -617,7 +617,8 @@ def summary(traj, out: Path) -> str:
         f"scene       {traj.scene['scene']['scene'].get('name', Path(meta['source']).stem)} ({meta['source']})",
         f"method      {meta['integrator']}, {step}, {meta['formulation']}, {meta['rotation']}",
         f"bodies      {len(traj.body_names)}, joints {len(traj.joint_names)}"
-        + (f"; {x['model_choice']}" if str(x.get("model_choice", "rigid bodies")) != "rigid bodies" else ""),
+        + (f"; {x['model_choice']}" if str(x.get("model_choice", "rigid bodies")) != "rigid bodies" else "")
+        + _departure_text(traj),
         f"steps       {traj.n_steps} ({traj.n_rhs} RHS evaluations), simulated {sim_time:.6g} s",
         f"wall time   {traj.wall_time:.3f} s, real-time factor {rtf:.3g}, "
         f"{1e6 * traj.wall_time / max(traj.n_steps, 1):.1f} us/step",
@@ -630,6 +631,21 @@ def summary(traj, out: Path) -> str:
         f"wrote       {out}",
     ]
     return "\n".join(lines)
+
+
+def _departure_text(traj) -> str:
+    """How many bodies left the run (``viz3d.departures``: NaN poses from then on), and when."""
+    import numpy as np
+
+    if not traj.t.size:
+        return ""
+    gone = np.isnan(traj.position[:, :, 0])
+    left = np.flatnonzero(gone[-1])
+    if not left.size:
+        return ""
+    when = traj.t[np.argmax(gone[:, left], axis=0)]
+    return (f"; {left.size} left the run (t = {when.min():.4g}-{when.max():.4g} s), "
+            f"{len(traj.body_names) - left.size} at the end")
 
 
 def _stowage_lines(x: dict) -> list[str]:

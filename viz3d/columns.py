@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import itertools
 import operator
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, fields, replace
 from typing import Callable, Iterator
@@ -31,6 +31,7 @@ import numpy as np
 from viz3d._typing import FloatArray
 from viz3d.dynamics import flexible_kinetics
 from viz3d.contact.contacts import Gap
+from viz3d.departures import expand
 from viz3d.frames import Frame, drawing_of, ledger_scalars
 from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
@@ -223,7 +224,7 @@ class StateLog:
         instants not handed on yet pending (before the check) or drops them (after it)."""
         if not self.kept and not self.notes:
             return
-        states = States.join(self._sampled_pieces()) if self.pieces else None
+        states = joined(self._sampled_pieces()) if self.pieces else None
         outputs = np.concatenate(self.outputs) if self.outputs else np.zeros(0, bool)
         cols, frame_at = self._columns(states) if states is not None else (None, None)
         out = np.flatnonzero(outputs)
@@ -258,11 +259,12 @@ class StateLog:
         pieces = self.pieces
         if all(p.samples is not None for p in pieces) or not any(p.samples is not None for p in pieces):
             return pieces
-        stepper = self.sim.kernel_sampler()
-        if stepper is None:
+        steppers = [self.sim.source(p).kernel_sampler() for p in pieces]  # (each piece's generation's)
+        if any(st is None for st in steppers):
             return pieces
         try:
-            return [p if p.samples is not None else replace(p, samples=kernel_samples(stepper, p)) for p in pieces]
+            return [p if p.samples is not None else replace(p, samples=kernel_samples(st, p))
+                    for p, st in zip(pieces, steppers)]
         except np.linalg.LinAlgError:
             return pieces
 
@@ -296,21 +298,109 @@ class StateLog:
         return chunk_frames(self.sim, states, self.drawings)
 
 
+class Runs(Sequence):
+    """Consecutive ``States`` of different generations of a run's system (``viz3d.departures``), as one
+    sequence of ``State``; indexed by an array or a slice, a list of them."""
+
+    def __init__(self, runs: list[States]):
+        self.runs = runs
+        self._start = np.cumsum([0] + [len(r) for r in runs])
+
+    def __len__(self) -> int:
+        return int(self._start[-1])
+
+    def __getitem__(self, i):
+        if isinstance(i, (slice, np.ndarray, list)):
+            return [self[k] for k in np.arange(len(self))[i]]
+        i = i + len(self) if i < 0 else i
+        r = int(np.searchsorted(self._start, i, side="right")) - 1
+        return self.runs[r][i - int(self._start[r])]
+
+
+def generation_runs(states) -> list[States]:
+    """``states`` (``States``, ``Runs`` or a sequence of ``State``) as runs of one generation each."""
+    if isinstance(states, States):
+        return [states]
+    if isinstance(states, Runs):
+        return states.runs
+    groups: list[list[State]] = []
+    for st in states:
+        if groups and groups[-1][-1].q.shape[0] == st.q.shape[0]:
+            groups[-1].append(st)
+        else:
+            groups.append([st])
+    return [States.of(g) for g in groups] or [States.of([])]
+
+
+def joined(pieces: list[States]) -> States | Runs:
+    """``pieces`` joined: one ``States`` where they are of one generation, else ``Runs`` of each's."""
+    runs: list[list[States]] = []
+    for p in pieces:
+        if runs and runs[-1][-1].n_q == p.n_q:
+            runs[-1].append(p)
+        else:
+            runs.append([p])
+    return States.join(runs[0]) if len(runs) == 1 else Runs([States.join(r) for r in runs])
+
+
 def chunk_frames(sim, states, drawings: tuple = ()) -> tuple[FrameColumns, Callable[[int], Frame]]:
-    """The ``FrameColumns`` of ``states`` (a sequence of ``State``, or ``States``) and the ``Frame``
-    of each, by index (drawing the flexible bodies of ``drawings``): from the kernel's samples in
-    one call (``frame_of``) when it covers the run, else each state's NumPy frame
-    (``Simulation.frame``)."""
-    states = States.of(states)
-    stepper = sim.kernel_sampler()
+    """The ``FrameColumns`` of ``states`` (a sequence of ``State``, ``States`` or ``Runs``) and the
+    ``Frame`` of each, by index (drawing the flexible bodies of ``drawings``): from the kernel's
+    samples in one call (``frame_of``) when it covers the run, else each state's NumPy frame
+    (``FrameSource.frame``). A run whose bodies leave it (``viz3d.departures``) has its frames in its
+    first generation's bodies and joints (NaN for those that have left)."""
+    runs = generation_runs(states)
+    parts = [_generation_frames(sim, r, drawings) for r in runs]
+    if len(parts) == 1:
+        return parts[0]
+    start = np.cumsum([0] + [len(r) for r in runs])
+    layout = sim.departures.layout
+    cols = FrameColumns.join([c for c, _ in parts], layout.n_bodies, len(layout.joint_names))
+
+    def frame_at(i: int) -> Frame:
+        r = int(np.searchsorted(start, i, side="right")) - 1
+        return parts[r][1](i - int(start[r]))
+
+    return cols, frame_at
+
+
+def _generation_frames(sim, states: States, drawings: tuple) -> tuple[FrameColumns, Callable[[int], Frame]]:
+    """``chunk_frames`` of states of one generation, in the first generation's bodies and joints."""
+    cols, frame_at = _source_frames(sim.source(states) if len(states) else sim.source(), states, drawings)
+    departures = getattr(sim, "departures", None)
+    gen = departures.generation_of(states) if departures is not None and len(states) else None
+    if gen is None or gen is departures.generations[0]:
+        return cols, frame_at
+    nb, nj = departures.layout.n_bodies, len(departures.layout.joint_names)
+    b, j = gen.bodies, gen.joints
+    cols = replace(cols, W_r=expand(cols.W_r, b, nb), R_WB=expand(cols.R_WB, b, nb), W_v=expand(cols.W_v, b, nb),
+                   W_omega=expand(cols.W_omega, b, nb), reaction_force=expand(cols.reaction_force, j, nj))
+
+    def expanded(i: int) -> Frame:
+        f = frame_at(i)
+
+        def draw():
+            d = f.drawing
+            return replace(d, joint_points=expand(d.joint_points, j, nj, axis=0))
+
+        return replace(f, W_r=cols.W_r[i], R_WB=cols.R_WB[i], W_v=cols.W_v[i], W_omega=cols.W_omega[i],
+                       reaction_force=cols.reaction_force[i], draw=draw)
+
+    return cols, expanded
+
+
+def _source_frames(source, states: States, drawings: tuple) -> tuple[FrameColumns, Callable[[int], Frame]]:
+    """``chunk_frames`` of states of the generation ``source`` (``viz3d.simulate.FrameSource``), in its
+    own bodies and joints."""
+    stepper = source.kernel_sampler()
     if stepper is not None:
         try:
-            cols, s = _sampled(sim, stepper, states)
-            return cols, lambda i: frame_of(sim.system, states[i], cols, s, i, stepper.data, drawings)
+            cols, s = _sampled(source, stepper, states)
+            return cols, lambda i: frame_of(source.system, states[i], cols, s, i, stepper.data, drawings)
         except np.linalg.LinAlgError:  # the NumPy path raises the detailed error
             pass
-    frames = [sim.frame(s, drawings) for s in states]
-    return FrameColumns.from_frames(frames, sim.system.n_bodies, len(sim.system.joint_names)), frames.__getitem__
+    frames = [source.frame(s, drawings) for s in states]
+    return FrameColumns.from_frames(frames, source.system.n_bodies, len(source.system.joint_names)), frames.__getitem__
 
 
 def frame_of(system: System, state: State, cols: FrameColumns, s, i: int, data, drawings: tuple = ()) -> Frame:

@@ -6,6 +6,8 @@ such as "t = 1.234 s: body 'link3': speed 2.1e+04 m/s exceeds sim.blowup_speed =
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from viz3d.constraints import constraint_residual, dense_jacobian
@@ -84,15 +86,15 @@ def _singular(system: System, state: State, b: int, theta, turn) -> str:
             f"(> {MAX_COORDINATE_TURN} rad): the step cannot resolve the rotation; try a smaller sim.dt")
 
 
-def check_violation(system: System, states, violation, limit: float) -> None:
+def check_violation(system_of: Callable[[State], System], states, violation, limit: float) -> None:
     """Raise ``SimulationFailure`` at the first of ``states`` whose ``violation`` = max |C| [m]
-    (one per state) exceeds ``limit``."""
+    (one per state) exceeds ``limit``, naming the worst joint of its system (``system_of(state)``)."""
     bad = np.flatnonzero(np.asarray(violation) > limit)
     if bad.size:
         i = int(bad[0])
         state = states[i]
         raise SimulationFailure(f"t = {state.t:.6g} s: constraint violation {violation[i]:.3g} m exceeds sim.blowup_violation = "
-                                f"{limit:.3g} m{_worst_joint(system, state)}; try a smaller sim.dt or a stabilizing formulation",
+                                f"{limit:.3g} m{_worst_joint(system_of(state), state)}; try a smaller sim.dt or a stabilizing formulation",
                                 frame=i)
 
 

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from viz3d.columns import FrameColumns, chunk_frames
+from viz3d.departures import Departures
 from viz3d.diagnosis import RunComplete, SimulationFailure
 from viz3d.formulation import FORMULATIONS
 from viz3d.frames import Frame, SceneVisuals
@@ -79,13 +80,16 @@ class Driver:
         self.plots, self._series = plot_series(self.system)
         self._make_sim(state)
 
-    def _make_sim(self, state, settings: dict | None = None) -> None:
-        """A simulation from ``state`` with ``settings`` (default: the current ones); the driver
-        changes only if it can be built (a refused combination leaves it as it was)."""
+    def _make_sim(self, state, settings: dict | None = None, departures: Departures | None = None) -> None:
+        """A simulation from ``state`` with ``settings`` (default: the current ones) and the departures
+        so far (a state of a later generation of the system: ``viz3d.departures``; default: the scene's,
+        none yet); the driver changes only if it can be built (a refused combination leaves it as it was)."""
         settings = self.settings if settings is None else settings
         cfg = {**self.scene.data["sim"], **settings}
-        self.sim = Simulation(self.system, state, make_integrator_from(cfg), make_formulation(cfg), float(cfg["dt"]),
-                              cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"])
+        departures = Departures.of(self.scene, self.system) if departures is None else departures
+        system = self.system if departures is None else departures.current.system
+        self.sim = Simulation(system, state, make_integrator_from(cfg), make_formulation(cfg), float(cfg["dt"]),
+                              cfg["blowup_speed"], make_controller(cfg), compiled=cfg["compiled"], departures=departures)
         self._check = run_checks(self.sim, self.scene)[0]
         self._drawings = flexible_drawings(self.scene, self.system)
         self._last_t: dict[int, float] = {}  # the time of each sink's last frame [s] (default: the start)
@@ -182,7 +186,8 @@ class Driver:
             make_integrator(value)  # KeyError lists the valid names
         if name == "dt" and not float(value) > 0:
             raise ValueError(f"dt must be positive, got {value}")
-        self._make_sim(self.sim.state, {**self.settings, name: float(value) if name == "dt" else value})
+        self._make_sim(self.sim.state, {**self.settings, name: float(value) if name == "dt" else value},
+                       self.sim.departures)
 
 
 def plot_series(system) -> tuple[tuple, tuple]:

@@ -12,7 +12,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -20,6 +20,7 @@ import numpy as np
 
 from viz3d.columns import CHUNK, FrameColumns, StateLog, chunk_length
 from viz3d.constraints import SingularConstraintError, constraint_rows
+from viz3d.departures import Departures
 from viz3d.diagnosis import (
     CapacityWatch,
     EnergyFailure,
@@ -48,6 +49,7 @@ from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import drive_coordinate, run_events, run_verdict, seated_stop, verdict_fields
+from viz3d._typing import IntArray
 from viz3d.system import State, States, System
 from viz3d.trajectory import Trajectory
 
@@ -67,6 +69,49 @@ ADAPTIVE_MAX_TURN = 0.5
 STEP_RECORDS = 256
 #: Most state entries (samples x coordinates) a driver call with contacts returns (``output_states``).
 SAMPLES_PER_CALL = 1 << 21
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSource:
+    """What the frames of one generation's states are computed with (``viz3d.columns.chunk_frames``):
+    its system, formulation, compiled kernel (None: the NumPy path) and the energy ledger's reference
+    [J] (None without a ledger)."""
+
+    system: System
+    formulation: object
+    kernel: object
+    reference_energy: float | None
+
+    def solved_rows(self, state: State) -> tuple | None:
+        """``(lam, C, J)`` at ``state`` from the compiled kernel (``KernelStepper.solved_rows``), for
+        frames; None without constraint rows or kernel (or where the kernel cannot evaluate: the
+        NumPy path then says why)."""
+        if self.kernel is None or not self.system.n_c:
+            return None
+        try:
+            return self.kernel.solved_rows(state.t, state.y, state.chart, state.memory, state.element_memory)
+        except np.linalg.LinAlgError:
+            return None
+
+    def kernel_sampler(self):
+        """The compiled kernel's stepper when output frames can be sampled in it (``viz3d.columns``;
+        every force element's potential energy has a compiled piece), else None."""
+        k = self.kernel
+        return k if k is not None and k.data.energy_gap is None else None
+
+    def frame(self, state: State, drawings: tuple = ()) -> Frame:
+        """The output frame of ``state`` (``viz3d.frames.frame_from_state``), with the multipliers,
+        configuration and gaps from the compiled kernel when the run has one."""
+        kinematics = None
+        if self.kernel is not None:
+            kinematics = self.kernel.configuration(state.t, state.y, state.chart)
+        return frame_from_state(self.system, self.formulation, state, drawings, self.reference_energy,
+                                self.solved_rows(state), kinematics)
+
+
+def state_size(state) -> int:
+    """``n_q`` of a ``State`` or ``States`` (which generation of a run's system it belongs to)."""
+    return state.q.shape[0] if isinstance(state, State) else state.n_q
 
 
 class Simulation:
@@ -102,6 +147,11 @@ class Simulation:
     t_end : float
         Time [s] no adaptive step goes past (``run`` sets it to the run's last sample; inf: none),
         so no event, state or frame of the run is after it.
+    departures : viz3d.departures.Departures, optional
+        Bodies that leave the run (a chain hauled in): checked every ``rule.every`` samples from the
+        start, where every call of ``steps`` and ``output_states`` ends or stops, so the run goes on
+        with the next generation of the system (``system`` and ``state`` change; frames keep the first
+        generation's bodies and joints: ``viz3d.columns.chunk_frames``).
     compiled : bool
         Evaluate the vector field, and take explicit Runge-Kutta steps (fixed, or adaptive with
         their dense output: ``viz3d.kernel.adaptive``), in the compiled kernel (``viz3d.kernel``)
@@ -132,9 +182,12 @@ class Simulation:
 
     def __init__(self, system: System, state: State, integrator: Integrator, formulation, dt: float,
                  blowup_speed: float = 1e4, controller: Controller | None = None, compiled: bool = True,
-                 t_end: float = math.inf):
+                 t_end: float = math.inf, departures: Departures | None = None):
         check_combination(integrator, formulation, system.rotation, None if controller is None else controller.rtol)
         self.system, self.state = system, state
+        self.departures, self._compile = departures, compiled
+        self._past: dict[int, FrameSource] = {}  # earlier generations' frame sources, by their n_q
+        self._left_switches = np.zeros(system.n_bodies, dtype=int)  # chart switches of the bodies that left
         self.integrator, self.formulation, self.dt, self.t_end = integrator, formulation, dt, t_end
         self.blowup_speed, self.controller = blowup_speed, controller
         self.chart_switches = np.zeros(system.n_bodies, dtype=int)
@@ -178,31 +231,39 @@ class Simulation:
         self._contacts = ContactStepping(self.system, self.formulation, kernel=self._kernel)
         self.state = self._inner = self._contacts.start(state)
 
+    def source(self, state=None) -> "FrameSource":
+        """What the frames of ``state`` (a ``State`` or ``States``; default: the current one) are computed
+        with: its generation's system, kernel and ledger reference (``FrameSource``)."""
+        if state is not None and self._past and state_size(state) != self.system.n_q:
+            return self._past[state_size(state)]
+        return FrameSource(self.system, self.formulation, self._kernel, self.reference_energy)
+
     def solved_rows(self, state: State) -> tuple | None:
-        """``(lam, C, J)`` at ``state`` from the compiled kernel (``KernelStepper.solved_rows``), for
-        frames; None without constraint rows or kernel (or where the kernel cannot evaluate: the
-        NumPy path then says why)."""
-        if self._kernel is None or not self.system.n_c:
-            return None
-        try:
-            return self._kernel.solved_rows(state.t, state.y, state.chart, state.memory, state.element_memory)
-        except np.linalg.LinAlgError:
-            return None
+        """``FrameSource.solved_rows`` of ``state``'s generation."""
+        return self.source(state).solved_rows(state)
 
     def kernel_sampler(self):
-        """The compiled kernel's stepper when output frames can be sampled in it (``viz3d.columns``;
-        every force element's potential energy has a compiled piece), else None."""
-        k = self._kernel
-        return k if k is not None and k.data.energy_gap is None else None
+        """``FrameSource.kernel_sampler`` of the current generation."""
+        return self.source().kernel_sampler()
 
     def frame(self, state: State, drawings: tuple = ()) -> Frame:
-        """The output frame of ``state`` (``viz3d.frames.frame_from_state``), with the multipliers,
-        configuration and gaps from the compiled kernel when the run has one."""
-        kinematics = None
-        if self._kernel is not None:
-            kinematics = self._kernel.configuration(state.t, state.y, state.chart)
-        return frame_from_state(self.system, self.formulation, state, drawings, self.reference_energy,
-                                self.solved_rows(state), kinematics)
+        """``FrameSource.frame`` of ``state``'s generation."""
+        return self.source(state).frame(state, drawings)
+
+    @property
+    def layout_chart_switches(self) -> IntArray:
+        """``chart_switches`` per body of ``layout`` (those of the bodies that left, up to then)."""
+        if self.departures is None:
+            return self.chart_switches
+        out = self._left_switches.copy()
+        out[self.departures.current.bodies] += self.chart_switches
+        return out
+
+    @property
+    def layout(self) -> System:
+        """The system whose bodies and joints the run's frames are given in: the first generation's
+        (``departures``), else ``system``."""
+        return self.departures.layout if self.departures is not None else self.system
 
     @property
     def reference_energy(self) -> float | None:
@@ -225,6 +286,11 @@ class Simulation:
     def step(self) -> State:
         """Return the state ``dt`` later; raise ``SimulationFailure`` with a diagnosis if the run
         cannot go on."""
+        self._step()
+        self._depart()
+        return self.state
+
+    def _step(self) -> State:
         while True:  # the compiled adaptive driver, and the Python loop where it stops, until the sample
             if self._adaptive_kernel_covers():
                 states = self._kernel_samples(1, 1)
@@ -271,6 +337,13 @@ class Simulation:
         samples left as ``output_states`` asks for one frame of them (with contacts, one call up to
         the next event, whose handler ``step`` takes, keeping the samples before it)."""
         goal = self.n_samples + n
+        while self.n_samples < goal:  # (to each departure check, where the run may change its system)
+            self._steps(min(goal - self.n_samples, self._to_check()))
+            self._depart()
+        return self.state
+
+    def _steps(self, n: int) -> None:
+        goal = self.n_samples + n
         if n > 1 and self._kernel_ready():
             self._kernel_steps(n)
         elif n > 1 and self._own_kernel_ready():
@@ -279,8 +352,37 @@ class Simulation:
             left = goal - self.n_samples
             if left > 1 and self._adaptive_kernel_covers() and (self.output_states(1, left) or self.n_samples == goal):
                 continue
-            self.step()
-        return self.state
+            self._step()
+
+    # ------------------------------------------------------------------ departures
+
+    def _to_check(self) -> int:
+        """Samples to the next departure check (no limit without departures)."""
+        return self.departures.steps_to_check(self.n_samples) if self.departures is not None else sys.maxsize
+
+    def _depart(self) -> None:
+        """At a departure check, go on with the next generation of the system for each body that
+        leaves now (``viz3d.departures``): the same instant, the state moved onto it, the ledger's
+        reference lowered by the energy the body carried out; the kernel, the formulation's memory and
+        the integrator's state start afresh, as at the start of a run."""
+        d = self.departures
+        if d is None or self.n_samples % d.rule.every:
+            return
+        while (moved := d.next(self.state)) is not None:
+            gen, state = moved
+            before = d.generations[-2]
+            self._past[self.system.n_q] = self.source()
+            if self._E0 is not None:
+                from viz3d.events import ledger
+
+                self._E0 += ledger(gen.system, state).total - ledger(self.system, self.state).total
+            kept = np.isin(before.bodies, gen.bodies)
+            self._left_switches[before.bodies[~kept]] += self.chart_switches[~kept]
+            self.chart_switches = self.chart_switches[kept]
+            self.system, self.state, self._inner = gen.system, state, state
+            self._kernel, self.kernel_note = (_compiled(gen.system, self.integrator, self.formulation) if self._compile
+                                              else (None, "NumPy path (compiled = false)"))
+            self._f = self._solver = self._memory = self._stopped = self._span = self._carry = None
 
     # ------------------------------------------------------------------ the three ways to step
 
@@ -348,6 +450,15 @@ class Simulation:
         states while Python takes the steps, e.g. at a contact event); with contacts, the samples
         one a frame of the driver's call, every ``every``-th returned: a call cut at an event keeps
         the samples before it, so the run may stand inside a frame after it (``n_samples``)."""
+        if self.departures is not None:  # (each call ends at or before the next departure check)
+            n_frames = min(n_frames, self._to_check() // every)
+            if n_frames < 1:
+                return []
+        states = self._output_states(n_frames, every)
+        self._depart()
+        return states
+
+    def _output_states(self, n_frames: int, every: int) -> States | list[State]:
         from viz3d.kernel import OK
 
         if self._contacts is not None:  # (the driver's, fixed steps with contacts too)
@@ -962,7 +1073,8 @@ def simulate_built(scene: Scene, system: System, state: State, progress: bool = 
     sim_cfg = scene.data["sim"]
     try:
         sim = Simulation(system, state, make_integrator_from(sim_cfg), make_formulation(sim_cfg), sim_cfg["dt"],
-                         sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"])
+                         sim_cfg["blowup_speed"], make_controller(sim_cfg), compiled=sim_cfg["compiled"],
+                         departures=Departures.of(scene, system))
     except MethodError as exc:
         raise SceneError(scene.source(), exc.key, exc.expected, exc.got) from None
     return run(sim, scene, progress, sinks)
@@ -997,7 +1109,8 @@ def run_checks(sim: Simulation, scene: Scene) -> tuple[Callable, bool]:
         goal = seated_stop(scene.data["stowage"], sim.system.bodies.names, drive_coordinate(scene.data, keys))
 
     def check(cols, states):
-        check_violation(sim.system, states, cols.constraint_violation, cfg["blowup_violation"])
+        check_violation(lambda state: sim.source(state).system, states, cols.constraint_violation,
+                        cfg["blowup_violation"])
         capacity.check(cols.t, cols.scalars)
         energy.check(cols)
         if goal is not None:
@@ -1093,18 +1206,18 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
                     status = f"interrupted at t = {t_stop:.6g} s"
                 elif internal is not None:
                     status = f"stopped by an internal error at t = {t_stop:.6g} s: {internal}"
-                verdict = _verdict(scene, cols, sim.system.bodies.names, failure)
-                emitter.announce(run_events(scene.data, cols)
+                verdict = _verdict(scene, cols, sim.layout.bodies.names, failure)
+                emitter.announce(run_events(scene.data, cols) + (sim.departures.log if sim.departures else [])
                                  + ([(verdict.time, f"{verdict.outcome}: {verdict.reason}")] if verdict else []))
                 emitter.close(status, t_stop)  # (events after the last returned state are not on the trajectory)
     wall = time.perf_counter() - wall0
     extras = run_extras(sim, scene, cols) if sim.system.contacts or sim.system.outputs else None
-    if joints := {**ledger_fields(sim.system, cols), **joint_fields(sim.system, cols), **element_fields(sim.system, cols)}:
+    if joints := {**ledger_fields(sim.layout, cols), **joint_fields(sim.layout, cols), **element_fields(sim.layout, cols)}:
         extras = {**(extras or {}), **joints}
     if verdict is not None:
         tension = cols.scalars.get("stowage/hawse_tension")
         extras = {**(extras or {}), **verdict_fields(verdict, scene.data["stowage"], tension)}
-    return _trajectory(sim.system, cols, status, scene_json(scene, sim), sim.chart_switches, extras, wall_time=wall,
+    return _trajectory(sim.layout, cols, status, scene_json(scene, sim), sim.layout_chart_switches, extras, wall_time=wall,
                        n_steps=sim.n_steps, n_rhs=sim.n_rhs)
 
 

@@ -11,6 +11,7 @@ from viz3d.viz.recorder_rerun import RerunRecorder
 from viz3d.sink import NullSink
 
 from conftest import SCENES
+from departing import HAUL
 from recording import entities, read_column, read_scalars
 
 FLOAT32_POS_TOL = 1e-6  # rerun stores translations as float32 (ECOSYSTEM pitfall 6); positions < 2 m
@@ -202,3 +203,19 @@ def test_plot_dt_thins_the_plot_samples_and_keeps_the_last(tmp_path):
     np.testing.assert_allclose(traj.t[k], t, atol=1e-9)
     scale = np.max(np.abs(traj.energy_kinetic) + np.abs(traj.energy_potential))
     np.testing.assert_allclose(E[:, 0], traj.energy_total[k], rtol=0, atol=16 * np.finfo(float).eps * scale)
+
+
+def test_a_recording_shows_a_link_until_it_leaves_and_at_scale_zero_after(write_scene, tmp_path):
+    path = tmp_path / "haul.rrd"
+    tr = viz3d.simulate(viz3d.load_scene(write_scene(HAUL)), sinks=[RerunRecorder(path)])
+    gone = np.isnan(tr.position[:, list(tr.body_names).index("link0"), 0])
+    left, before = tr.t[np.argmax(gone)], tr.t[np.argmax(gone) - 1]  # (output frames bracketing its departure)
+    t, scale = read_column(path, "/world/bodies/link0", "Transform3D:scale")
+    scale = scale.reshape(len(t), 3)
+    # poses are recorded at display rate: the first one after the departure is at scale 0, and the last
+    assert scale[-1].tolist() == [0.0, 0.0, 0.0] and before < t[-1] < left + 0.05
+    assert (scale[:-1] == 1.0).all() and t[-2] <= left  # drawn at full size until then
+    t_pose, xyz = read_column(path, "/world/bodies/link0", "Transform3D:translation")
+    assert t_pose.max() == t[-1] and np.isfinite(xyz).all()
+    t2, _ = read_column(path, "/world/bodies/link5", "Transform3D:translation")
+    assert t2.max() > tr.t[-1] - 0.05  # a link that stays is posed to the end

@@ -135,3 +135,30 @@ def test_a_stall_within_max_lag_is_won_back_and_a_longer_one_is_dropped(monkeypa
             assert stall - MAX_LAG - 1e-3 <= behind <= stall + 1.0 / 60.0, behind
     finally:
         runner.stop()
+
+
+def test_a_driver_whose_links_leave_gives_the_frames_of_a_headless_run(write_scene):
+    """Departures (``viz3d.departures``) are checked at fixed instants, whatever the driver's batches:
+    the live driver, batched or one step at a time, reaches the headless run's state, with the links that
+    left drawn as NaN (the viewer shows them at scale 0)."""
+    from departing import HAUL
+
+    path = write_scene(HAUL)
+    headless = viz3d.simulate(viz3d.load_scene(path))
+    ends = []
+    for batched in (True, False):
+        sink = FrameLog()
+        sink.frame_dt = 0.01
+        driver = make_driver(viz3d.load_scene(path), sinks=[sink])
+        if not batched:
+            driver._batch = lambda *args: 1
+        for t in (0.3, 0.5137, 0.9, 1.2):
+            driver.advance(t, math.inf, queue.Queue())
+        assert [t for t, _ in driver.sim.departures.log] == pytest.approx([0.51, 0.91])
+        last = sink.frames[-1]
+        assert last.t == pytest.approx(headless.t[-1])
+        np.testing.assert_array_equal(np.isnan(last.W_r), np.isnan(headless.position[-1]))
+        np.testing.assert_allclose(last.W_r, headless.position[-1], rtol=0, atol=1e-12)
+        assert np.isnan(last.joint_points).any(axis=1).sum() == 2  # the joints of the two links that left
+        ends.append(driver.sim.state.y)
+    np.testing.assert_array_equal(ends[0], ends[1])

@@ -389,3 +389,25 @@ def test_adaptive_scene_shows_its_own_integrator_and_step_greyed_out():
         assert viewer.stabilization.value == {v: k for k, v in viewer._stab.items()}[sim["formulation"]]
     finally:
         viewer.stop()
+
+
+def test_links_that_leave_the_run_are_streamed_at_scale_zero(write_scene):
+    from departing import HAUL
+
+    viewer = Viewer(SimRunner(viz3d.load_scene(write_scene(HAUL))), port=0)
+
+    def scales(messages):
+        return [np.asarray(m["updates"]["batched_scales"]).reshape(-1) for m in messages
+                if m["type"] == "SceneNodeUpdateMessage" and m["name"].startswith("/bodies/")
+                and m["updates"].get("batched_scales") is not None]
+
+    try:
+        viewer.start()
+        messages = asyncio.run(_collect(viewer.server.get_port(), 10.0, camera=True,
+                                        until=lambda out: any((s == 0).sum() >= 2 for s in scales(out))))
+    finally:
+        viewer.stop()
+    shown = [s for s in scales(messages) if s.size == 6]  # the links' batch (the winch has its own)
+    assert shown, "no scale updates: no link left the run within 10 s"
+    assert (shown[0] == 0).sum() == 1 and (shown[-1] == 0).sum() == 2  # link0 at 0.51 s, then link1 at 0.91 s
+    assert all(set(s.tolist()) <= {0.0, 1.0} for s in shown)

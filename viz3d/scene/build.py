@@ -68,7 +68,21 @@ def build(scene: Scene) -> tuple[System, State]:
     SceneError
         For mass properties, meshes or joints that cannot be used (naming file and key).
     """
-    src = scene.source()
+    sim = scene.data["sim"]
+    system = build_system(scene)
+    W_r0, R0 = initial_pose(scene, system.bodies)
+    frames = system.frame_body
+    theta, chart = system.rotation.from_matrix(R0[frames])
+    q = system.join_q(W_r0[frames], theta)
+    v = initial_velocities(scene, R0, system)
+    state = State(0.0, q, v, chart, np.zeros(system.n_aux), tuple(c.initial_phases() for c in system.contacts))
+    formulation = make_formulation(sim) if sim["compiled"] else None
+    return system, consistent_state(system, state, scene.source(), sim["projection_tol"], formulation)
+
+
+def build_system(scene: Scene) -> System:
+    """The frozen system of a scene (``build`` without the initial state); packed for the compiled
+    kernel too when the scene runs there (``viz3d.kernel.keep_packed``)."""
     bodies, _ = build_bodies(scene)
     sim = scene.data["sim"]
     rotation = ROTATIONS[sim["rotation"]]()
@@ -84,17 +98,12 @@ def build(scene: Scene) -> tuple[System, State]:
         scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies)) + build_water(scene, bodies)
     outputs = build_gauges(scene, bodies) + build_stowage_outputs(scene, bodies, joints, W_r0)
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, outputs)
-    frames = system.frame_body
-    theta, chart = rotation.from_matrix(R0[frames])
-    q = system.join_q(W_r0[frames], theta)
-    v = initial_velocities(scene, R0, system)
-    state = State(0.0, q, v, chart, np.zeros(system.n_aux), tuple(c.initial_phases() for c in contacts))
     formulation = make_formulation(sim) if sim["compiled"] else None
     if formulation is not None:  # the model packed for the compiled kernel too, kept with it for its runs
         from viz3d.kernel import keep_packed
 
         keep_packed(system, formulation)
-    return system, consistent_state(system, state, src, sim["projection_tol"], formulation)
+    return system
 
 
 def build_bodies(scene: Scene) -> tuple[Bodies, tuple[str, ...]]:
@@ -357,6 +366,9 @@ def _framed_joints(kind: str):
         located = [{**entry, "point": _framed_point(bodies, pose0, int(body[k, 0]), entry)} for k, entry in enumerate(entries)]
         sides = [_points(bodies, pose0, body[:, s], located, str(s + 1), "point", f"local{s + 1}") for s in (0, 1)]
         for k, (entry, path) in enumerate(zip(entries, paths)):
+            if _on_each_body(entry, source, path):
+                B_A[k] = entry["frame1"], entry["frame2"]
+                continue
             _check_coincident(bodies, pose0, sides, k, source, path, entry)
             try:
                 W_A = _frame_axes(entry)
@@ -369,6 +381,20 @@ def _framed_joints(kind: str):
         return JOINTS[kind](tuple(j["name"] for j in entries), body, B_s, B_A, (sides[0][1], sides[1][1]))
 
     return make
+
+
+def _on_each_body(entry: dict, source: str, path: str) -> bool:
+    """True for a framed joint given on each body (``frame1``, ``frame2``, ``local1``, ``local2``: its
+    point and frame in each side's axes, not in the initial configuration); refuses a partial one."""
+    keys = ("frame1", "frame2", "local1", "local2")
+    given = [k for k in keys if k in entry]
+    if "frame1" not in entry and "frame2" not in entry:
+        return False
+    if len(given) < len(keys):
+        missing = next(k for k in keys if k not in entry)
+        raise SceneError(source, f"{path}.{missing}", "given with the other three of frame1, frame2, local1, local2 "
+                         "(a joint on each body)")
+    return True
 
 
 def _framed_point(bodies: Bodies, pose0, body1: int, entry: dict) -> FloatArray:

@@ -290,6 +290,20 @@ def mat3_or_diag(x):
     return [[d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]]
 
 
+def rotation3(x):
+    """A rotation matrix: 3 rows of 3 numbers, orthonormal with determinant +1 (to 1e-9)."""
+    expected = "a rotation matrix: 3 rows [[.., .., ..], ...], orthonormal, determinant +1"
+    if not (isinstance(x, list) and len(x) == 3):
+        raise Invalid(expected)
+    try:
+        R = np.array([vec3(r) for r in x], float)
+    except Invalid:
+        raise Invalid(expected) from None
+    if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0:
+        raise Invalid(expected)
+    return R.tolist()
+
+
 def color(x):
     """RGB as three 0-255 integers or "#rrggbb"."""
     expected = 'a colour: [r, g, b] with 0-255 integers or "#rrggbb"'

@@ -335,6 +335,8 @@ def bend_over(C: np.ndarray, T: np.ndarray, a: np.ndarray, down: np.ndarray, r: 
         clearance = r if edge is None else min(_line_distance(V_new, d, C, edge) for d in (d1, down))
         if np.linalg.norm(V_new - V) + np.linalg.norm(Tp_new - Tp) < 1e-12 and abs(clearance - r) < 1e-12:
             break
+        if not clearance > 0.0:  # (a rim so far off that the chain's line meets it to round-off: no tangent path)
+            raise ValueError(f"the chain passes {clearance} m from the rim")
         V, Tp, reach = V_new, Tp_new, reach * r / clearance
     return Tp, V, m
 

@@ -37,6 +37,7 @@ from viz3d.scene.schema import (
     poisson_ratio,
     positive,
     positive_int,
+    rotation3,
     rotation_matrices,
     string,
     unit_fraction,
@@ -208,24 +209,36 @@ _FRAMED_SECTIONS = {
     "x2": Field(nonnegative, OPTIONAL, "flexible body 2: the section of the joint [m]; default: the section "
                 "nearest the joint point"),
 }
+#: A framed joint given on each body instead (a joint point and frame fixed in each side's axes, as
+#: MuJoCo's and URDF's are): the two sides need not meet in the initial configuration (the start is
+#: assembled like any other: ``consistent_state``). ``viz3d.departures`` writes its joints so.
+_BODY_FRAMES = {
+    "frame1": Field(rotation3, OPTIONAL, "with local1, local2 and frame2: the joint frame's axes in body 1 axes, "
+                    "a rotation matrix whose columns are its x, y, z (a list of its 3 rows), instead of world "
+                    "axes in the initial configuration"),
+    "frame2": Field(rotation3, OPTIONAL, "with frame1: the joint frame in body 2 axes (world if ground)"),
+    "local1": Field(vec3, OPTIONAL, "with frame1: the joint point in body 1 axes from its centre of mass [m]"),
+    "local2": Field(vec3, OPTIONAL, "with frame2: the joint point in body 2 axes (world if ground) [m]"),
+}
 #: Joints with a frame on each side (``viz3d.joints.FramedJoint``): both sides' frames coincide in the
-#: initial configuration, where every relative coordinate is zero. A side on a flexible body is a
-#: section, whose frame turns with the section's rotation.
+#: initial configuration, where every relative coordinate is zero (unless given on each body:
+#: ``_BODY_FRAMES``). A side on a flexible body is a section, whose frame turns with the section's rotation.
 JOINT_TYPES.update({
-    "revolute": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
+    "revolute": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS, **_BODY_FRAMES},
                       "revolute joint (hinge): turns about `axis` through `point`; coordinate `angle` [rad]"),
     "universal": Table({
         "point": _FRAME_POINT, **_FRAMED_SECTIONS,
         "axis1": Field(nonzero_vec3, [1.0, 0.0, 0.0], "first axis, fixed in body 1, world direction in the "
                        "initial configuration"),
         "axis2": Field(nonzero_vec3, [0.0, 1.0, 0.0], "second axis, fixed in body 2 (made normal to axis1)"),
+        **_BODY_FRAMES,
     }, "universal (Cardan) joint: two relative rotations, `angle1` about axis1 and `angle2` about axis2 [rad]"),
-    "prismatic": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
+    "prismatic": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS, **_BODY_FRAMES},
                        "prismatic joint (slider) along `axis`; coordinate `distance` [m]"),
-    "cylindrical": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS},
+    "cylindrical": Table({"point": _FRAME_POINT, "axis": _AXIS, **_FRAMED_SECTIONS, **_BODY_FRAMES},
                          "cylindrical joint: turns about and slides along `axis`; coordinates `angle` [rad], "
                          "`distance` [m]"),
-    "fixed": Table({"point": _FRAME_POINT, **_FRAMED_SECTIONS}, "fixed joint (weld): no relative motion"),
+    "fixed": Table({"point": _FRAME_POINT, **_FRAMED_SECTIONS, **_BODY_FRAMES}, "fixed joint (weld): no relative motion"),
 })
 JOINT = Table({
     "name": Field(name, OPTIONAL, "default j<index>"),
@@ -473,6 +486,11 @@ CHAIN = Table({
                    "link's joint too: no twist)"),
     "joint_damping": Field(nonnegative, 0.0, "universal joints: a damper on both angles [N m s/rad] (a joint_motor "
                            "with kp = 0): lets a hanging chain settle"),
+    "leave": Field(boolean, False, "with attach a body that hauls the chain in: a link whose far joint has passed the "
+                   "anchor point leaves the run, its next link held to attach (viz3d.departures): the scene models "
+                   "only the chain that still moves"),
+    "leave_dt": Field(positive, 0.05, "with leave: how often the first link is checked [s of simulated time] (a "
+                      "multiple of sim.dt)"),
 }, "generator: an N-link spatial chain of capsules, hanging from the anchor (or between anchor and end)")
 
 INCLINE = Table({

@@ -64,6 +64,7 @@ class RerunRecorder:
         self._posed_t = -np.inf              # time of the last pose logged [s]
         self._plotted_t = -np.inf            # time of the last plot sample logged [s]
         self._poses: list = []               # (t, W_r, xyzw) not yet sent
+        self._left: set[str] = set()         # bodies that have left the run, shown at scale 0 since
         self._joints: list = []              # (joint points, reaction arrows) of those poses, not yet sent
         self._contacts_shown = None          # contact arrows on the timeline now (None: nothing logged yet)
 
@@ -181,7 +182,9 @@ class RerunRecorder:
             rec.log("/world/contacts", rr.Clear(recursive=False))
             self._contacts_shown = False
         if len(frame.joint_points):  # sent as columns at each flush, with the body poses
-            self._joints.append((frame.joint_points, frame.reaction_force * (vis.length_scale / vis.force_scale)))
+            held = ~np.isnan(frame.joint_points[:, 0])  # (joints that left the run with a body: NaN)
+            self._joints.append((frame.joint_points[held],
+                                 frame.reaction_force[held] * (vis.length_scale / vis.force_scale)))
         if len(frame.springs):
             rec.log("/world/springs", rr.LineStrips3D(list(frame.springs), radii=0.1 * vis.thickness, colors=[90, 90, 90]))
 
@@ -199,10 +202,23 @@ class RerunRecorder:
         poses, self._poses = self._poses, []
         t = rr.TimeColumn("sim_time", duration=np.array([p[0] for p in poses]))
         W_r, quats = np.array([p[1] for p in poses]), np.array([p[2] for p in poses])
+        times = np.array([p[0] for p in poses])
         for i, b in enumerate(self.visuals.bodies):
-            if b.vertices.size:
+            if not b.vertices.size or b.name in self._left:
+                continue
+            here = ~np.isnan(W_r[:, i, 0])
+            if here.all():
                 self.rec.send_columns(f"/world/bodies/{b.name}", indexes=[t],
                                       columns=rr.Transform3D.columns(translation=W_r[:, i], quaternion=quats[:, i]))
+                continue
+            # the body left the run (viz3d.departures): its poses up to then, and scale 0 from its first NaN pose
+            k = int(np.argmin(here)) + 1
+            translation = np.where(here[:k, None], W_r[:k, i], 0.0)
+            quaternion = np.where(here[:k, None], quats[:k, i], [0.0, 0.0, 0.0, 1.0])
+            self.rec.send_columns(f"/world/bodies/{b.name}", indexes=[rr.TimeColumn("sim_time", duration=times[:k])],
+                                  columns=rr.Transform3D.columns(translation=translation, quaternion=quaternion,
+                                                                 scale=np.repeat(here[:k, None], 3, axis=1).astype(float)))
+            self._left.add(b.name)
         if self._joints:
             self._flush_joints(t)
 
@@ -235,8 +251,8 @@ class RerunRecorder:
             "/plots/energy/total": [f.energy_total for f in frames],
             "/plots/constraint_violation": [f.constraint_violation for f in frames],
         }
-        for key in frames[0].scalars:
-            columns[f"/plots/{key}"] = [f.scalars[key] for f in frames]
+        for key in frames[0].scalars:  # (a joint that left the run with a body: NaN from then on)
+            columns[f"/plots/{key}"] = [f.scalars.get(key, np.nan) for f in frames]
         for path, values in columns.items():
             self.rec.send_columns(path, indexes=[t], columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
         reactions = np.array([f.reaction_force for f in frames])

@@ -196,6 +196,7 @@ class SceneNodes:
         scene.add_grid("/ground", width=size, height=size, plane="xy", cell_size=_nice(size / 20),
                        section_size=_nice(size / 4), position=(centre[0], centre[1], min(0.0, lo[2])))
         self.groups = self._add_bodies(visuals)
+        self._left = False  # a body has left the run: the batches' scales are sent from then on
         for st in visuals.statics:
             scene.add_mesh_simple(f"/statics/{st.name}", st.vertices, st.faces, color=tuple(int(c) for c in st.color))
         s, w = visuals.length_scale, visuals.thickness
@@ -258,26 +259,37 @@ class SceneNodes:
 
     def show(self, frame: Frame, flags: dict) -> None:
         """Push one frame (inside one ``atomic`` block so poses never split across messages)."""
-        wxyz = quat_from_matrix(frame.R_WB)
+        gone = np.isnan(frame.W_r[:, 0])  # bodies that have left the run (viz3d.departures): drawn at scale 0
+        W_r = np.where(gone[:, None], 0.0, frame.W_r)
+        R_WB = np.where(gone[:, None, None], np.eye(3), frame.R_WB)
+        wxyz = quat_from_matrix(R_WB)
+        self._left = self._left or bool(gone.any())
         with self.server.atomic():
             for handle, idx in self.groups:
-                handle.batched_positions = frame.W_r[idx].astype(np.float32)
+                handle.batched_positions = W_r[idx].astype(np.float32)
                 handle.batched_wxyzs = wxyz[idx].astype(np.float32)
+                if self._left:
+                    handle.batched_scales = (~gone[idx]).astype(np.float32)
             if flags["frames"]:
-                ell = np.array([b.radius for b in self.visuals.bodies])[:, None, None] * 1.2
-                tips = frame.W_r[:, None, :] + ell * np.swapaxes(frame.R_WB, 1, 2)
-                seg = np.stack([np.repeat(frame.W_r, 3, axis=0), tips.reshape(-1, 3)], axis=1)
+                ell = np.array([b.radius for b in self.visuals.bodies])[:, None, None] * 1.2 * ~gone[:, None, None]
+                tips = W_r[:, None, :] + ell * np.swapaxes(R_WB, 1, 2)
+                seg = np.stack([np.repeat(W_r, 3, axis=0), tips.reshape(-1, 3)], axis=1)
                 self.frames.points = seg.astype(np.float32)
             self.frames.visible = flags["frames"]
+            held = ~np.isnan(frame.joint_points[:, 0])  # (joints that left with a body: NaN)
+            points = np.where(held[:, None], frame.joint_points, 0.0)
             if self.joints is not None:
-                self.joints.batched_positions = frame.joint_points.astype(np.float32)
+                self.joints.batched_positions = points.astype(np.float32)
+                if self._left:
+                    self.joints.batched_scales = held.astype(np.float32)
                 self.joints.visible = flags["joints"]
             if self.springs is not None:
                 self.springs.points = frame.springs.astype(np.float32)
                 self.springs.visible = flags["springs"]
             if self.forces is not None:
-                vec = frame.reaction_force * (2.0 * self.visuals.length_scale / self.visuals.force_scale)
-                self.forces.points = np.stack([frame.joint_points, frame.joint_points + vec], axis=1).astype(np.float32)
+                vec = np.where(held[:, None], frame.reaction_force, 0.0) * (2.0 * self.visuals.length_scale
+                                                                           / self.visuals.force_scale)
+                self.forces.points = np.stack([points, points + vec], axis=1).astype(np.float32)
                 self.forces.visible = flags["forces"]
             self._show_deformables(frame, flags["stress"])
             self._show_contacts(frame, flags["forces"])
