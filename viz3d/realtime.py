@@ -21,7 +21,7 @@ import queue
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -197,28 +197,28 @@ def plot_series(system) -> tuple[tuple, tuple]:
     names = [n for c in system.contacts for n in c.names]
     if names:
         plots.append(("Contact force [N]", tuple(names)))
-        series += [lambda f, n=n: f.scalars[f"contact/{n}/force"] for n in names]
+        series += [lambda f, n=n: f.scalars.get(f"contact/{n}/force", np.nan) for n in names]
     else:
         plots.append(("Constraint violation [m]", ("max |C|",)))
         series.append(lambda f: f.constraint_violation)
     if system.has_ledger:
         ledger = ("strain", "dissipated", "work_in")
         plots.append(("Energy ledger [J]", ledger))
-        series += [lambda f, k=k: f.scalars[f"energy/{k}"] for k in ledger]
+        series += [lambda f, k=k: f.scalars.get(f"energy/{k}", np.nan) for k in ledger]
     drives = system.drive_names
     if drives:  # the windlass's hauling force, a crank's torque
         plots.append(("Drive effort [N or N m]", tuple(drives)))
-        series += [lambda f, n=n: f.scalars[f"drive/{n}/effort"] for n in drives]
+        series += [lambda f, n=n: f.scalars.get(f"drive/{n}/effort", np.nan) for n in drives]
     panels: dict[str, list[str]] = {}  # output elements: gauges on several bars share one panel
     for out in system.outputs:
         panels.setdefault(out.plot[0], []).extend(out.keys)
     for title, keys in panels.items():
         plots.append((title, tuple(k.split("/")[-1].replace("_", " ") for k in keys)))
-        series += [lambda f, k=k: f.scalars[k] for k in keys]
+        series += [lambda f, k=k: f.scalars.get(k, np.nan) for k in keys]
     for e in system.forces:  # shape contacts, water, joint stops: the element's own plot
         for title, key in live_plots(e):
             plots.append((title, (key.split("/")[-1].replace("_", " "),)))
-            series.append(lambda f, key=key: f.scalars[key])
+            series.append(lambda f, key=key: f.scalars.get(key, np.nan))
     return tuple(plots), tuple(series)
 
 
@@ -303,14 +303,29 @@ class SimRunner(threading.Thread):
     def run(self) -> None:
         try:
             while self._drain():
-                if self.playing and not self.waiting:
-                    self._advance()
-                else:
-                    time.sleep(1.0 / self.display_rate)
-                    self._publish(force=False)
+                try:
+                    if self.playing and not self.waiting:
+                        self._advance()
+                    else:
+                        time.sleep(1.0 / self.display_rate)
+                        self._publish(force=False)
+                except Exception as exc:  # a defect: the run stops with it on show (as a headless run's status)
+                    self._internal_error(exc)
         finally:
             self._close_sinks()
             self._stopped.set()
+
+    def _internal_error(self, exc: Exception) -> None:
+        """Pause with the error as the status, shown at once (the last frame kept), and print its
+        traceback once; commands (Reset, another scene) are still served."""
+        status = f"stopped by an internal error at t = {self.driver.t:.6g} s: {type(exc).__name__}: {exc}"
+        if status != self.status:
+            import traceback
+
+            traceback.print_exc()
+        self.status, self.playing = status, False
+        if self.snapshot is not None:
+            self.snapshot = replace(self.snapshot, status=status, playing=False)
 
     # ------------------------------------------------------------------ scene and settings
 

@@ -1183,7 +1183,11 @@ def run(sim: Simulation, scene: Scene, progress: bool = False, sinks: Sequence[S
             log.flush()
         except SimulationFailure as exc:
             failure = _earliest_failure(log, exc)
-            status = str(failure)
+            if isinstance(failure, RunComplete):  # the goal came first: the run ended there, status ok
+                emitter.announce([(log.parts[-1].t[-1], str(failure))])
+                failure = None
+            else:
+                status = str(failure)
         except RunComplete as done:  # the goal reached: frames up to it kept, status ok
             emitter.announce([(log.parts[-1].t[-1], str(done))])
         except KeyboardInterrupt:
@@ -1231,13 +1235,14 @@ def _verdict(scene: Scene, cols, body_names, failure: SimulationFailure | None):
     return verdict if failure is None or verdict is None or verdict.outcome == "jammed" else None
 
 
-def _earliest_failure(log: StateLog, exc: SimulationFailure) -> SimulationFailure:
+def _earliest_failure(log: StateLog, exc: SimulationFailure) -> SimulationFailure | RunComplete:
     """The earliest failure (its diagnosis is ``str``): a step that failed (``exc.frame`` None) may
-    follow frames, not yet checked, whose check fails first."""
+    follow frames, not yet checked, whose check fails first, or whose goal was reached (``RunComplete``:
+    a limited drive stalled, an anchor seated; the run ended there, before the step failed)."""
     if exc.frame is None:
         try:
             log.flush()
-        except SimulationFailure as earlier:
+        except (SimulationFailure, RunComplete) as earlier:
             return earlier
     return exc
 

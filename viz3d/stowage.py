@@ -225,9 +225,10 @@ def hawse_output(spec: dict, body_names, joint_names, W_r0) -> HawseTension | No
     or a chain of at least two links."""
     if "hawse" not in spec:
         return None
-    names, joints = list(body_names), list(joint_names)
-    links = [(names.index(f"{spec['chain']}{i}"), joints.index(f"{spec['chain']}_j{i}"))
-             for i in range(len(names)) if f"{spec['chain']}{i}" in names and f"{spec['chain']}_j{i}" in joints]
+    names, joints, prefix = list(body_names), list(joint_names), spec["chain"]
+    numbers = sorted(int(n[len(prefix):]) for n in names if n.startswith(prefix) and n[len(prefix):].isdigit())
+    links = [(names.index(f"{prefix}{i}"), joints.index(f"{prefix}_j{i}"))  # (the links still in the run)
+             for i in numbers if f"{prefix}_j{i}" in joints]
     if len(links) < 2:
         return None
     b, j = np.array(links).T

@@ -130,3 +130,16 @@ def test_a_leaving_link_named_by_another_element_is_refused(write_scene):
         simulate(load_scene(write_scene(text)))
     assert "forces[0]" in str(err.value) and "link3" in str(err.value)
 
+
+
+def test_the_hawse_tension_is_measured_on_the_links_still_in_the_run():
+    """After links 0-12 of 19 have left, the remaining links (numbered past the number of bodies) still
+    carry the tension output (it used to look for links 0 .. nb - 1 only, and went missing)."""
+    from viz3d.stowage import hawse_output
+
+    names = ["windlass", "shackle", "shank", "flukes"] + [f"link{i}" for i in range(13, 19)]
+    joints = ["shackle_pin", "crown", "shackle_link"] + [f"link_j{i}" for i in range(13, 19)]
+    W_r0 = np.zeros((len(names), 3))
+    W_r0[4:, 2] = -0.336 * np.arange(13, 19)
+    out = hawse_output({"hawse": [0.0, 0.0, 0.0], "chain": "link"}, names, joints, W_r0)
+    assert out is not None and list(out.links) == list(range(4, 10)) and out.half == pytest.approx(0.168)

@@ -218,3 +218,18 @@ def test_a_run_that_fails_while_its_drive_is_over_capacity_jammed():
     assert verdict(*args, effort, 4.5e5, np.ones(n, bool), capacity_time=0.25).outcome == "not reached"
     calm = np.full(n, 2e5)
     assert verdict(*args, calm, 4.5e5, np.ones(n, bool), capacity_time=0.25, stopped=True).outcome == "not reached"
+
+
+def test_a_goal_reached_in_frames_before_a_failing_step_ends_the_run_there():
+    """A step that fails (no frame of its own) after frames not yet checked: if those frames reached the
+    goal (a stalled windlass, a seated anchor) the run ended there: ``RunComplete``, not the failure and
+    not an exception escaping the run (a member of the stowage ensemble, 2026-11-28, did)."""
+    from viz3d.diagnosis import RunComplete, SimulationFailure
+    from viz3d.simulate import _earliest_failure
+
+    class Log:
+        def flush(self):
+            raise RunComplete("stalled at its capacity", 3)
+
+    got = _earliest_failure(Log(), SimulationFailure("t = 39.2 s: the step did not converge"))
+    assert isinstance(got, RunComplete) and "stalled" in str(got)

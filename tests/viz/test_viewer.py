@@ -411,3 +411,27 @@ def test_links_that_leave_the_run_are_streamed_at_scale_zero(write_scene):
     assert shown, "no scale updates: no link left the run within 10 s"
     assert (shown[0] == 0).sum() == 1 and (shown[-1] == 0).sum() == 2  # link0 at 0.51 s, then link1 at 0.91 s
     assert all(set(s.tolist()) <= {0.0, 1.0} for s in shown)
+
+
+def test_a_defect_in_the_runner_pauses_it_with_the_error_as_its_status(monkeypatch):
+    """An unexpected exception (here from a plot's reader) stops the live run with a diagnosis on show,
+    not a frozen view reading "ok"; commands are still served (Reset)."""
+    from viz3d.realtime import Driver
+
+    values = Driver.plot_values
+
+    def failing(self, frame):
+        if frame.t > 0.05:
+            raise KeyError("stowage/hawse_tension")
+        return values(self, frame)
+
+    monkeypatch.setattr(Driver, "plot_values", failing)
+    runner = _runner()
+    try:
+        assert wait_for(lambda: "internal error" in runner.snapshot.status)
+        snap = runner.snapshot
+        assert not snap.playing and "KeyError" in snap.status and "t = " in snap.status
+        runner.command("reset")
+        assert wait_for(lambda: runner.snapshot.frame.t == 0.0)
+    finally:
+        runner.stop()

@@ -222,10 +222,12 @@ def expand(raw: dict, ship: dict, source: str) -> dict:
         body("shank", "anchor_shank", R_anchor, crown, c_shank, [60, 60, 70], rho_anchor),
         body("flukes", "anchor_flukes", R_flukes, crown, c_flukes, [60, 60, 70], rho_anchor),
     ]
+    # links hauled in past the windlass (the pipe's top, T) leave the run (viz3d.departures): the scene
+    # models only the chain that still moves
     out["chain"] = {"n": n_links, "link_length": ell, "radius": r_link, "mass": link_mass * k,
                     "anchor": T.tolist(), "path": [q.tolist() for q in path],
                     "joint": "universal", "attach": "windlass", "color": [150, 110, 60], "prefix": "link",
-                    **raw.get("chain", {})}
+                    "leave": True, **raw.get("chain", {})}
     out["joints"] = list(raw.get("joints", [])) + [
         {"name": "windlass_guide", "type": "prismatic", "body1": "windlass", "body2": "ground", "point": T.tolist(),
          "axis": a.tolist()},
