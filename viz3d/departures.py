@@ -34,7 +34,7 @@ import numpy as np
 from viz3d._typing import FloatArray, IntArray
 from viz3d.dynamics import body_state
 from viz3d.scene.schema import SceneError
-from viz3d.system import State, System
+from viz3d.system import State, System, state_size
 
 
 @dataclass(frozen=True)
@@ -50,15 +50,12 @@ class Generation:
         Each body's index among the first generation's bodies.
     joints : ndarray of int, shape (nj,)
         Each joint's index among the first generation's joints (``System.joint_names``).
-    t : float
-        When it began [s].
     """
 
     scene: object
     system: System
     bodies: IntArray
     joints: IntArray
-    t: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -146,7 +143,7 @@ class ChainExit:
         keep = np.array([b for b in range(system.n_bodies) if b != link], int)
         joint_index = {n: i for i, n in enumerate(system.joint_names)}
         gen1 = Generation(scene, new, gen.bodies[keep], np.array([gen.joints[joint_index[n]] for n in new.joint_names],
-                                                                 int), state.t)
+                                                                 int))
         return gen1, moved_state(system, new, state, keep)
 
 
@@ -172,17 +169,22 @@ def _anchors_kept(old_element, new_element, anchors, keep: IntArray):
     new_body = np.full(old_element.n_bodies + 1, -1)
     new_body[keep] = np.arange(len(keep))
     new_body[old_element.n_bodies] = new_element.n_bodies  # ground stays ground
-    key_new = {}
-    for i, s in enumerate(new_element.shapes):
-        key_new[(s.body, sum(t.body == s.body for t in new_element.shapes[:i]))] = i
-    shape_map = np.full(len(old_element.shapes), -1)
-    for i, s in enumerate(old_element.shapes):
-        b = new_body[s.body]
-        if b >= 0:
-            shape_map[i] = key_new.get((b, sum(t.body == s.body for t in old_element.shapes[:i])), -1)
+    index = {key: i for i, key in enumerate(_shape_keys([s.body for s in new_element.shapes]))}
+    old_keys = _shape_keys([new_body[s.body] for s in old_element.shapes])  # (body -1: it left)
+    shape_map = np.array([index.get(key, -1) for key in old_keys], int)
     shape = shape_map[anchors.shape]
     ok = (shape >= 0).all(axis=1)
     return replace(anchors, shape=shape[ok], anchor=anchors.anchor[ok], mark=anchors.mark[ok])
+
+
+def _shape_keys(bodies: list[int]) -> list[tuple[int, int]]:
+    """Each shape's identity across generations: (its body, its rank among that body's shapes)."""
+    seen: dict[int, int] = {}
+    keys = []
+    for b in bodies:
+        keys.append((int(b), seen.get(b, 0)))
+        seen[b] = seen.get(b, 0) + 1
+    return keys
 
 
 def expand(values: FloatArray, index: IntArray, n: int, axis: int = 1) -> FloatArray:
@@ -261,8 +263,8 @@ def _check_references(data: dict, prefix: str, src: str) -> None:
 
 class Departures:
     """A run's departures: its ``ChainExit`` rule and the generations so far (``Generation``), the first
-    the scene's own system. Held by ``viz3d.simulate.Simulation``, which asks ``due`` at each check and
-    moves on to the generation ``next`` gives.
+    the scene's own system. Held by ``viz3d.simulate.Simulation``, which calls ``next`` at each check
+    (``steps_to_check``) and moves on to the generation it gives.
 
     Attributes
     ----------
@@ -311,5 +313,4 @@ class Departures:
     def generation_of(self, state) -> Generation:
         """The generation a state (or a ``States``) belongs to, by its number of coordinates (each
         departure removes a floating body's)."""
-        n_q = state.q.shape[0] if isinstance(state, State) else state.n_q
-        return next(g for g in reversed(self.generations) if g.system.n_q == n_q)
+        return next(g for g in reversed(self.generations) if g.system.n_q == state_size(state))

@@ -50,7 +50,7 @@ from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import drive_coordinate, run_events, run_verdict, seated_stop, verdict_fields
 from viz3d._typing import IntArray
-from viz3d.system import State, States, System
+from viz3d.system import State, States, System, state_size
 from viz3d.trajectory import Trajectory
 
 #: Output interval when the scene gives none [s].
@@ -107,11 +107,6 @@ class FrameSource:
             kinematics = self.kernel.configuration(state.t, state.y, state.chart)
         return frame_from_state(self.system, self.formulation, state, drawings, self.reference_energy,
                                 self.solved_rows(state), kinematics)
-
-
-def state_size(state) -> int:
-    """``n_q`` of a ``State`` or ``States`` (which generation of a run's system it belongs to)."""
-    return state.q.shape[0] if isinstance(state, State) else state.n_q
 
 
 class Simulation:

@@ -329,3 +329,9 @@ class States:
 def _chained(tuples) -> tuple:
     """The entries of ``tuples`` one after another, as one tuple."""
     return tuple(itertools.chain.from_iterable(tuples))
+
+
+def state_size(state: "State | States") -> int:
+    """``n_q`` of a ``State`` or ``States``: which generation of a run's system it belongs to
+    (``viz3d.departures``: each departure removes a floating body's coordinates)."""
+    return state.q.shape[0] if isinstance(state, State) else state.n_q
