@@ -35,7 +35,7 @@ from viz3d.departures import expand
 from viz3d.frames import Frame, drawing_of, ledger_scalars
 from viz3d.joints import drive_efforts, relative_coordinates
 from viz3d.kinematics import Configuration, Pose, Twist
-from viz3d.system import State, States, System
+from viz3d.system import State, States, System, state_size
 
 #: States turned into columns at a time, at least (the run's health checks on energy and constraint
 #: violation see frames in chunks this long; ``chunk_length``).
@@ -319,24 +319,18 @@ class Runs(Sequence):
 
 def generation_runs(states) -> list[States]:
     """``states`` (``States``, ``Runs`` or a sequence of ``State``) as runs of one generation each."""
-    if isinstance(states, States):
-        return [states]
     if isinstance(states, Runs):
         return states.runs
-    groups: list[list[State]] = []
-    for st in states:
-        if groups and groups[-1][-1].q.shape[0] == st.q.shape[0]:
-            groups[-1].append(st)
-        else:
-            groups.append([st])
-    return [States.of(g) for g in groups] or [States.of([])]
+    if not isinstance(states, States):
+        states = joined([States.of([st]) for st in states]) if len(states) else States.of([])
+    return states.runs if isinstance(states, Runs) else [states]
 
 
 def joined(pieces: list[States]) -> States | Runs:
     """``pieces`` joined: one ``States`` where they are of one generation, else ``Runs`` of each's."""
     runs: list[list[States]] = []
     for p in pieces:
-        if runs and runs[-1][-1].n_q == p.n_q:
+        if runs and state_size(runs[-1][-1]) == state_size(p):
             runs[-1].append(p)
         else:
             runs.append([p])
