@@ -370,7 +370,8 @@ class Simulation:
             if self._E0 is not None:
                 from viz3d.events import ledger
 
-                self._E0 += ledger(gen.system, state).total - ledger(self.system, self.state).total
+                new, old = ledger(gen.system, state), ledger(self.system, self.state)
+                self._E0 += (new.total + new.dissipated) - (old.total + old.dissipated)  # (the link's energy)
             kept = np.isin(before.bodies, gen.bodies)
             self._left_switches[before.bodies[~kept]] += self.chart_switches[~kept]
             self.chart_switches = self.chart_switches[kept]

@@ -155,8 +155,9 @@ class System:
     @property
     def n_aux(self) -> int:
         """Work integrals carried in the state (``State.w``; ``viz3d.events``): with located contacts or
-        drives, one per contact, one for the damping of flexible bodies and one for the work in (the
-        drives' and the non-conservative force elements'); none otherwise (no energy ledger)."""
+        drives, one per contact, one for the damping of flexible bodies (and the kinetic energy taken by the
+        joints of departures, ``viz3d.departures.velocities_held``) and one for the work in (the drives' and the
+        non-conservative force elements'); none otherwise (no energy ledger)."""
         if not (self.driven or any(c.located for c in self.contacts)):
             return 0
         return sum(c.k for c in self.contacts) + 2
