@@ -19,7 +19,8 @@ wholly beyond the hull (seed 004's chain past the windlass's wildcat). The run g
   dissipated (the ledger's ``State.w[-2]``). Without it a formulation that does not project
   velocities (Baumgarte's) opened each new joint by up to 15 mm on the anchor hoist;
 * the link's kinetic and potential energy leave with it: the energy ledger's reference drops by the
-  ledger total's change at that instant, so the ledger stays closed (``viz3d.simulate``);
+  change of the ledger's total and dissipated energy at that instant (the link's energy: what the
+  impulse took is in both), so the ledger stays closed (``viz3d.simulate``);
 * the force elements' memory (stick anchors of shape contacts) is carried over for the shapes that
   stay.
 
