@@ -33,13 +33,13 @@ that has left has NaN poses, a joint that has left NaN reactions (``expand_colum
 from __future__ import annotations
 
 import copy
-import re
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from viz3d._typing import FloatArray, IntArray
 from viz3d.dynamics import body_state, energies
+from viz3d.scene.chainpath import link_index
 from viz3d.scene.schema import SceneError
 from viz3d.stabilization import project_velocities
 from viz3d.system import State, System, state_size
@@ -110,7 +110,7 @@ class ChainExit:
             raise SceneError(src, "chain.leave", "a chain hauled by a body (attach), not held at both ends or by ground",
                              True)
         _check_references(scene.data, chain["prefix"], src)
-        links = [b for b in scene.data["bodies"] if _link_index(b["name"], chain["prefix"]) is not None]
+        links = [b for b in scene.data["bodies"] if link_index(b["name"], chain["prefix"]) is not None]
         first = np.asarray(links[0]["position"], float) - np.asarray(chain["anchor"], float)
         return cls(chain["prefix"], chain["attach"], np.asarray(chain["anchor"], float),
                    first / np.linalg.norm(first), every)
@@ -130,7 +130,7 @@ class ChainExit:
 
     def _first_link(self, system: System) -> int | None:
         indexed = [(i, b) for b, name in enumerate(system.bodies.names)
-                   if (i := _link_index(name, self.prefix)) is not None]
+                   if (i := link_index(name, self.prefix)) is not None]
         return min(indexed)[1] if indexed else None
 
     def without(self, gen: Generation, state: State, link: int) -> tuple[Generation, State]:
@@ -223,11 +223,6 @@ def expand(values: FloatArray, index: IntArray, n: int, axis: int = 1) -> FloatA
 # ----------------------------------------------------------------------------- the joints rewritten
 
 
-def _link_index(name: str, prefix: str) -> int | None:
-    m = re.fullmatch(re.escape(prefix) + r"(\d+)", name)
-    return int(m.group(1)) if m else None
-
-
 def _joint_between(data: dict, a: str, b: str) -> str:
     return next(j["name"] for j in data["joints"] if {j["body1"], j["body2"]} == {a, b})
 
@@ -268,7 +263,7 @@ def _check_references(data: dict, prefix: str, src: str) -> None:
     """A leaving chain's links may be named only by its own joints and dampers and by collision groups:
     refuse contacts, drives, gauges and force elements on them (they would outlive the link)."""
     def is_link(x) -> bool:
-        return isinstance(x, str) and _link_index(x, prefix) is not None
+        return isinstance(x, str) and link_index(x, prefix) is not None
 
     chain_joints = {j["name"] for j in data["joints"] if is_link(j["body1"]) or is_link(j["body2"])}
     for table in ("contacts", "gauges", "forces", "drives"):

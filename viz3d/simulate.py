@@ -18,6 +18,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from viz3d._typing import IntArray
 from viz3d.columns import CHUNK, FrameColumns, StateLog, chunk_length
 from viz3d.constraints import SingularConstraintError, constraint_rows
 from viz3d.departures import Departures
@@ -49,7 +50,6 @@ from viz3d.scene.schema import SceneError
 from viz3d.sink import Sink, frame_due
 from viz3d.stabilization import ProjectionError
 from viz3d.stowage import drive_coordinate, run_events, run_verdict, seated_stop, verdict_fields
-from viz3d._typing import IntArray
 from viz3d.system import State, States, System, state_size
 from viz3d.trajectory import Trajectory
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from viz3d.diagnosis import RunComplete, held_effort, overload_start
 from viz3d.outputs import HawseTension
+from viz3d.scene.chainpath import link_index
 
 OUTCOMES = ("seated", "jammed", "not reached")
 
@@ -226,7 +227,7 @@ def hawse_output(spec: dict, body_names, joint_names, W_r0) -> HawseTension | No
     if "hawse" not in spec:
         return None
     names, joints, prefix = list(body_names), list(joint_names), spec["chain"]
-    numbers = sorted(int(n[len(prefix):]) for n in names if n.startswith(prefix) and n[len(prefix):].isdigit())
+    numbers = sorted(i for n in names if (i := link_index(n, prefix)) is not None)
     links = [(names.index(f"{prefix}{i}"), joints.index(f"{prefix}_j{i}"))  # (the links still in the run)
              for i in numbers if f"{prefix}_j{i}" in joints]
     if len(links) < 2:

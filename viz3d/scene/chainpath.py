@@ -1,6 +1,9 @@
-"""Where a generated chain's joints go: along a polyline (``[chain] path``), one link length apart."""
+"""Where a generated chain's joints go: along a polyline (``[chain] path``), one link length apart;
+and how its links are named (``<prefix><i>``, joints ``<prefix>_j<i>``: ``viz3d.scene.load``)."""
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 
@@ -50,3 +53,9 @@ def normal_to(d: np.ndarray) -> np.ndarray:
     e = np.eye(3)[int(np.argmin(np.abs(d)))]
     w = np.cross(d, e)
     return w / np.linalg.norm(w)
+
+
+def link_index(name: str, prefix: str) -> int | None:
+    """``i`` of the chain link named ``<prefix><i>``; None for any other name."""
+    m = re.fullmatch(re.escape(prefix) + r"(\d+)", name)
+    return int(m.group(1)) if m else None

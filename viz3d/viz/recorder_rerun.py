@@ -200,9 +200,9 @@ class RerunRecorder:
         if not self._poses:
             return
         poses, self._poses = self._poses, []
-        t = rr.TimeColumn("sim_time", duration=np.array([p[0] for p in poses]))
-        W_r, quats = np.array([p[1] for p in poses]), np.array([p[2] for p in poses])
         times = np.array([p[0] for p in poses])
+        t = rr.TimeColumn("sim_time", duration=times)
+        W_r, quats = np.array([p[1] for p in poses]), np.array([p[2] for p in poses])
         for i, b in enumerate(self.visuals.bodies):
             if not b.vertices.size or b.name in self._left:
                 continue
