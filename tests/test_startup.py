@@ -40,6 +40,18 @@ def offending(modules: set[str], names: tuple[str, ...]) -> list[str]:
     return sorted(n for n in names if n in modules)
 
 
+def modules_of_a_warm_run(tmp_path) -> set[str]:
+    """``loaded_after`` a headless run of the heavy top whose kernel came from numba's cache (a first run
+    warms it, compiling the kernel if it is cold)."""
+    pytest.importorskip("numba")
+    out = tmp_path / "top.npz"
+    run = ("from viz3d.cli import main\n"
+           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
+    loaded_after(run)
+    return loaded_after(run + "from viz3d.kernel import stepping\n"
+                              "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
+
+
 @pytest.mark.parametrize("code", ["import viz3d", "import viz3d.cli", "from viz3d.cli import main"])
 def test_the_package_and_the_command_line_import_no_optional_library(code):
     modules = loaded_after(code)
@@ -70,27 +82,57 @@ def test_check_builds_without_the_compiled_kernel():
 
 
 def test_a_warm_run_loads_its_kernel_without_numbas_target_refresh(tmp_path):
-    pytest.importorskip("numba")
-    out = tmp_path / "top.npz"
-    run = ("from viz3d.cli import main\n"
-           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
-    loaded_after(run)  # warms numba's cache (compiles the kernel if it is cold)
-    modules = loaded_after(run + "from viz3d.kernel import stepping\n"
-                                 "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
+    modules = modules_of_a_warm_run(tmp_path)
     assert not offending(modules, NUMBA_TARGET)
+
+
+#: What a warm run of a rigid scene on fixed steps imports none of: ``numpy.ma`` (numba's typing of an
+#: array asks whether it is masked: ``viz3d.kernel._argument_type`` types the kernel's arguments without
+#: it), ALI3-P, the compiled adaptive driver, the shape contacts, the contact report, the flexible
+#: bars' mode sets, planar elements and mode selection, and water.
+NOT_IN_A_RIGID_RUN = ("numpy.ma", "viz3d.ali3p", "viz3d.kernel.adaptive", "viz3d.kernel.ali3p", "viz3d.kernel.collisions",
+                      "viz3d.contact.collision", "viz3d.contact.narrowphase", "viz3d.scene.collisions",
+                      "viz3d.contact.report", "viz3d.flexible.modes", "viz3d.flexible.planar", "viz3d.flexible.selection",
+                      "viz3d.water")
+
+
+def test_a_warm_rigid_run_imports_nothing_its_scene_does_not_use(tmp_path):
+    modules = modules_of_a_warm_run(tmp_path)
+    assert not offending(modules, NOT_IN_A_RIGID_RUN)
+
+
+def test_reading_a_cache_index_imports_no_module_of_the_other_signatures(tmp_path):
+    """numba's cache index of a function holds every signature it was compiled for, and reading it to
+    find one imported the module of every class in all of them (the kernel's, cached for systems with
+    shape contacts, imported the narrow phase into rigid runs). A function cached for an array and
+    for a named tuple of another module is loaded, for the array, from a fresh process that does not
+    import that module: the entry is a cache hit, and the module stays unimported."""
+    pytest.importorskip("numba")
+    (tmp_path / "probe_pair.py").write_text("from typing import NamedTuple\n\nimport numpy as np\n\n\n"
+                                            "class Pair(NamedTuple):\n    a: np.ndarray\n    b: np.ndarray\n")
+    (tmp_path / "probe_fn.py").write_text("from viz3d.compiled import entry\n\n\n@entry\ndef second(x, y):\n"
+                                          "    return y\n")
+    env = {**__import__("os").environ, "PYTHONPATH": f"{tmp_path}{__import__('os').pathsep}{ROOT}"}
+
+    def probe(code: str) -> list[str]:
+        out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                             timeout=600, check=True)
+        return out.stdout.split()
+
+    probe("import numpy as np\nfrom probe_fn import second\nfrom probe_pair import Pair\n"
+          "assert second(Pair(np.zeros(2), np.ones(2)), 1.0) == 1.0 and second(np.zeros(2), 2.0) == 2.0\n"
+          "assert len(second.overloads) == 2")
+    seen = probe("import sys\nimport numpy as np\nfrom probe_fn import second\n"
+                 "assert second(np.zeros(3), 3.0) == 3.0\n"
+                 "print(sum(second.stats.cache_hits.values()), 'probe_pair' in sys.modules)")
+    assert seen == ["1", "False"]
 
 
 def test_a_warm_rigid_run_imports_no_scipy_linalg(tmp_path):
     """A run the kernel covers projects its initial state there (``scene.build.kernel_projection``), not
     with LAPACK's ``dposv`` (``viz3d.constraints.schur_solve``): with numba's cache warm, nothing imports
     scipy.linalg (compiling, on a cold cache, does: numba's target refresh imports it)."""
-    pytest.importorskip("numba")
-    out = tmp_path / "top.npz"
-    run = ("from viz3d.cli import main\n"
-           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
-    loaded_after(run)  # warms numba's cache
-    modules = loaded_after(run + "from viz3d.kernel import stepping\n"
-                                 "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
+    modules = modules_of_a_warm_run(tmp_path)
     assert not offending(modules, ("scipy.linalg", "scipy.linalg.lapack", "scipy.linalg.cython_lapack"))
 
 
@@ -177,3 +219,22 @@ def test_the_command_starts_blas_on_one_thread_unless_the_user_chose_a_count():
                          timeout=600, check=True)
     assert out.stdout.split() == ["['1']"]
 
+
+
+def test_the_command_holds_the_collector_through_its_start_up_only():
+    """``viz3d.__main__`` turns the cyclic garbage collector off for the start-up
+    (``viz3d.process.hold_collector``: its full collections scanned numba's 10^5 objects again and
+    again) and on again, the objects made so far frozen, at most ``STARTUP_SECONDS`` later."""
+    probe = ("import gc, time\n"
+             "import viz3d.__main__\n"
+             "from viz3d.process import STARTUP_SECONDS, hold_collector, release_collector\n"
+             "held = not gc.isenabled()\n"
+             "time.sleep(STARTUP_SECONDS + 1.0)\n"
+             "print(held, gc.isenabled(), gc.get_freeze_count() > 0)\n"
+             "gc.unfreeze()\n"
+             "hold_collector(60.0)\n"
+             "again = not gc.isenabled()\n"
+             "release_collector()\n"
+             "print(again, gc.isenabled(), gc.get_freeze_count() > 0)\n")
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=600, check=True)
+    assert out.stdout.split() == ["True", "True", "True"] * 2

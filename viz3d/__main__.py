@@ -4,9 +4,10 @@ import gc
 import os
 import sys
 
-from viz3d.process import single_threaded_blas
+from viz3d.process import hold_collector, single_threaded_blas
 
 single_threaded_blas()
+hold_collector()
 
 from viz3d.cli import RECEIVED, main  # noqa: E402  (after the BLAS threads are chosen)
 

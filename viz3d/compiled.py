@@ -129,7 +129,27 @@ def _njit(fn, options: dict):
         _lock_compiles(dispatcher)
     if hasattr(dispatcher, "compile"):
         _one_signature_per_type(dispatcher)
+    if hasattr(dispatcher, "_compilation_chain_init_hook"):
+        dispatcher._compilation_chain_init_hook = _extensions_when_compiling
     return dispatcher
+
+
+def _extensions_when_compiling() -> None:
+    """What a call of a viz3d function from Python does where numba's dispatcher initializes numba's
+    extensions (``numba.core.entrypoints.init_all``, every ``numba_extensions`` entry point of the
+    installed packages, for types and functions defined outside numba): nothing. Their scan of every
+    installed distribution's metadata took 10-40 ms of a run's start (76 distributions here) and a
+    run that loads its kernel from the cache compiles nothing; the arguments viz3d passes are arrays,
+    numbers and its own named tuples, typed without them. The extensions are initialized as numba
+    starts the first compilation in the process (``_before_the_first_compilation``), as numba's own
+    functions initialize them on their first call."""
+
+
+def _init_extensions() -> None:
+    """numba's extensions initialized (``_extensions_when_compiling``)."""
+    from numba.core import entrypoints
+
+    entrypoints.init_all()
 
 
 def _one_signature_per_type(dispatcher) -> None:
@@ -487,12 +507,23 @@ def _loading_cache():
       (``numba.core.environment._rebuild_env``): the kernel inlines a few of numba's own
       implementations (``normalize_reshape_value`` of ``numba.np.arrayobj``, 33 ms to import, and
       three smaller), and their environments' globals are read only by object-mode code, which
-      viz3d's compiled code has none of (``_lazy_env``).
+      viz3d's compiled code has none of (``_lazy_env``);
+    * importing the modules of the argument types of every signature in a function's cache index as
+      the index is read to find the one entry wanted: the kernel's ``advance_frames`` is cached for
+      systems with shape contacts too (their data class in ``viz3d.kernel.collisions``, which
+      imports the narrow phase: 10-15 ms), and a rigid run's signature needs none of them. A class
+      whose module is not imported yet reads as a stand-in (``_IndexUnpickler``), so those
+      signatures differ from the one looked up, which holds the caller's own classes; numba's save
+      of a new entry (a compilation) reads the index again with every class, the stand-ins never
+      written.
     """
     try:
+        import io
+        import pickle
+
         from llvmlite import binding as ll
-        from numba.core import environment
-        from numba.core.caching import CompileResultCacheImpl, FunctionCache
+        from numba.core import caching, environment
+        from numba.core.caching import CompileResultCacheImpl, FunctionCache, IndexDataCacheFile
         from numba.core.codegen import JITCodeLibrary, JITCPUCodegen, JitEngine
     except ImportError:  # pragma: no cover
         return None
@@ -500,7 +531,8 @@ def _loading_cache():
              JITCodeLibrary: ("_get_module_for_linking", "_set_compiled_object", "enable_object_caching",
                               "_finalize_final_module"),
              JitEngine: ("is_symbol_defined", "_load_defined_symbols"),  # the latter fills ``_defined_symbols``
-             environment: ("_rebuild_env", "lookup_environment", "Environment")}
+             environment: ("_rebuild_env", "lookup_environment", "Environment"),
+             IndexDataCacheFile: ("_load_index",), caching: ("pickle",)}
     if JITCPUCodegen._library_class is not JITCodeLibrary or not all(
             hasattr(cls, m) for cls, names in needs.items() for m in names):
         return None  # pragma: no cover
@@ -517,6 +549,40 @@ def _loading_cache():
         env.env_name = env_name
         environment.Environment._memo[env_name] = env
         return env
+
+    class _NotImported:
+        """Base of the stand-ins for classes whose modules are not imported (``_IndexUnpickler``)."""
+
+    stand_ins: dict[tuple[str, str], type] = {}
+
+    class _IndexUnpickler(pickle.Unpickler):
+        def find_class(self, module, name):
+            if module not in sys.modules:
+                if (module, name) not in stand_ins:
+                    stand_ins[module, name] = type(name, (_NotImported,), {"__module__": module, "__qualname__": name})
+                return stand_ins[module, name]
+            return super().find_class(module, name)
+
+    class _IndexPickle:
+        """``pickle`` as numba's ``_load_index`` uses it, reading the index with ``_IndexUnpickler``."""
+
+        load = staticmethod(pickle.load)
+
+        @staticmethod
+        def loads(data):
+            return _IndexUnpickler(io.BytesIO(data)).load()
+
+    def _index_of(cache_file):
+        """``cache_file._load_index`` without importing modules (under numba's compiler lock);
+        read with every class where a stand-in cannot take a class's place (it is called, say)."""
+        caching.pickle = _IndexPickle
+        try:
+            return IndexDataCacheFile._load_index(cache_file)
+        except Exception:
+            caching.pickle = pickle
+            return IndexDataCacheFile._load_index(cache_file)
+        finally:
+            caching.pickle = pickle
 
     class LinkLaterLibrary(JITCodeLibrary):
         """A library loaded from the cache (object code), its module for linking parsed on demand."""
@@ -581,12 +647,15 @@ def _loading_cache():
         def load_overload(self, sig, target_context):
             # Under numba's compiler lock (``Dispatcher.compile``): the entry is unpickled here,
             # pickle reading ``environment._rebuild_env`` as it meets each environment.
+            # The index is read with stand-ins for classes not imported (``_index_of``) by this load only.
             environment._rebuild_env = _lazy_env
+            self._cache_file._load_index = functools.partial(_index_of, self._cache_file)
             try:
                 with self._guard_against_spurious_io_errors():
                     return self._load_overload(sig, target_context)
             finally:
                 environment._rebuild_env = rebuild_env
+                del self._cache_file._load_index
 
     return LoadingCache
 
@@ -726,6 +795,7 @@ LoadingCache = None
 if numba is not None:
     _install_stamp_locators()
     LoadingCache = _loading_cache()
+    _before_the_first_compilation(_init_extensions)
     _before_the_first_compilation(_cheaper_inlining)
     _before_the_first_compilation(_link_optimized_callees)
 

@@ -229,7 +229,10 @@ def _bandwidth_order(r_idx: IntArray, k_idx: IntArray, n_c: int) -> IntArray:
     same rows identically (``tests/unit/test_constraints.py``) but imports scipy.sparse and
     scipy.linalg (0.15 s at a run's start; Cuthill and McKee, ACM '69, 157-172).
     """
-    key = np.unique(np.asarray(r_idx, np.int64) * n_c + np.asarray(k_idx, np.int64))
+    key = np.sort(np.asarray(r_idx, np.int64) * n_c + np.asarray(k_idx, np.int64))
+    distinct = np.ones(len(key), dtype=bool)  # (``np.unique`` would import numpy.ma: 10 ms of a run's start)
+    distinct[1:] = key[1:] != key[:-1]
+    key = key[distinct]
     row, col = np.divmod(key, n_c)
     start = np.searchsorted(row, np.arange(n_c + 1))
     degree = (np.diff(start) + np.bincount(row[row == col], minlength=n_c)).astype(np.int32)

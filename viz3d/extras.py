@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from viz3d.contact.report import contact_report, per_contact_restitution
 from viz3d.outputs import DeflectionGauges, StrainGauges
 
 LEDGER = ("strain", "contact_elastic", "dissipated", "work_in", "balance_error")
@@ -91,6 +90,8 @@ def _series(frames, keys: list[str]) -> np.ndarray:
 
 
 def _contact_fields(sim, scene, frames, names: list[str]) -> dict:
+    from viz3d.contact.report import contact_report, per_contact_restitution  # (runs with contacts only)
+
     system, cs = sim.system, sim.contacts
     final = sim.state
     rigid_now = {}

@@ -11,11 +11,10 @@ those instead of an integrator. Registry: ``FORMULATIONS``; see docs/extending.m
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from viz3d.ali3p import ALI3PMemory, ali3p_step, init_memory
 from viz3d.constraints import (
     ConstraintRows,
     apply_jacobian,
@@ -26,6 +25,9 @@ from viz3d.integrators.base import Status
 from viz3d.kinematics import Configuration
 from viz3d.stabilization import project_positions, project_velocities
 from viz3d.system import State, System
+
+if TYPE_CHECKING:
+    from viz3d.ali3p import ALI3PMemory
 
 
 def solve_augmented(system: System, mass, Q, rows: ConstraintRows, gamma, compliance: float = 0.0):
@@ -193,6 +195,8 @@ class ALI3P(Index1):
         """Accelerations and multipliers at ``state`` from ``start``, and the force tangent; the
         steps run in the compiled kernel when ``kernel`` (a ``viz3d.kernel.KernelStepper`` of the
         system) is given, else in NumPy."""
+        from viz3d.ali3p import init_memory  # (on first use: a run of another formulation does not import it)
+
         if kernel is None:
             return init_memory(system, self, state)
         from viz3d.kernel.ali3p import KernelALI3P
@@ -203,6 +207,8 @@ class ALI3P(Index1):
              ) -> tuple[State, ALI3PMemory, Status]:
         """Advance ``state`` by ``h`` [s] (see ``viz3d.ali3p``; ``failed``: its first attempts' memory
         and status when already known)."""
+        from viz3d.ali3p import ali3p_step
+
         return ali3p_step(system, self, state, h, memory, failed=failed)
 
 

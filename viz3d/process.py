@@ -3,7 +3,9 @@ imports nothing but the standard library."""
 
 from __future__ import annotations
 
+import gc
 import os
+import threading
 
 #: The environment variables OpenBLAS takes its thread count from (the first set wins).
 BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
@@ -20,3 +22,33 @@ def single_threaded_blas(environ=os.environ) -> None:
     took 0.22 s against 1.7 ms on one thread (load 3)."""
     if not any(environ.get(name) for name in BLAS_THREADS):
         environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
+#: How long the command's start-up holds the garbage collector at most [s] (``hold_collector``).
+STARTUP_SECONDS = 1.0
+
+
+def hold_collector(seconds: float = STARTUP_SECONDS) -> None:
+    """Keep the cyclic garbage collector off for the command's start-up, at most ``seconds``; then
+    freeze what was made so far (``gc.freeze``) and turn it on again (``release_collector``).
+
+    A start-up creates some 10^5 objects that live as long as the process (numba's typing and
+    lowering tables, viz3d's classes, the kernel loaded from the cache), and each full collection
+    while they were made scanned all of them again: 30 ms of the 0.41 s a ``viz3d run`` of a small
+    scene took (benchmarks/bench_startup.py, 2026-11-29). Frozen, the collections that follow skip
+    them. The bound keeps a long command (a run, a viewer) collecting like any other process; cycles
+    made and dropped within the start-up are kept (they are few, and the start-up ends)."""
+    if not gc.isenabled():
+        return
+    gc.disable()
+    timer = threading.Timer(seconds, release_collector)
+    timer.daemon = True
+    timer.start()
+
+
+def release_collector() -> None:
+    """End ``hold_collector``'s start-up: freeze the objects made so far and collect again (nothing if
+    the collector is on)."""
+    if not gc.isenabled():
+        gc.freeze()
+        gc.enable()

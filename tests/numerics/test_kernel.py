@@ -6,9 +6,10 @@ import pytest
 import viz3d
 from viz3d import kernel as K
 from viz3d.dynamics import VectorField
+from viz3d.formulation import Projection
 from viz3d.integrators import make_integrator
 from viz3d.integrators.tableaus import RK4
-from viz3d.scene.build import make_formulation
+from viz3d.scene.build import build, make_formulation
 from viz3d.simulate import Simulation, simulate_built
 
 from conftest import SCENES, scene_files
@@ -329,15 +330,17 @@ def test_a_run_without_sinks_takes_its_frames_in_batches_with_the_same_result(sc
 
 
 def test_an_entry_that_accepted_its_arguments_is_found_without_typing_them(monkeypatch):
-    """A dispatcher holding one signature that has just taken the arguments: that signature is theirs,
-    found without numba's typing (``_typed_entry``: which imports numpy.ma and took some 10 ms of a
-    run's start); holding two, the arguments are typed, and each finds its own."""
+    """A dispatcher holding no signature yet: the entry for the arguments' types is loaded or compiled,
+    typed without numba's ``typeof`` of an array (``_argument_type``: numba's imports numpy.ma, some
+    10 ms of a run's start). Holding one signature that has just taken the arguments: that signature
+    is theirs, found without typing; holding two, the arguments are typed, and each finds its own."""
     numba = pytest.importorskip("numba")
     total = numba.njit(lambda a: a.sum())
     x, k = np.arange(3.0), np.arange(3)
-    assert K._typed_entry(total, (x,), accepted=True) is total  # nothing compiled or loaded yet
-    total(x)
-    monkeypatch.setattr(total, "typeof_pyval", lambda a: pytest.fail("typed"))
+    monkeypatch.setattr(total, "typeof_pyval", lambda a: pytest.fail("typed by numba"))
+    entry = K._typed_entry(total, (x,))
+    assert list(total.overloads) == [(numba.typeof(x),)] and entry is total.overloads[(numba.typeof(x),)].entry_point
+    assert entry(x) == 3.0
     assert K._typed_entry(total, (x,), accepted=True)(x) == 3.0
     monkeypatch.undo()
     total(k)
@@ -347,6 +350,25 @@ def test_an_entry_that_accepted_its_arguments_is_found_without_typing_them(monke
     assert K._typed_entry(total, (x,), accepted=True) is not K._typed_entry(total, (k,), accepted=True)
 
 
+def test_the_kernels_own_typing_of_its_arguments_is_numbas():
+    """``_argument_type`` gives what numba's ``typeof`` gives (the signature a call would have been
+    compiled for, and the key of the entry in numba's cache): the packed data of a top on a ball joint
+    and of a chain (named tuples of arrays, tuples of them, None), arrays of every layout, dtype and
+    writability, and numbers."""
+    numba = pytest.importorskip("numba")
+    d = numba.njit(lambda a: a)
+    values = []
+    for name in ("heavy_top", "chain"):
+        system, _ = build(viz3d.load_scene(SCENES / f"{name}.toml"))
+        data = K.kernel_for(system, Projection(1e-12))
+        values += [getattr(data, f) for f in K.DATA_TUPLES] + list(K.KernelStepper(data, None).ws)
+    a = np.arange(12.0).reshape(3, 4)
+    readonly = a.copy()
+    readonly.flags.writeable = False
+    values += [a, a.T, a[:, ::2], a[0], readonly, np.zeros((0, 3)), np.zeros(2, np.int64), np.zeros(2, bool),
+               np.zeros((2, 3, 3)), np.float64(2.0), 1.5, 3, True, None, (a, 1.0), (a, a), ()]
+    for v in values:
+        assert K._argument_type(d, v) == numba.typeof(v), v
 def test_compiled_entries_are_found_once_per_argument_types_and_are_the_right_ones(monkeypatch):
     """Runs of scenes interleaved (a top on RK4; a spring on gen_alpha, whose run calls other compiled
     entries): after the first run of each, their compiled entries are found without numba's typing,

@@ -41,16 +41,28 @@ Source: J. L. Escalona, *Análisis dinámico de impactos en barras flexibles*, P
 2000 (seed 002); its digest lists the errata these modules correct.
 """
 
-from viz3d.flexible.bar import BarModel, Material, PointMass, Section, reduce
-from viz3d.flexible.fe import ELEMENT_TYPES, ELEMENTS, fe_model, node_bending_stress, node_curvature
-from viz3d.flexible.modes import MODE_SETS, analytic_modes, mode_set
-from viz3d.flexible.planar import PLANAR_ELEMENTS, PlanarBeam, planar_beam
-from viz3d.flexible.selection import ModeSelection, contact_band, select_modes
+import importlib
 
-__all__ = [
-    "BarModel", "Material", "PointMass", "Section", "reduce",
-    "ELEMENT_TYPES", "ELEMENTS", "fe_model", "node_bending_stress", "node_curvature",
-    "MODE_SETS", "analytic_modes", "mode_set",
-    "PLANAR_ELEMENTS", "PlanarBeam", "planar_beam",
-    "ModeSelection", "contact_band", "select_modes",
-]
+#: The package's names and the module of each, imported on first use (a rigid run imports ``floating``
+#: and ``bar`` only; the mode sets, planar elements and mode selection are 8 ms of a run's start).
+_MODULE_OF = {
+    **dict.fromkeys(("BarModel", "Material", "PointMass", "Section", "reduce"), "bar"),
+    **dict.fromkeys(("ELEMENT_TYPES", "ELEMENTS", "fe_model", "node_bending_stress", "node_curvature"), "fe"),
+    **dict.fromkeys(("MODE_SETS", "analytic_modes", "mode_set"), "modes"),
+    **dict.fromkeys(("PLANAR_ELEMENTS", "PlanarBeam", "planar_beam"), "planar"),
+    **dict.fromkeys(("ModeSelection", "contact_band", "select_modes"), "selection"),
+}
+
+__all__ = list(_MODULE_OF)
+
+
+def __getattr__(name: str):
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_MODULE_OF[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -34,13 +34,25 @@ except ImportError:  # pragma: no cover - no numba, or a numba without it: _entr
     pass
 from viz3d.kernel.field import NONFINITE, OK, PROJECTION, ROTATION, SINGULAR, SPEED, gaps, rhs
 from viz3d.kernel.model import KernelData, Unsupported, pack, per_run, workspace
-from viz3d.kernel.adaptive import EVENT, FULL, GAP, GAP_RATE, MULTIPLIER, UNDERFLOW, UNLOCATED, adaptive_frames
 from viz3d.kernel.stepping import advance_frames, rk_step, state_ok
 
 __all__ = ["OK", "NONFINITE", "SINGULAR", "SPEED", "ROTATION", "PROJECTION", "EVENT", "UNDERFLOW", "FULL", "UNLOCATED",
            "KernelData", "kernel_for", "kernel_coverage", "keep_packed", "type_prints", "kernel_rhs", "kernel_advance",
            "CompiledField", "KernelStepper",
            "AdaptiveCarry", "StepRecords"]
+
+
+#: Names of the compiled adaptive driver (``viz3d.kernel.adaptive``) given here too, imported on first
+#: use: a run with fixed steps does not import the driver (7 ms of its start).
+_ADAPTIVE_NAMES = ("EVENT", "FULL", "UNDERFLOW", "UNLOCATED")
+
+
+def __getattr__(name: str):
+    if name in _ADAPTIVE_NAMES:
+        from viz3d.kernel import adaptive
+
+        return getattr(adaptive, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def kernel_coverage(system, formulation) -> tuple[KernelData | None, str | None]:
@@ -112,7 +124,9 @@ def memory_table(data: KernelData, memory: tuple) -> np.ndarray:
 def load_elements(data: KernelData, elements: tuple) -> None:
     """Put the force elements' memory ``elements`` (a ``State.element_memory``; () at none) into their
     packed data: the stick anchors of shape contacts (``viz3d.kernel.collisions.load_anchors``)."""
-    from viz3d.kernel.collisions import load_anchors
+    if not data.anchors:
+        return
+    from viz3d.kernel.collisions import load_anchors  # (imported by the packing of ``data.anchors``)
 
     for k, d in data.anchors:
         load_anchors(d, elements[k] if elements else None)
@@ -120,10 +134,9 @@ def load_elements(data: KernelData, elements: tuple) -> None:
 
 def stored_elements(data: KernelData, like: tuple) -> tuple:
     """``like`` (a ``State.element_memory``) with the memory now in the packed data (after compiled steps)."""
-    from viz3d.kernel.collisions import stored_anchors
-
     if not data.anchors:
         return like
+    from viz3d.kernel.collisions import stored_anchors
     out = list(like)
     for k, d in data.anchors:
         out[k] = stored_anchors(d)
@@ -259,10 +272,6 @@ class StepRecords(NamedTuple):
         return self.t.shape[0]
 
 
-#: Event kinds of ``viz3d.events.EventRow`` as the compiled driver numbers them.
-EVENT_KINDS = {"gap": GAP, "gap_rate": GAP_RATE, "multiplier": MULTIPLIER}
-
-
 class Samples(NamedTuple):
     """Output samples of N states (``KernelStepper.sample``; nb + 1 bodies, ground last).
 
@@ -331,21 +340,40 @@ def _entry_point(dispatcher, args, fingerprint=None, accepted: bool = False):
 
 
 def _typed_entry(dispatcher, args, accepted: bool = False):
-    """``_entry_point`` by numba's typing of ``args``; without it when the dispatcher holds no
-    signature yet (the call compiles or loads one) or holds one and has ``accepted`` these
-    arguments (then that one is theirs). The typing imports ``numpy.ma`` (numba's ``typeof`` of an
-    array asks whether it is masked) and takes about 10 ms for the packed model: 20 ms of a run's
-    start, before these two cases."""
+    """``_entry_point`` by the typing of ``args`` (``_argument_type``), the entry loaded from numba's
+    cache (or compiled) for them where the dispatcher holds none yet: a call of the dispatcher itself
+    would type them with numba's ``typeof``, which imports ``numpy.ma`` to ask whether an array is
+    masked (10 ms of a run's start). Without typing where it holds one signature and has ``accepted``
+    these arguments (then that one is theirs); the typing takes about 10 ms for the packed model.
+    The dispatcher itself where no entry can be had so (no numba)."""
     overloads = getattr(dispatcher, "overloads", None)
-    if not overloads:
+    if overloads is None:
         return dispatcher
     if accepted and len(overloads) == 1:
         return next(iter(overloads.values())).entry_point
     try:
-        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        sig = tuple(_argument_type(dispatcher, a) for a in args)
+        if sig not in overloads:
+            dispatcher.compile(sig)
         return overloads[sig].entry_point
     except (AttributeError, KeyError):
         return dispatcher
+
+
+def _argument_type(dispatcher, a):
+    """numba's type of the argument ``a``, as ``dispatcher``'s typing of a call gives it
+    (``numba.core.typing.typeof``: arrays by dtype, dimensions, layout and writability, tuples and
+    named tuples by their items, through numba's own constructors), without asking whether an array
+    is masked (``type(a) is np.ndarray``; any other value is typed by numba)."""
+    from numba.core import types
+    from numba.np import numpy_support
+
+    if type(a) is np.ndarray:
+        return types.Array(numpy_support.from_dtype(a.dtype), a.ndim, numpy_support.map_layout(a),
+                           readonly=not a.flags.writeable)
+    if type(a) is tuple or (isinstance(a, tuple) and hasattr(type(a), "_asdict")):
+        return types.BaseTuple.from_types([_argument_type(dispatcher, x) for x in a], type(a))
+    return dispatcher.typeof_pyval(a)
 
 
 class KernelStepper:
@@ -570,6 +598,8 @@ class KernelStepper:
         of the contacts' bristles move after each step (in a copy of ``memory``'s rows, recorded). Returns
         ``(Ts, Y, charts, frames done, samples done in the next frame, status)``, the first three
         over the frames done: times (N,) [s], states (N, n), charts (N, nf, 3, 3)."""
+        from viz3d.kernel.adaptive import EVENT_KINDS, adaptive_frames
+
         d, tab = self.data, self.tableau
         if self._method is None or self._method[0] != controller:
             self._method = controller, _adaptive_method(tab, controller)

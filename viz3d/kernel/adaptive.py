@@ -81,6 +81,8 @@ STEPS, REJECTED, EVALS = 0, 1, 2
 #: Event kinds (``viz3d.events.ContactStepping.event_rows``): a contact's ``alpha`` less its floor,
 #: its ``alpha_dot``, a kinematic contact's multiplier.
 GAP, GAP_RATE, MULTIPLIER = 0, 1, 2
+#: Event kinds of ``viz3d.events.EventRow`` as the driver numbers them.
+EVENT_KINDS = {"gap": GAP, "gap_rate": GAP_RATE, "multiplier": MULTIPLIER}
 
 
 #: Block of numpy's pairwise summation (``PW_BLOCKSIZE`` of numpy/_core/src/umath/loops_utils.h).

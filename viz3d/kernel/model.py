@@ -275,12 +275,13 @@ def _register_pieces() -> None:
     """Import viz3d's modules with compiled pieces: the kernel's argument types (one ``Items`` per
     registered class, ``registered``) must not depend on what the caller happened to import (a
     system built without the contact modules left the contact tables empty, and ``sample`` failed to
-    compile over the empty tuple)."""
+    compile over the empty tuple). Not the shape contacts' (``viz3d.kernel.collisions``, 6 ms of a
+    run's start): their data is in the tuples only where the system has them (``present_only``), and
+    packing them imports the module (``Packer.collision_items``)."""
     import viz3d.contact.contacts  # noqa: F401
     import viz3d.contact.laws  # noqa: F401
     import viz3d.forces  # noqa: F401
     import viz3d.joints  # noqa: F401
-    import viz3d.kernel.collisions  # noqa: F401
 
 
 def pack(system, formulation) -> KernelData:
@@ -313,16 +314,12 @@ def per_run(system, formulation) -> bool:
 
 def _anchors(forces, parts: dict[type, list]) -> tuple:
     """``KernelData.anchors``: each shape-contact element with stick anchors and its packed data."""
+    shapes = [(k, e) for k, e in enumerate(forces) if getattr(e, "type_name", None) == "collisions"]
+    if not shapes:  # (their module is imported where they are packed: ``Packer.collision_items``)
+        return ()
     from viz3d.kernel.collisions import CollisionItems
 
-    packed = iter(parts.get(CollisionItems, []))
-    out = []
-    for k, e in enumerate(forces):
-        if getattr(e, "type_name", None) == "collisions":
-            d = next(packed)
-            if e.has_memory:
-                out.append((k, d))
-    return tuple(out)
+    return tuple((k, d) for (k, e), d in zip(shapes, parts[CollisionItems]) if e.has_memory)
 
 
 def _energy_gap(forces, classes: dict[int, list[type]]) -> str | None:

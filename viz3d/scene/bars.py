@@ -13,8 +13,8 @@ import numpy as np
 
 from viz3d._typing import FloatArray
 from viz3d.bodies import FlexibleBody
-from viz3d.flexible import BarModel, Material, PointMass, Section, analytic_modes, contact_band, fe_model, reduce, select_modes
-from viz3d.flexible.bar import rigid_mode_count
+from viz3d.flexible.bar import BarModel, Material, PointMass, Section, reduce, rigid_mode_count
+from viz3d.flexible.fe import fe_model
 from viz3d.flexible.floating import E_X, E_Y, floating_bar, with_geometric_stiffening
 from viz3d.scene.schema import SceneError
 
@@ -64,6 +64,8 @@ def bar_model(bar: dict, src: str, where: str) -> tuple[BarModel, str]:
         if masses:
             raise SceneError(src, f"{where}.point_masses", "finite elements (model = fe) for a bar with point masses")
         if "modes" in bar:
+            from viz3d.flexible.modes import analytic_modes  # (a scene with bars only: 8 ms with the selection)
+
             return analytic_modes(*args, bar["modes"], supports), f"{bar['modes']} analytic modes (given)"
         return _economical(args, supports, bar.get("resolve_x", bar["length"]), bar.get("resolve_time"), bar["tolerance"])
     except SceneError:
@@ -88,6 +90,9 @@ def _fe(bar, args, supports, masses, floating, src, where) -> tuple[BarModel, st
 
 def _economical(args, supports, x_c: float, t_c: float | None, tol: float) -> tuple[BarModel, str]:
     """Fewest analytic modes that resolve the contact's band and meet the truncation tolerance."""
+    from viz3d.flexible.modes import analytic_modes
+    from viz3d.flexible.selection import contact_band, select_modes
+
     reference = analytic_modes(*args, SELECTION_REFERENCE_MODES, supports)
     omega_max = contact_band(t_c) if t_c else None
     sel = select_modes(reference, x_c, omega_max=omega_max, tol=tol)

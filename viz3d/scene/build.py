@@ -31,7 +31,6 @@ from viz3d.outputs import GAUGES
 from viz3d.points import body_points
 from viz3d.rotations import matrix_from_euler
 from viz3d.scene.bars import flexible_body
-from viz3d.scene.collisions import bodies_matching, build_collisions
 from viz3d.scene.contacts import contact_law, friction_law
 from viz3d.scene.contacts import materials as contact_materials
 from viz3d.scene.load import Scene
@@ -94,8 +93,8 @@ def build_system(scene: Scene) -> System:
     rows = joints + drives + tuple(ContactRows(c, c.rigid_rows(), k) for k, c in enumerate(contacts) if len(c.rigid_rows()))
     n_e = sum(fb.n for fb in bodies.flexible)
     gravity = Gravity(bodies.mass, np.asarray(sim["gravity"], float), bodies.flexible, n_e)
-    forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_servos(scene, joints) + build_collisions(
-        scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies)) + build_water(scene, bodies)
+    forces = (gravity,) + build_forces(scene, bodies, pose0, joints) + build_servos(scene, joints) + shape_contacts(
+        scene, bodies) + build_water(scene, bodies)
     outputs = build_gauges(scene, bodies) + build_stowage_outputs(scene, bodies, joints, W_r0)
     system = System(bodies, build_layout(rows, bodies), forces, rotation, contacts, outputs)
     formulation = make_formulation(sim) if sim["compiled"] else None
@@ -183,11 +182,12 @@ def build_water(scene: Scene, bodies: Bodies) -> tuple:
     every rigid body with a primitive shape or a closed, outward mesh (open meshes, collision surfaces
     given their inertia, stay dry). A mesh body's cells are cut in its frame: the mesh shifted by its
     centroid, unless its inertia is given (``body_mass_properties``, ``shape_centers``)."""
-    from viz3d.water import Water, volume_cells
-
     spec, src = scene.data.get("water"), scene.source()
     if spec is None or not spec["enabled"]:
         return ()
+    from viz3d.scene.collisions import bodies_matching
+    from viz3d.water import Water, volume_cells
+
     specs = scene.data["bodies"]
 
     def unit(i: int):  # unit mass properties of body i's shape; SceneError if shapeless or an open mesh
@@ -229,6 +229,16 @@ def build_water(scene: Scene, bodies: Bodies) -> tuple:
     return (Water(np.array([i for i, _ in chosen], int), X, w, np.array(c), np.pi * (3 * V / (4 * np.pi)) ** (2 / 3),
                   float(spec["level"]), normal / np.linalg.norm(normal), float(spec["density"]),
                   float(np.linalg.norm(g)), float(spec["drag_coefficient"])),)
+
+
+def shape_contacts(scene: Scene, bodies: Bodies) -> tuple:
+    """The shape contacts of a scene's ``[collision]`` table (``viz3d.scene.collisions``, imported only
+    for a scene with one: with ``viz3d.contact.collision`` it is 9 ms of a run's start)."""
+    if scene.data.get("collision") is None:
+        return ()
+    from viz3d.scene.collisions import build_collisions
+
+    return build_collisions(scene, bodies.n_bodies, bodies.is_rigid, shape_centers(scene, bodies))
 
 
 def shape_centers(scene: Scene, bodies: Bodies) -> list:
