@@ -224,11 +224,16 @@ def test_the_command_starts_blas_on_one_thread_unless_the_user_chose_a_count():
 def test_the_command_holds_the_collector_through_its_start_up_only():
     """``viz3d.__main__`` turns the cyclic garbage collector off for the start-up
     (``viz3d.process.hold_collector``: its full collections scanned numba's 10^5 objects again and
-    again) and on again, the objects made so far frozen, at most ``STARTUP_SECONDS`` later."""
-    probe = ("import gc, time\n"
+    again) and on again, the objects made so far frozen, at most ``STARTUP_SECONDS`` later; a process
+    forked meanwhile collects from its start."""
+    probe = ("import gc, os, time\n"
              "import viz3d.__main__\n"
              "from viz3d.process import STARTUP_SECONDS, hold_collector, release_collector\n"
              "held = not gc.isenabled()\n"
+             "pid = os.fork()\n"
+             "if pid == 0:\n"
+             "    os._exit(0 if gc.isenabled() else 3)\n"
+             "assert os.waitpid(pid, 0)[1] == 0, 'the forked child does not collect'\n"
              "time.sleep(STARTUP_SECONDS + 1.0)\n"
              "print(held, gc.isenabled(), gc.get_freeze_count() > 0)\n"
              "gc.unfreeze()\n"

@@ -34,16 +34,19 @@ def hold_collector(seconds: float = STARTUP_SECONDS) -> None:
 
     A start-up creates some 10^5 objects that live as long as the process (numba's typing and
     lowering tables, viz3d's classes, the kernel loaded from the cache), and each full collection
-    while they were made scanned all of them again: 30 ms of the 0.41 s a ``viz3d run`` of a small
-    scene took (benchmarks/bench_startup.py, 2026-11-29). Frozen, the collections that follow skip
+    while they were made scanned all of them again: 30 ms of the 0.42 s a ``viz3d run`` of a small
+    scene took (heavy_top, interleaved runs with and without, 2026-11-29). Frozen, the collections that follow skip
     them. The bound keeps a long command (a run, a viewer) collecting like any other process; cycles
-    made and dropped within the start-up are kept (they are few, and the start-up ends)."""
+    made and dropped within the start-up are kept (they are few, and the start-up ends). A process
+    forked during the start-up (without the timer's thread) collects from its start."""
     if not gc.isenabled():
         return
     gc.disable()
     timer = threading.Timer(seconds, release_collector)
     timer.daemon = True
     timer.start()
+    if hasattr(os, "register_at_fork"):
+        os.register_at_fork(after_in_child=release_collector)
 
 
 def release_collector() -> None:
