@@ -12,6 +12,13 @@ SCENES = ROOT / "scenes"
 sys.path.insert(0, str(Path(__file__).parent))  # tests/references.py
 
 
+@pytest.fixture(autouse=True)
+def _mesh_cache(tmp_path_factory, monkeypatch):
+    """Each test its own disk cache of mesh files' mass properties (``viz3d.geometry.mesh_cache_dir``),
+    its subprocesses too: none reads another test's entries, nor the user's."""
+    monkeypatch.setenv("VIZ3D_CACHE_DIR", str(tmp_path_factory.mktemp("viz3d-cache")))
+
+
 @pytest.fixture
 def write_scene(tmp_path):
     """Write ``text`` to a scene file in a temporary directory and return its path."""

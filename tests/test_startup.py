@@ -40,13 +40,13 @@ def offending(modules: set[str], names: tuple[str, ...]) -> list[str]:
     return sorted(n for n in names if n in modules)
 
 
-def modules_of_a_warm_run(tmp_path) -> set[str]:
-    """``loaded_after`` a headless run of the heavy top whose kernel came from numba's cache (a first run
-    warms it, compiling the kernel if it is cold)."""
+def modules_of_a_warm_run(tmp_path, scene: str = "heavy_top") -> set[str]:
+    """``loaded_after`` a headless run of ``scene`` (the heavy top) whose kernel came from numba's cache (a
+    first run warms it, compiling the kernel if it is cold, and the mesh properties' disk cache)."""
     pytest.importorskip("numba")
     out = tmp_path / "top.npz"
     run = ("from viz3d.cli import main\n"
-           f"assert main(['run', 'scenes/heavy_top.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
+           f"assert main(['run', 'scenes/{scene}.toml', '--t-end', '0.01', '--out', {str(out)!r}, '--no-progress']) == 0\n")
     loaded_after(run)
     return loaded_after(run + "from viz3d.kernel import stepping\n"
                               "assert stepping.advance_frames.stats.cache_hits, 'the kernel was compiled, not loaded'")
@@ -99,6 +99,13 @@ NOT_IN_A_RIGID_RUN = ("numpy.ma", "viz3d.ali3p", "viz3d.kernel.adaptive", "viz3d
 def test_a_warm_rigid_run_imports_nothing_its_scene_does_not_use(tmp_path):
     modules = modules_of_a_warm_run(tmp_path)
     assert not offending(modules, NOT_IN_A_RIGID_RUN)
+
+
+def test_a_warm_run_of_a_mesh_body_imports_no_mesh_library(tmp_path):
+    """The torque-free T-handle's mass properties come from its mesh file: computed once (trimesh, and
+    with it scipy.spatial, scipy.sparse and scipy.optimize), then read from the disk cache."""
+    modules = modules_of_a_warm_run(tmp_path, "torque_free")
+    assert not offending(modules, ("trimesh",) + UNUSED_SCIPY + NOT_IN_A_RIGID_RUN)
 
 
 def test_reading_a_cache_index_imports_no_module_of_the_other_signatures(tmp_path):

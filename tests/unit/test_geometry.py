@@ -120,3 +120,37 @@ def test_a_mesh_file_is_read_once_per_version(tmp_path, write_scene, monkeypatch
     second, _ = viz3d.build(scene)
     assert len(reads) == 2
     assert second.bodies.mass[0] == pytest.approx(2 * first.bodies.mass[0], rel=1e-12)
+
+
+def test_a_mesh_files_properties_are_kept_on_disk_by_its_contents(tmp_path, write_scene):
+    """A build in a fresh process finds a mesh file's mass properties on disk, equal to the computed ones
+    to the last bit, without importing trimesh (``viz3d.geometry.mesh_cache_dir``: 0.26 s of such a
+    run's start); a damaged entry is computed again and replaced; new contents get their own entry."""
+    import json
+    import subprocess
+    import sys
+
+    from viz3d.geometry import mesh_cache_dir
+
+    f = _box_with(tmp_path, "box.obj", lambda m: m)
+    path = write_scene(BODY_WITH_MESH.format(file=f.name))
+    probe = ("import sys, viz3d\n"
+             f"system, _ = viz3d.build(viz3d.load_scene({str(path)!r}))\n"
+             "print(repr(float(system.bodies.mass[0])), repr(system.bodies.inertia[0].tolist()), 'trimesh' in sys.modules)")
+
+    def fresh() -> list[str]:
+        out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600, check=True)
+        return out.stdout.strip().rsplit(" ", 1)
+
+    computed, imported = fresh()
+    assert imported == "True"
+    entries = list(mesh_cache_dir().glob("*.json"))
+    assert len(entries) == 1
+    assert fresh() == [computed, "False"]
+    entries[0].write_text('{"volume": 1.0, "center": [0.0')  # damaged
+    assert fresh() == [computed, "True"]
+    assert json.loads(entries[0].read_text())["volume"] == pytest.approx(0.2 * 0.1 * 0.05, rel=1e-12)
+    trimesh.creation.box(extents=(0.4, 0.1, 0.05)).export(f)
+    bigger, imported = fresh()
+    assert imported == "True" and len(list(mesh_cache_dir().glob("*.json"))) == 2
+    assert float(bigger.split()[0]) == pytest.approx(2 * float(computed.split()[0]), rel=1e-12)
