@@ -8,6 +8,7 @@ contents (``mesh_cache_dir``): a headless run of a scene with mesh bodies then i
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -181,13 +182,14 @@ def _store_properties(key: str, props: UnitMassProperties) -> None:
     where the cache cannot be written."""
     entry = {"volume": props.volume, "center": props.center.tolist(), "inertia": props.inertia.tolist()}
     directory = mesh_cache_dir()
+    tmp = directory / f"{key}.{os.getpid()}.tmp"
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        tmp = directory / f"{key}.{os.getpid()}.tmp"
         tmp.write_text(json.dumps(entry))
         os.replace(tmp, directory / f"{key}.json")
     except OSError:
-        pass
+        with contextlib.suppress(OSError):  # (a part written before the failure)
+            tmp.unlink(missing_ok=True)
 
 
 def mesh_properties(mesh) -> UnitMassProperties:
