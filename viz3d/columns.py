@@ -319,9 +319,7 @@ class Runs(Sequence):
 
 def generation_runs(states) -> list[States]:
     """``states`` (``States``, ``Runs`` or a sequence of ``State``) as runs of one generation each."""
-    if isinstance(states, Runs):
-        return states.runs
-    if not isinstance(states, States):
+    if not isinstance(states, (States, Runs)):
         states = joined([States.of([st]) for st in states]) if len(states) else States.of([])
     return states.runs if isinstance(states, Runs) else [states]
 

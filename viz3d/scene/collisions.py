@@ -23,13 +23,12 @@ GROUND = "ground"
 
 
 def build_collisions(scene, n_bodies: int, is_rigid, centers) -> tuple[Collisions, ...]:
-    """The ``Collisions`` force element of a scene (empty without a ``[collision]`` table).
+    """The ``Collisions`` force element of a scene with a ``[collision]`` table (``scene.build.shape_contacts``
+    calls it for those only).
 
     ``centers[i]``: the centroid of body i's mesh shape in its own frame (vertices are shifted by it).
     """
-    spec = scene.data.get("collision")
-    if spec is None:
-        return ()
+    spec = scene.data["collision"]
     src, bodies = scene.source(), scene.data["bodies"]
     groups = _groups(src, spec, bodies, is_rigid)
     names = list(groups) + [GROUND]
